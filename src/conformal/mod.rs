@@ -1,0 +1,3 @@
+//! Normalization and conformal flattening onto the unit disk.
+//!
+//! (to be implemented)

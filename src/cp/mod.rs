@@ -1,0 +1,3 @@
+//! Prepared surfaces and the continuous Procrustes distance.
+//!
+//! (to be implemented)

@@ -1,0 +1,3 @@
+//! Distance matrices, labels and leave-one-out classification.
+//!
+//! (to be implemented)

@@ -1,0 +1,17 @@
+//! morphoid: identify anatomical surfaces with the continuous Procrustes
+//! distance.
+//!
+//! The library is layered; each layer only uses the ones above it:
+//! - [`mesh`]: the triangle-mesh type, file formats, synthetic surfaces;
+//! - [`clean`]: turn a raw scan into a clean disk-type surface;
+//! - [`conformal`]: normalization and conformal flattening to the unit disk;
+//! - [`cp`]: prepared surfaces and the continuous Procrustes distance;
+//! - [`eval`]: distance matrices and leave-one-out classification.
+//!
+//! See `ARCHITECTURE.md` at the repository root for the data flow.
+
+pub mod clean;
+pub mod conformal;
+pub mod cp;
+pub mod eval;
+pub mod mesh;

@@ -1,0 +1,5 @@
+//! The `morphoid` command-line tool.
+
+fn main() {
+    println!("morphoid");
+}

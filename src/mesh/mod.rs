@@ -1,0 +1,134 @@
+//! Triangle meshes: the plain data type every stage shares, its elementary
+//! geometry and topology, and (in submodules) reading/writing and the
+//! synthetic surface generator.
+
+pub mod io;
+pub mod synth;
+mod topology;
+
+pub use topology::{boundary_loops, edge_face_map, euler_characteristic, EdgeKey};
+
+/// A triangle mesh (or, with no faces, a point cloud).
+///
+/// Plain data: positions in the units of the source file, faces as
+/// counter-clockwise vertex index triples (outward normal by the right-hand
+/// rule, once orientation has been made consistent by cleaning).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Mesh {
+    /// Vertex positions.
+    pub vertices: Vec<[f64; 3]>,
+    /// Triangles as indices into `vertices`.
+    pub faces: Vec<[u32; 3]>,
+}
+
+impl Mesh {
+    /// A mesh from vertices and faces, unchecked.
+    pub fn new(vertices: Vec<[f64; 3]>, faces: Vec<[u32; 3]>) -> Self {
+        Self { vertices, faces }
+    }
+
+    /// True when the mesh has no faces (a point cloud).
+    pub fn is_point_cloud(&self) -> bool {
+        self.faces.is_empty()
+    }
+
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.vertices.len()
+    }
+
+    /// Number of faces.
+    pub fn face_count(&self) -> usize {
+        self.faces.len()
+    }
+}
+
+/// Vector difference `a - b`.
+#[inline]
+pub fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// Cross product `a × b`.
+#[inline]
+pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// Dot product.
+#[inline]
+pub fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Euclidean norm.
+#[inline]
+pub fn norm(a: [f64; 3]) -> f64 {
+    dot(a, a).sqrt()
+}
+
+/// Area-weighted (unnormalized) normal of a triangle: `(b - a) × (c - a)`,
+/// whose length is twice the triangle's area.
+#[inline]
+pub fn triangle_normal2(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
+    cross(sub(b, a), sub(c, a))
+}
+
+/// Area of the triangle `abc`.
+#[inline]
+pub fn triangle_area(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
+    0.5 * norm(triangle_normal2(a, b, c))
+}
+
+/// Area of every face.
+pub fn face_areas(mesh: &Mesh) -> Vec<f64> {
+    mesh.faces
+        .iter()
+        .map(|f| {
+            triangle_area(
+                mesh.vertices[f[0] as usize],
+                mesh.vertices[f[1] as usize],
+                mesh.vertices[f[2] as usize],
+            )
+        })
+        .collect()
+}
+
+/// Total surface area.
+pub fn surface_area(mesh: &Mesh) -> f64 {
+    face_areas(mesh).iter().sum()
+}
+
+/// Barycentric vertex areas: a third of the area of each incident face.
+pub fn vertex_areas(mesh: &Mesh) -> Vec<f64> {
+    let mut areas = vec![0.0; mesh.vertices.len()];
+    for (f, a) in mesh.faces.iter().zip(face_areas(mesh)) {
+        for &v in f {
+            areas[v as usize] += a / 3.0;
+        }
+    }
+    areas
+}
+
+/// Axis-aligned bounding box `(min, max)`; `None` for an empty mesh.
+pub fn bounding_box(mesh: &Mesh) -> Option<([f64; 3], [f64; 3])> {
+    let first = *mesh.vertices.first()?;
+    let mut lo = first;
+    let mut hi = first;
+    for v in &mesh.vertices {
+        for k in 0..3 {
+            lo[k] = lo[k].min(v[k]);
+            hi[k] = hi[k].max(v[k]);
+        }
+    }
+    Some((lo, hi))
+}
+
+/// Length of the bounding-box diagonal (0 for an empty mesh).
+pub fn bbox_diagonal(mesh: &Mesh) -> f64 {
+    bounding_box(mesh).map_or(0.0, |(lo, hi)| norm(sub(hi, lo)))
+}

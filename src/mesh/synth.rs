@@ -1,0 +1,3 @@
+//! Synthetic crown-like disk surfaces for tests and the demo.
+//!
+//! (to be implemented)
