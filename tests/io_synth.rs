@@ -118,3 +118,57 @@ fn configurations_differ_more_than_individuals() {
         }
     }
 }
+
+#[test]
+fn synthetic_library_is_complete_and_reproducible() {
+    use morphoid::mesh::synth::{write_synthetic_library, LibrarySpec};
+    let spec = LibrarySpec {
+        per_genus: 2,
+        target_vertices: 400,
+        seed: 5,
+        random_pose: false,
+    };
+    let a = tempfile::tempdir().unwrap();
+    let b = tempfile::tempdir().unwrap();
+    let lib = write_synthetic_library(a.path(), &spec).unwrap();
+    write_synthetic_library(b.path(), &spec).unwrap();
+    assert_eq!(lib.len(), 2 * CROWN_GENERA.len());
+    let labels = std::fs::read_to_string(a.path().join("labels.csv")).unwrap();
+    let rows: Vec<&str> = labels.lines().collect();
+    assert_eq!(rows[0], "name,order,family,genus");
+    assert_eq!(rows.len(), 1 + lib.len());
+    let mut names = std::collections::HashSet::new();
+    for (s, row) in lib.iter().zip(&rows[1..]) {
+        assert!(names.insert(s.name.clone()));
+        assert_eq!(
+            *row,
+            format!(
+                "{},{},{},{}",
+                s.name, s.genus.order, s.genus.family, s.genus.name
+            )
+        );
+        let m = morphoid::mesh::io::load(&s.path).unwrap().mesh;
+        assert_eq!(euler_characteristic(&m), 1);
+        let other = b.path().join(s.path.file_name().unwrap());
+        assert_eq!(
+            std::fs::read(&s.path).unwrap(),
+            std::fs::read(other).unwrap()
+        );
+    }
+    // Posed specimens are the same surfaces, moved and scaled.
+    let posed = LibrarySpec {
+        random_pose: true,
+        ..spec
+    };
+    let g = &CROWN_GENERA[0];
+    let plain = morphoid::mesh::synth::library::specimen_mesh(g, 9, &spec);
+    let moved = morphoid::mesh::synth::library::specimen_mesh(g, 9, &posed);
+    assert_eq!(plain.faces, moved.faces);
+    let ratio = morphoid::mesh::surface_area(&moved) / morphoid::mesh::surface_area(&plain);
+    assert!((0.25 - 1e-9..=4.0 + 1e-9).contains(&ratio), "{ratio}");
+    let edge = |m: &Mesh, i: usize| norm(sub(m.vertices[i], m.vertices[0]));
+    let s0 = edge(&moved, 1) / edge(&plain, 1);
+    for i in 2..50 {
+        assert!((edge(&moved, i) / edge(&plain, i) - s0).abs() < 1e-9);
+    }
+}

@@ -11,12 +11,15 @@
 //! [`transform`] holds pure functions that move, damage or resample a mesh
 //! (rigid motions, mirror images, flipped faces, triangle soups, debris,
 //! holes, point clouds, subdivision, a closed sphere), and [`bad_inputs`]
-//! writes the malformed files the daemon must survive.
+//! writes the malformed files the daemon must survive; [`library`] writes a
+//! labelled reference library of crowns.
 
 pub mod bad_inputs;
+pub mod library;
 pub mod transform;
 
 pub use bad_inputs::write_bad_inputs;
+pub use library::{write_synthetic_library, LibrarySpec, Specimen};
 pub use transform::{
     add_debris, closed_sphere, flip_faces, mirror, punch_hole, rigid_motion, scale,
     subdivide_midpoint, to_point_cloud, triangle_soup, RigidMotion,
@@ -47,8 +50,12 @@ pub struct Cusp {
 /// A crown configuration: the "genus" of a synthetic specimen.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CrownGenus {
-    /// Short name, usable as a taxon label.
+    /// Genus name, used as the taxon label.
     pub name: &'static str,
+    /// Family the genus is filed under in synthetic libraries.
+    pub family: &'static str,
+    /// Order the family is filed under in synthetic libraries.
+    pub order: &'static str,
     /// The cusps.
     pub cusps: &'static [Cusp],
     /// Footprint half-axis along x (the y half-axis is 1).
@@ -82,9 +89,13 @@ const fn ridge(x: f64, y: f64, height: f64, width: f64, elongation: f64, angle: 
 /// The built-in crown configurations, clearly different from each other:
 /// three cusps in a triangle, four in a square, five (four and a distal
 /// one), two transverse ridges, and one tall cusp with two small ones.
+/// They are filed in three families and two orders, so that a synthetic
+/// library has several taxonomic ranks.
 pub const CROWN_GENERA: [CrownGenus; 5] = [
     CrownGenus {
-        name: "tricuspis",
+        name: "Tricuspis",
+        family: "Tricuspidae",
+        order: "Synthoformes",
         cusps: &[
             cusp(0.0, 0.5, 0.42, 0.22),
             cusp(-0.45, -0.27, 0.36, 0.22),
@@ -94,7 +105,9 @@ pub const CROWN_GENERA: [CrownGenus; 5] = [
         dome: 0.12,
     },
     CrownGenus {
-        name: "quadricuspis",
+        name: "Quadricuspis",
+        family: "Quadricuspidae",
+        order: "Fictiformes",
         cusps: &[
             cusp(0.5, 0.4, 0.32, 0.2),
             cusp(-0.5, 0.4, 0.32, 0.2),
@@ -105,7 +118,9 @@ pub const CROWN_GENERA: [CrownGenus; 5] = [
         dome: 0.1,
     },
     CrownGenus {
-        name: "quinquecuspis",
+        name: "Quinquecuspis",
+        family: "Quadricuspidae",
+        order: "Fictiformes",
         cusps: &[
             cusp(0.45, 0.38, 0.3, 0.18),
             cusp(-0.2, 0.42, 0.3, 0.18),
@@ -117,7 +132,9 @@ pub const CROWN_GENERA: [CrownGenus; 5] = [
         dome: 0.1,
     },
     CrownGenus {
-        name: "lophodon",
+        name: "Lophodon",
+        family: "Lophodontidae",
+        order: "Fictiformes",
         cusps: &[
             ridge(0.45, 0.0, 0.3, 0.13, 3.5, std::f64::consts::FRAC_PI_2),
             ridge(-0.45, 0.0, 0.3, 0.13, 3.5, std::f64::consts::FRAC_PI_2),
@@ -126,7 +143,9 @@ pub const CROWN_GENERA: [CrownGenus; 5] = [
         dome: 0.08,
     },
     CrownGenus {
-        name: "monocuspis",
+        name: "Monocuspis",
+        family: "Tricuspidae",
+        order: "Synthoformes",
         cusps: &[
             cusp(0.2, 0.05, 0.6, 0.26),
             cusp(-0.5, 0.4, 0.15, 0.15),
@@ -137,9 +156,11 @@ pub const CROWN_GENERA: [CrownGenus; 5] = [
     },
 ];
 
-/// Look up a built-in configuration by name.
+/// Look up a built-in configuration by name (case-insensitive).
 pub fn crown_genus(name: &str) -> Option<&'static CrownGenus> {
-    CROWN_GENERA.iter().find(|g| g.name == name)
+    CROWN_GENERA
+        .iter()
+        .find(|g| g.name.eq_ignore_ascii_case(name))
 }
 
 /// A flat, triangulated unit disk in the plane z = 0 with about

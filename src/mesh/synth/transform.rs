@@ -137,31 +137,45 @@ pub fn to_point_cloud(mesh: &Mesh) -> Mesh {
 
 /// Add `count` small closed blobs (icospheres of radius 1 % of the
 /// bounding-box diagonal) floating 3–6 % of the diagonal away from random
-/// vertices, like loose particles in a scan.
+/// vertices, on the side their normals point to, like loose particles in a
+/// scan. The blobs share no vertex with the mesh.
 pub fn add_debris(mesh: &Mesh, count: usize, seed: u64) -> Mesh {
     let mut out = mesh.clone();
     if mesh.vertices.is_empty() {
         return out;
     }
     let diag = bbox_diagonal(mesh).max(f64::MIN_POSITIVE);
+    let normals = vertex_normals(mesh);
     let blob = closed_sphere(42);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     for _ in 0..count {
-        let anchor = mesh.vertices[rng.gen_range(0..mesh.vertices.len())];
-        let dir = random_unit_vector(&mut rng);
+        let anchor = rng.gen_range(0..mesh.vertices.len());
+        let jitter = random_unit_vector(&mut rng);
+        let n = normals[anchor];
+        let mut dir = [0.0; 3];
+        for k in 0..3 {
+            dir[k] = n[k] + 0.5 * jitter[k];
+        }
+        let len = norm(dir);
+        let dir = if len > 1e-9 {
+            [dir[0] / len, dir[1] / len, dir[2] / len]
+        } else {
+            jitter
+        };
         let dist = diag * rng.gen_range(0.03..0.06);
+        let p = mesh.vertices[anchor];
         let centre = [
-            anchor[0] + dist * dir[0],
-            anchor[1] + dist * dir[1],
-            anchor[2] + dist * dir[2],
+            p[0] + dist * dir[0],
+            p[1] + dist * dir[1],
+            p[2] + dist * dir[2],
         ];
         let radius = 0.01 * diag;
         let base = out.vertices.len() as u32;
-        out.vertices.extend(blob.vertices.iter().map(|p| {
+        out.vertices.extend(blob.vertices.iter().map(|q| {
             [
-                centre[0] + radius * p[0],
-                centre[1] + radius * p[1],
-                centre[2] + radius * p[2],
+                centre[0] + radius * q[0],
+                centre[1] + radius * q[1],
+                centre[2] + radius * q[2],
             ]
         }));
         out.faces.extend(
@@ -171,6 +185,27 @@ pub fn add_debris(mesh: &Mesh, count: usize, seed: u64) -> Mesh {
         );
     }
     out
+}
+
+/// Unit area-weighted vertex normals (zero where undefined).
+fn vertex_normals(mesh: &Mesh) -> Vec<[f64; 3]> {
+    let mut normals = vec![[0.0; 3]; mesh.vertices.len()];
+    for f in &mesh.faces {
+        let p = |k: usize| mesh.vertices[f[k] as usize];
+        let n = crate::mesh::triangle_normal2(p(0), p(1), p(2));
+        for &i in f {
+            for k in 0..3 {
+                normals[i as usize][k] += n[k];
+            }
+        }
+    }
+    for n in &mut normals {
+        let len = norm(*n);
+        if len > 0.0 {
+            *n = [n[0] / len, n[1] / len, n[2] / len];
+        }
+    }
+    normals
 }
 
 fn random_unit_vector(rng: &mut ChaCha8Rng) -> [f64; 3] {
