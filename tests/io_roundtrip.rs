@@ -117,3 +117,88 @@ fn writers_refuse_invalid_meshes() {
     m.vertices[2][1] = f64::NAN;
     assert!(encode(&m, Encoding::PlyAscii).is_err());
 }
+
+/// Big-endian binary PLY with mixed scalar types, properties in an unusual
+/// order, an extra list property and an extra element.
+#[test]
+fn ply_with_any_property_layout() {
+    let mut b = b"ply\nformat binary_big_endian 1.0\ncomment mixed\n\
+        element vertex 4\nproperty uchar red\nproperty double z\nproperty float x\n\
+        property short y\nproperty list uchar float extra\n\
+        element edge 1\nproperty int a\nproperty int b\n\
+        element face 1\nproperty uint flags\nproperty list ushort uint vertex_index\n\
+        end_header\n"
+        .to_vec();
+    let verts = [
+        (0.5f64, 1.0f32, 2i16),
+        (1.5, -1.0, 3),
+        (2.5, 4.0, -4),
+        (3.5, 0.25, 5),
+    ];
+    for (i, (z, x, y)) in verts.iter().enumerate() {
+        b.push(200);
+        b.extend_from_slice(&z.to_be_bytes());
+        b.extend_from_slice(&x.to_be_bytes());
+        b.extend_from_slice(&y.to_be_bytes());
+        b.push(i as u8);
+        for k in 0..i {
+            b.extend_from_slice(&(k as f32).to_be_bytes());
+        }
+    }
+    b.extend_from_slice(&0i32.to_be_bytes());
+    b.extend_from_slice(&1i32.to_be_bytes());
+    b.extend_from_slice(&7u32.to_be_bytes());
+    b.extend_from_slice(&4u16.to_be_bytes());
+    for i in [0u32, 1, 2, 3] {
+        b.extend_from_slice(&i.to_be_bytes());
+    }
+    let m = load_bytes(&b, Format::Ply, Path::new("mixed.ply"))
+        .unwrap()
+        .mesh;
+    assert_eq!(
+        m.vertices,
+        vec![
+            [1.0, 2.0, 0.5],
+            [-1.0, 3.0, 1.5],
+            [4.0, -4.0, 2.5],
+            [0.25, 5.0, 3.5]
+        ]
+    );
+    assert_eq!(m.faces, vec![[0, 1, 2], [0, 2, 3]]);
+    // One byte short: an error naming the file, not a partial mesh.
+    let err = load_bytes(&b[..b.len() - 1], Format::Ply, Path::new("mixed.ply")).unwrap_err();
+    assert!(err.to_string().starts_with("mixed.ply: "), "{err}");
+}
+
+/// STL: binary is recognized by its size even when its header begins
+/// with "solid"; ASCII by its content.
+#[test]
+fn stl_binary_and_ascii_detection() {
+    let m = square_pyramid();
+    let mut binary = encode(&m, Encoding::StlBinary).unwrap();
+    binary[..12].copy_from_slice(b"solid fooled");
+    let back = load_bytes(&binary, Format::Stl, Path::new("b.stl")).unwrap();
+    assert_close(&corners(&back.mesh), &corners(&m), 1e-6);
+    let ascii = encode(&m, Encoding::StlAscii).unwrap();
+    assert!(ascii.starts_with(b"solid"));
+    let back = load_bytes(&ascii, Format::Stl, Path::new("a.stl")).unwrap();
+    assert_close(&corners(&back.mesh), &corners(&m), 1e-12);
+    // A binary file with one byte too many is neither.
+    binary.push(0);
+    assert!(load_bytes(&binary, Format::Stl, Path::new("b.stl")).is_err());
+}
+
+/// A realistic mesh survives every encoding.
+#[test]
+fn synthetic_crown_round_trips() {
+    let m = morphoid::mesh::synth::crown(&morphoid::mesh::synth::CROWN_GENERA[1], 8, 5000);
+    for enc in ALL {
+        let back = load_bytes(&encode(&m, enc).unwrap(), enc.format(), Path::new("c")).unwrap();
+        assert_eq!(back.mesh.face_count(), m.face_count());
+        if enc.format() == Format::Stl {
+            assert_close(&corners(&back.mesh), &corners(&m), 1e-6);
+        } else {
+            assert_eq!(back.mesh, m, "{enc:?}");
+        }
+    }
+}

@@ -1,8 +1,8 @@
 //! Closest point on a triangle mesh, accelerated with a uniform grid of
 //! triangle buckets.
 
+use super::adjacency::FxHashMap as HashMap;
 use crate::mesh::{dot, norm, sub, Mesh};
-use std::collections::HashMap;
 
 /// The closest point of `p` on the triangle `abc` (Ericson, Real-Time
 /// Collision Detection, 5.1.5: Voronoi regions of the vertices and edges).
@@ -115,7 +115,7 @@ impl TriangleGrid {
         let min_cell = diag / (64.0 * mesh.faces.len() as f64).cbrt().max(1.0);
         let cell = (2.0 * mean_edge).max(min_cell).max(diag * 1e-9).max(1e-300);
         let dims = [0, 1, 2].map(|d| (((hi[d] - lo[d]) / cell).floor() as i64 + 1).max(1));
-        let mut cells: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
+        let mut cells: HashMap<[i64; 3], Vec<u32>> = HashMap::default();
         for (fi, f) in mesh.faces.iter().enumerate() {
             let ps = f.map(|v| mesh.vertices[v as usize]);
             let mut flo = [0i64; 3];

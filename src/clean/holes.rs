@@ -1,6 +1,7 @@
 //! Boundary loops, hole filling and the disk-type test.
 
-use crate::mesh::{boundary_loops, norm, sub, Mesh};
+use super::adjacency::boundary_loops_sorted;
+use crate::mesh::{norm, sub, Mesh};
 
 /// Length of a closed vertex loop.
 pub fn loop_length(mesh: &Mesh, lp: &[u32]) -> f64 {
@@ -15,9 +16,9 @@ pub fn loop_length(mesh: &Mesh, lp: &[u32]) -> f64 {
 }
 
 /// Boundary loops of an oriented manifold mesh, longest (by length) first;
-/// ties keep the order of [`boundary_loops`].
+/// ties keep the order of [`boundary_loops_sorted`].
 pub fn boundary_loops_by_length(mesh: &Mesh) -> Vec<Vec<u32>> {
-    let mut loops: Vec<(f64, Vec<u32>)> = boundary_loops(mesh)
+    let mut loops: Vec<(f64, Vec<u32>)> = boundary_loops_sorted(&mesh.faces)
         .into_iter()
         .map(|l| (loop_length(mesh, &l), l))
         .collect();
@@ -69,7 +70,7 @@ pub fn handle_count(chi: i64, boundaries: usize) -> i64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::euler_characteristic;
+    use crate::mesh::{boundary_loops, euler_characteristic};
 
     /// A square annulus: outer square of side 3, inner hole of side 1.
     fn annulus() -> Mesh {

@@ -78,7 +78,7 @@ pub fn split_nonmanifold_vertices(mesh: &Mesh) -> (Mesh, usize) {
     let mut faces = mesh.faces.clone();
     // The fan root that owns each vertex; corners are visited in order.
     let mut owner = vec![u32::MAX; mesh.vertices.len()];
-    let mut copies: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+    let mut copies: super::adjacency::FxHashMap<u32, u32> = Default::default();
     let mut split = vec![false; mesh.vertices.len()];
     for fi in 0..faces.len() {
         for k in 0..3 {

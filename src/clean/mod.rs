@@ -18,6 +18,9 @@
 //! 9. the mesh is resampled to the working resolution with well-shaped
 //!    triangles ([`resample`]).
 
+// Coordinate loops `for d in 0..3` read more clearly than zipped iterators.
+#![allow(clippy::needless_range_loop)]
+
 pub mod adjacency;
 pub mod closest;
 pub mod cloud;
@@ -29,7 +32,15 @@ pub mod orient;
 pub mod resample;
 pub mod weld;
 
-use crate::mesh::{bbox_diagonal, boundary_loops, euler_characteristic, surface_area, Mesh};
+use crate::mesh::{bbox_diagonal, surface_area, Mesh};
+
+fn boundary_loops(m: &Mesh) -> Vec<Vec<u32>> {
+    adjacency::boundary_loops_sorted(&m.faces)
+}
+
+fn euler_characteristic(m: &Mesh) -> i64 {
+    adjacency::euler_characteristic_sorted(m.vertices.len(), &m.faces)
+}
 
 /// Parameters of the cleaning pipeline.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
@@ -172,6 +183,43 @@ fn validate(mesh: &Mesh) -> Result<(), CleanError> {
     Ok(())
 }
 
+/// Steps 4–8: largest component, manifold repair, consistent orientation,
+/// hole filling, disk test and outward orientation, with counts added to
+/// `report`.
+fn make_disk(m: &Mesh, report: &mut CleanReport) -> Result<Mesh, CleanError> {
+    let min = 3;
+    let (m3, d1) = components::largest_component_by_area(m);
+    let (m4, ne) = manifold::repair_nonmanifold_edges(&m3);
+    let (m5, nv) = manifold::split_nonmanifold_vertices(&m4);
+    let (m6, d2) = components::largest_component_by_area(&m5);
+    report.dropped_components += d1 + d2;
+    report.repaired_nonmanifold_edges += ne;
+    report.repaired_nonmanifold_vertices += nv;
+    let m7 = faces::remove_unreferenced_vertices(&m6);
+    if m7.faces.len() < min {
+        return Err(CleanError::TooFewFaces(m7.faces.len()));
+    }
+    let (m8, flipped) =
+        orient::orient_faces_consistently(&m7).map_err(|_| CleanError::NonOrientable)?;
+    report.flipped_faces += flipped;
+    if boundary_loops(&m8).is_empty() {
+        return Err(CleanError::Closed);
+    }
+    let (m9, filled) = holes::fill_holes_except_longest(&m8);
+    report.filled_holes += filled;
+    let chi = euler_characteristic(&m9);
+    if chi != 1 {
+        return Err(CleanError::Handles(holes::handle_count(chi, 1), chi));
+    }
+    let outer = holes::boundary_loops_by_length(&m9);
+    if orient::normals_point_outward(&m9, outer.first().map_or(&[], |l| l)) {
+        Ok(m9)
+    } else {
+        report.reversed_orientation = !report.reversed_orientation;
+        Ok(orient::reverse_faces(&m9))
+    }
+}
+
 /// Run the whole cleaning pipeline (see the module documentation).
 pub fn clean(mesh: &Mesh, opts: &CleanOptions) -> Result<Cleaned, CleanError> {
     validate(mesh)?;
@@ -202,40 +250,18 @@ pub fn clean(mesh: &Mesh, opts: &CleanOptions) -> Result<Cleaned, CleanError> {
         return Err(CleanError::TooFewFaces(m2.faces.len()));
     }
 
-    let (m3, d1) = components::largest_component_by_area(&m2);
-    let (m4, ne) = manifold::repair_nonmanifold_edges(&m3);
-    let (m5, nv) = manifold::split_nonmanifold_vertices(&m4);
-    let (m6, d2) = components::largest_component_by_area(&m5);
-    report.dropped_components = d1 + d2;
-    report.repaired_nonmanifold_edges = ne;
-    report.repaired_nonmanifold_vertices = nv;
-    let m7 = faces::remove_unreferenced_vertices(&m6);
-    if m7.faces.len() < min {
-        return Err(CleanError::TooFewFaces(m7.faces.len()));
-    }
+    let m3 = make_disk(&m2, &mut report)?;
 
-    let (m8, flipped) =
-        orient::orient_faces_consistently(&m7).map_err(|_| CleanError::NonOrientable)?;
-    report.flipped_faces = flipped;
-    if boundary_loops(&m8).is_empty() {
-        return Err(CleanError::Closed);
-    }
-    let (m9, filled) = holes::fill_holes_except_longest(&m8);
-    report.filled_holes = filled;
-    let chi = euler_characteristic(&m9);
-    if chi != 1 {
-        return Err(CleanError::Handles(holes::handle_count(chi, 1), chi));
-    }
-    let outer = holes::boundary_loops_by_length(&m9);
-    let m10 = if orient::normals_point_outward(&m9, outer.first().map_or(&[], |l| l)) {
-        m9
+    // Decimation may merge vertices that share a position (copies made by
+    // the vertex split) and create non-manifold spots: repair again.
+    let resampled = resample::resample_to_vertex_count(&m3, opts.target_vertices);
+    let m4 = if resampled.vertices.len() == m3.vertices.len() {
+        resampled
     } else {
-        report.reversed_orientation = true;
-        orient::reverse_faces(&m9)
+        make_disk(&resampled, &mut CleanReport::default())?
     };
-
-    let (out, flips) =
-        resample::resample_to_vertex_count(&m10, opts.target_vertices, opts.relax_iterations);
+    let reference = closest::TriangleGrid::new(&m3).ok_or(CleanError::TooFewFaces(0))?;
+    let (out, flips) = resample::improve_triangles(&m4, &reference, opts.relax_iterations);
     report.edge_flips = flips;
     let loops = boundary_loops(&out).len();
     let chi = euler_characteristic(&out);

@@ -20,7 +20,13 @@ pub fn orient_faces_consistently(mesh: &Mesh) -> Result<(Mesh, usize), NonOrient
     let n = mesh.faces.len();
     let ef = EdgeFaces::new(&mesh.faces);
     // Neighbour lists as (face, same_direction) via each face's edges.
-    let mut nbrs: Vec<Vec<(u32, bool)>> = vec![Vec::new(); n];
+    // At most three neighbours per face (one per edge).
+    let mut nbrs: Vec<[(u32, bool); 3]> = vec![[(u32::MAX, false); 3]; n];
+    let mut push = |f: u32, g: u32, same: bool| {
+        if let Some(slot) = nbrs[f as usize].iter_mut().find(|s| s.0 == u32::MAX) {
+            *slot = (g, same);
+        }
+    };
     for e in 0..ef.len() {
         let fs = ef.faces_of(e);
         if fs.len() != 2 {
@@ -30,8 +36,8 @@ pub fn orient_faces_consistently(mesh: &Mesh) -> Result<(Mesh, usize), NonOrient
         let d0 = has_directed_edge(mesh.faces[fs[0] as usize], a, b);
         let d1 = has_directed_edge(mesh.faces[fs[1] as usize], a, b);
         let same = d0 == d1;
-        nbrs[fs[0] as usize].push((fs[1], same));
-        nbrs[fs[1] as usize].push((fs[0], same));
+        push(fs[0], fs[1], same);
+        push(fs[1], fs[0], same);
     }
     let mut flip: Vec<Option<bool>> = vec![None; n];
     let mut faces = mesh.faces.clone();
@@ -46,7 +52,7 @@ pub fn orient_faces_consistently(mesh: &Mesh) -> Result<(Mesh, usize), NonOrient
         let mut piece = vec![seed as u32];
         while let Some(f) = queue.pop_front() {
             let ff = flip[f as usize].unwrap_or(false);
-            for &(g, same) in &nbrs[f as usize] {
+            for &(g, same) in nbrs[f as usize].iter().filter(|s| s.0 != u32::MAX) {
                 let want = ff ^ same;
                 match flip[g as usize] {
                     None => {

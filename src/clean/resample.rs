@@ -1,9 +1,9 @@
 //! Resampling to the working resolution and triangle-quality improvement.
 
 use super::adjacency::EdgeFaces;
+use super::adjacency::FxHashMap as HashMap;
 use super::closest::TriangleGrid;
 use crate::mesh::{cross, dot, norm, sub, triangle_normal2, Mesh};
-use std::collections::HashMap;
 
 /// Midpoint subdivision: every edge gets a vertex at its midpoint and every
 /// triangle becomes four. The surface (as a point set) is unchanged.
@@ -27,6 +27,48 @@ pub fn subdivide_midpoint(mesh: &Mesh) -> Mesh {
     Mesh::new(vertices, faces)
 }
 
+/// Vertex positions in single precision for the simplifier, with copies of
+/// one position (left by splitting non-manifold vertices) moved 1 % of the
+/// way towards the centroid of their incident faces: the simplifier welds
+/// vertices that share a position, which would rebuild the non-manifold
+/// vertex and leave zero-area triangles.
+fn separated_positions(mesh: &Mesh) -> Vec<[f32; 3]> {
+    let mut positions: Vec<[f32; 3]> = mesh.vertices.iter().map(|p| p.map(|x| x as f32)).collect();
+    let mut order: Vec<u32> = (0..positions.len() as u32).collect();
+    let bits = |i: u32| positions[i as usize].map(f32::to_bits);
+    order.sort_by_key(|&i| (bits(i), i));
+    let mut moved = Vec::new();
+    for w in order.windows(2) {
+        if bits(w[0]) == bits(w[1]) {
+            moved.push(w[1]);
+        }
+    }
+    if moved.is_empty() {
+        return positions;
+    }
+    let mut centroid = vec![[0.0f64; 3]; mesh.vertices.len()];
+    let mut count = vec![0usize; mesh.vertices.len()];
+    for f in &mesh.faces {
+        let c =
+            [0, 1, 2].map(|d| f.iter().map(|&v| mesh.vertices[v as usize][d]).sum::<f64>() / 3.0);
+        for &v in f {
+            for d in 0..3 {
+                centroid[v as usize][d] += c[d];
+            }
+            count[v as usize] += 1;
+        }
+    }
+    for v in moved {
+        let v = v as usize;
+        if count[v] > 0 {
+            let p = mesh.vertices[v];
+            positions[v] =
+                [0, 1, 2].map(|d| (p[d] + 0.01 * (centroid[v][d] / count[v] as f64 - p[d])) as f32);
+        }
+    }
+    positions
+}
+
 /// Quadric-error edge-collapse decimation (meshoptimizer's simplifier, with
 /// its regularizing option for even triangle sizes) to about
 /// `target_vertices` vertices. Boundary vertices only slide along the
@@ -34,7 +76,7 @@ pub fn subdivide_midpoint(mesh: &Mesh) -> Mesh {
 /// result stays on the input surface. The face target is corrected a few
 /// times from the vertex count obtained; the closest result is kept.
 pub fn decimate_to_vertex_count(mesh: &Mesh, target_vertices: usize) -> Mesh {
-    let positions: Vec<[f32; 3]> = mesh.vertices.iter().map(|p| p.map(|x| x as f32)).collect();
+    let positions = separated_positions(mesh);
     let indices: Vec<u32> = mesh.faces.iter().flatten().copied().collect();
     let mut target_faces = (2 * target_vertices).max(1) as f64;
     let mut best: Option<(usize, Mesh)> = None;
@@ -56,13 +98,16 @@ pub fn decimate_to_vertex_count(mesh: &Mesh, target_vertices: usize) -> Mesh {
         if better {
             best = Some((err, m));
         }
-        if (err as f64) < 0.01 * target_vertices as f64 || nv == 0 {
+        if (err as f64) < 0.03 * target_vertices as f64 || nv == 0 {
             break;
         }
         target_faces *= target_vertices as f64 / nv as f64;
     }
     best.map_or_else(|| mesh.clone(), |(_, m)| m)
 }
+
+/// No face.
+const NONE: u32 = u32::MAX;
 
 #[inline]
 fn key(a: u32, b: u32) -> u64 {
@@ -83,16 +128,18 @@ fn angle_at(p: [f64; 3], q: [f64; 3], r: [f64; 3]) -> f64 {
 pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
     let ef = EdgeFaces::new(&mesh.faces);
     let mut faces = mesh.faces.clone();
-    let mut e2f: HashMap<u64, [u32; 2]> = HashMap::with_capacity(ef.len());
+    let mut e2f: HashMap<u64, [u32; 2]> =
+        HashMap::with_capacity_and_hasher(ef.len(), Default::default());
     let mut degree = vec![0u32; mesh.vertices.len()];
     for e in 0..ef.len() {
         let (a, b) = ef.edges[e];
         degree[a as usize] += 1;
         degree[b as usize] += 1;
         let fs = ef.faces_of(e);
-        if fs.len() == 2 {
-            e2f.insert(key(a, b), [fs[0], fs[1]]);
-        }
+        // Boundary edges are kept with NONE as second face: they must block
+        // flips that would create them again, but are never flipped.
+        let second = if fs.len() == 2 { fs[1] } else { NONE };
+        e2f.insert(key(a, b), [fs[0], second]);
     }
     let cos_max = max_dihedral.cos();
     let v = &mesh.vertices;
@@ -101,7 +148,7 @@ pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
         .iter()
         .rev()
         .copied()
-        .filter(|&(a, b)| e2f.contains_key(&key(a, b)))
+        .filter(|&(a, b)| e2f.get(&key(a, b)).is_some_and(|fs| fs[1] != NONE))
         .collect();
     let mut flips = 0usize;
     let budget = 20 * ef.len() + 16;
@@ -114,6 +161,9 @@ pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
         let Some(&[f, g]) = e2f.get(&key(x, y)) else {
             continue;
         };
+        if g == NONE {
+            continue;
+        }
         // Orient so that face f runs a → b.
         let (ff, gg) = (faces[f as usize], faces[g as usize]);
         let Some(k) = (0..3).find(|&k| {
@@ -251,18 +301,10 @@ pub fn relax_tangential(mesh: &Mesh, reference: &TriangleGrid, lambda: f64) -> M
     Mesh::new(moved, mesh.faces.clone())
 }
 
-/// Resample a clean disk-type mesh to about `target_vertices` vertices and
-/// improve its triangles: midpoint subdivision while it is coarser than
-/// 90 % of the target, quadric decimation when finer than 110 %, then
-/// `iterations` rounds of Delaunay edge flips and tangential relaxation
-/// projected onto the mesh before resampling, and a final round of flips.
-/// Returns the mesh and the number of edge flips.
-pub fn resample_to_vertex_count(
-    mesh: &Mesh,
-    target_vertices: usize,
-    iterations: usize,
-) -> (Mesh, usize) {
-    let reference = TriangleGrid::new(mesh);
+/// Bring a mesh to about `target_vertices` vertices: midpoint subdivision
+/// while it is coarser than 90 % of the target, then quadric decimation when
+/// it is finer than 110 %. Unchanged when already within ±10 %.
+pub fn resample_to_vertex_count(mesh: &Mesh, target_vertices: usize) -> Mesh {
     let mut m = mesh.clone();
     let lo = (0.9 * target_vertices as f64) as usize;
     let hi = (1.1 * target_vertices as f64) as usize;
@@ -274,14 +316,25 @@ pub fn resample_to_vertex_count(
     if m.vertices.len() > hi {
         m = decimate_to_vertex_count(&m, target_vertices);
     }
+    m
+}
+
+/// Improve the triangles of `mesh` without changing its vertex count or
+/// topology: `iterations` rounds of Delaunay edge flips (faces within 30°
+/// of coplanar) and tangential relaxation projected onto `reference`, then
+/// a final round of flips. Returns the mesh and the number of flips.
+pub fn improve_triangles(
+    mesh: &Mesh,
+    reference: &TriangleGrid,
+    iterations: usize,
+) -> (Mesh, usize) {
     let dihedral = 30f64.to_radians();
+    let mut m = mesh.clone();
     let mut flips = 0;
-    if let Some(reference) = reference {
-        for _ in 0..iterations {
-            let (f, k) = flip_to_delaunay(&m, dihedral);
-            flips += k;
-            m = relax_tangential(&f, &reference, 0.5);
-        }
+    for _ in 0..iterations {
+        let (f, k) = flip_to_delaunay(&m, dihedral);
+        flips += k;
+        m = relax_tangential(&f, reference, 0.5);
     }
     let (f, k) = flip_to_delaunay(&m, dihedral);
     (f, flips + k)

@@ -1,7 +1,7 @@
 //! Welding of duplicate vertices.
 
+use super::adjacency::FxHashMap as HashMap;
 use crate::mesh::{sub, Mesh};
-use std::collections::HashMap;
 
 /// Merge vertices closer than `tolerance` (Euclidean), scanning vertices in
 /// order: each vertex maps to the first earlier kept vertex within the
@@ -12,8 +12,8 @@ use std::collections::HashMap;
 /// the number of vertices merged away.
 pub fn weld_vertices(mesh: &Mesh, tolerance: f64) -> (Mesh, usize) {
     let cell = if tolerance > 0.0 { tolerance } else { 0.0 };
-    let mut grid: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
-    let mut exact: HashMap<[u64; 3], u32> = HashMap::new();
+    let mut grid: HashMap<[i64; 3], Vec<u32>> = HashMap::default();
+    let mut exact: HashMap<[u64; 3], u32> = HashMap::default();
     let mut remap = Vec::with_capacity(mesh.vertices.len());
     let mut kept: Vec<[f64; 3]> = Vec::with_capacity(mesh.vertices.len());
     let tol2 = tolerance * tolerance;

@@ -78,7 +78,7 @@ pub struct LoadedMesh {
 #[derive(Debug, thiserror::Error)]
 pub enum LoadError {
     /// The file content is malformed or unusable.
-    #[error("{}: {message}", .path.display())]
+    #[error("{}: {message}", shown(.path))]
     Invalid {
         /// The file.
         path: PathBuf,
@@ -86,7 +86,7 @@ pub enum LoadError {
         message: String,
     },
     /// The file could not be opened or read.
-    #[error("{}: cannot read: {source}", .path.display())]
+    #[error("{}: cannot read: {source}", shown(.path))]
     Io {
         /// The file.
         path: PathBuf,
@@ -96,7 +96,7 @@ pub enum LoadError {
     /// The extension names no supported format.
     #[error(
         "{}: unsupported file type (expected .obj, .ply, .stl or .off)",
-        .path.display()
+        shown(.path)
     )]
     UnknownFormat {
         /// The file.
@@ -113,6 +113,11 @@ impl LoadError {
             | LoadError::UnknownFormat { path } => path,
         }
     }
+}
+
+/// A path as shown in a one-line message (control characters escaped).
+pub(crate) fn shown(path: &Path) -> String {
+    path.display().to_string().escape_debug().to_string()
 }
 
 /// A parse failure inside one reader, before the file name is attached.
@@ -141,14 +146,16 @@ pub fn load(path: &Path) -> Result<LoadedMesh, LoadError> {
 
 /// Parse a mesh held in memory. `name` only labels error messages.
 pub fn load_bytes(bytes: &[u8], format: Format, name: &Path) -> Result<LoadedMesh, LoadError> {
+    // Text-only formats may start with a UTF-8 byte-order mark.
+    let text = bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(bytes);
     let parsed = if bytes.is_empty() {
         Err("file is empty".to_string())
     } else {
         match format {
-            Format::Obj => obj::read_obj(bytes),
+            Format::Obj => obj::read_obj(text),
             Format::Ply => ply::read_ply(bytes),
             Format::Stl => stl::read_stl(bytes),
-            Format::Off => off::read_off(bytes),
+            Format::Off => off::read_off(text),
         }
     };
     let mesh = parsed

@@ -18,8 +18,7 @@ pub(crate) fn read_off(bytes: &[u8]) -> ParseResult<Mesh> {
         return Err("binary OFF is not supported".into());
     }
     let mut t = Tokens::new(bytes, 1, true);
-    let first = t.expect("'OFF'")?;
-    let keyword = first.trim_start_matches('\u{feff}');
+    let keyword = t.expect("'OFF'")?;
     let counts_follow_keyword = keyword.ends_with("OFF");
     if counts_follow_keyword {
         if keyword.starts_with('4') || keyword.starts_with('n') {

@@ -115,12 +115,14 @@ pub(crate) fn read_ply(bytes: &[u8]) -> ParseResult<Mesh> {
             data: body,
             pos: 0,
             base: header.body,
+            last: 0,
             big_endian: false,
         },
         Storage::BinaryBe => Body::Binary {
             data: body,
             pos: 0,
             base: header.body,
+            last: 0,
             big_endian: true,
         },
     };
@@ -313,6 +315,8 @@ enum Body<'a> {
         pos: usize,
         /// Offset of `data` in the file, for messages.
         base: usize,
+        /// Offset in `data` of the scalar read last, for messages.
+        last: usize,
         big_endian: bool,
     },
 }
@@ -329,7 +333,7 @@ impl Body<'_> {
     fn location(&self) -> String {
         match self {
             Body::Ascii(t) => format!(" (line {})", t.line()),
-            Body::Binary { pos, base, .. } => format!(" (byte offset {})", base + pos),
+            Body::Binary { base, last, .. } => format!(" (byte offset {})", base + last),
         }
     }
 
@@ -380,6 +384,7 @@ impl Body<'_> {
                 data,
                 pos,
                 base,
+                last,
                 big_endian,
             } => {
                 let size = t.size();
@@ -389,6 +394,7 @@ impl Body<'_> {
                         *base + *pos
                     )
                 })?;
+                *last = *pos;
                 *pos += size;
                 Ok(decode(t, b, *big_endian))
             }

@@ -21,19 +21,26 @@ pub(crate) fn read_stl(bytes: &[u8]) -> ParseResult<Mesh> {
     let begins_solid = bytes
         .get(start..start + 5)
         .is_some_and(|w| w.eq_ignore_ascii_case(b"solid"));
+    let size_mismatch = bytes.get(80..84).map(|c| {
+        let n = u32::from_le_bytes([c[0], c[1], c[2], c[3]]) as u64;
+        format!(
+            "{} bytes do not match a binary STL of {n} triangles ({} bytes)",
+            bytes.len(),
+            84 + 50 * n
+        )
+    });
     if begins_solid {
-        return read_ascii(bytes);
+        return read_ascii(bytes).map_err(|e| {
+            // A binary file whose header happens to start with "solid".
+            let binary = bytes.iter().take(4096).any(|&b| b == 0 || b >= 0x80);
+            match (binary, &size_mismatch) {
+                (true, Some(m)) => format!("not an STL file: binary data after 'solid', and {m}"),
+                _ => e,
+            }
+        });
     }
-    Err(match bytes.get(80..84) {
-        Some(c) => {
-            let n = u32::from_le_bytes([c[0], c[1], c[2], c[3]]) as u64;
-            format!(
-                "not an STL file: {} bytes do not match a binary STL of {n} triangles \
-                 ({} bytes), and the file does not start with 'solid'",
-                bytes.len(),
-                84 + 50 * n
-            )
-        }
+    Err(match size_mismatch {
+        Some(m) => format!("not an STL file: {m}, and the file does not start with 'solid'"),
         None => format!(
             "not an STL file: {} bytes is too short for binary STL, and the file does \
              not start with 'solid'",

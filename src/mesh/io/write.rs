@@ -3,7 +3,7 @@
 //! Files are written to a temporary sibling and renamed into place, so a
 //! watcher never sees a half-written mesh.
 
-use super::Format;
+use super::{shown, Format};
 use crate::mesh::{norm, triangle_normal2, Mesh};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -54,7 +54,7 @@ impl Encoding {
 pub enum SaveError {
     /// The mesh itself cannot be written (bad index, non-finite coordinate,
     /// or no faces for a format that needs them).
-    #[error("{}: cannot write: {message}", .path.display())]
+    #[error("{}: cannot write: {message}", shown(.path))]
     InvalidMesh {
         /// The target file.
         path: PathBuf,
@@ -62,7 +62,7 @@ pub enum SaveError {
         message: String,
     },
     /// The file could not be written.
-    #[error("{}: cannot write: {source}", .path.display())]
+    #[error("{}: cannot write: {source}", shown(.path))]
     Io {
         /// The target file.
         path: PathBuf,
@@ -72,7 +72,7 @@ pub enum SaveError {
     /// The extension names no supported format.
     #[error(
         "{}: unsupported file type (expected .obj, .ply, .stl or .off)",
-        .path.display()
+        shown(.path)
     )]
     UnknownFormat {
         /// The target file.
@@ -160,6 +160,10 @@ fn check_writable(mesh: &Mesh) -> Result<(), String> {
         return Err(format!("vertex {i} has a non-finite coordinate"));
     }
     let n = mesh.vertices.len();
+    if n > i32::MAX as usize {
+        // PLY stores indices as int, OBJ/OFF readers as u32.
+        return Err(format!("{n} vertices are too many to write"));
+    }
     if let Some(fi) = mesh
         .faces
         .iter()
