@@ -3,6 +3,7 @@
 //! library errors into one-line messages with context.
 
 mod inspect;
+mod synth;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -22,6 +23,8 @@ struct Cli {
 enum Command {
     /// Load and clean a surface, print the cleaning report.
     Inspect(inspect::Args),
+    /// Write a synthetic crown-like surface (to try morphoid without data).
+    Synth(synth::Args),
 }
 
 /// Parse the command line, run the subcommand, map errors to an exit code.
@@ -30,6 +33,7 @@ pub fn main() -> ExitCode {
     init_tracing(cli.verbose);
     let result = match cli.command {
         Command::Inspect(a) => inspect::run(a),
+        Command::Synth(a) => synth::run(a),
     };
     match result {
         Ok(code) => code,
