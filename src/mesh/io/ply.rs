@@ -108,6 +108,10 @@ pub(crate) fn read_ply(bytes: &[u8]) -> ParseResult<Mesh> {
         .find(|e| e.name == "vertex")
         .map(|e| e.count)
         .ok_or("PLY header has no 'vertex' element")?;
+    if header.elements.iter().any(|e| e.name == "tristrips") {
+        // Skipping them would silently turn the surface into a point cloud.
+        return Err("PLY triangle strips ('tristrips') are not supported".into());
+    }
     let body = bytes.get(header.body..).unwrap_or(&[]);
     let mut reader = match header.storage {
         Storage::Ascii => Body::Ascii(Tokens::new(body, header.lines + 1, false)),
