@@ -1,42 +1,6 @@
 //! Feature points: local maxima of the smoothed hyperbolic conformal
 //! density (on a tooth, the cusps).
 
-use crate::mesh::Mesh;
-
-/// Per-vertex conformal factor: surface area over disk area of the faces
-/// around the vertex.
-pub fn vertex_conformal_factor(mesh: &Mesh, uv: &[[f64; 2]]) -> Vec<f64> {
-    let n = mesh.vertices.len();
-    let mut a3 = vec![0.0; n];
-    let mut a2 = vec![0.0; n];
-    for f in &mesh.faces {
-        let [i, j, k] = f.map(|v| v as usize);
-        let s = crate::mesh::triangle_area(mesh.vertices[i], mesh.vertices[j], mesh.vertices[k]);
-        let (p, q, r) = (uv[i], uv[j], uv[k]);
-        let d = 0.5 * ((q[0] - p[0]) * (r[1] - p[1]) - (r[0] - p[0]) * (q[1] - p[1])).abs();
-        for v in [i, j, k] {
-            a3[v] += s;
-            a2[v] += d;
-        }
-    }
-    a3.iter()
-        .zip(&a2)
-        .map(|(&s, &d)| if d > 0.0 { s / d } else { 0.0 })
-        .collect()
-}
-
-/// Hyperbolic density `(1 − |z|²)² f`: the conformal factor with respect to
-/// the hyperbolic measure of the disk, invariant under disk automorphisms.
-pub fn hyperbolic_density(uv: &[[f64; 2]], factor: &[f64]) -> Vec<f64> {
-    uv.iter()
-        .zip(factor)
-        .map(|(z, &f)| {
-            let s = (1.0 - z[0] * z[0] - z[1] * z[1]).max(0.0);
-            s * s * f
-        })
-        .collect()
-}
-
 /// `iterations` steps of area-weighted averaging over the closed one-ring.
 pub fn smooth_vertex_function(
     adjacency: &[Vec<u32>],
@@ -137,13 +101,5 @@ mod tests {
             (a as f64 - b as f64).abs()
         });
         assert_eq!(m, vec![5]);
-    }
-
-    #[test]
-    fn hyperbolic_density_vanishes_on_the_circle() {
-        let d = hyperbolic_density(&[[0.0, 0.0], [1.0, 0.0], [0.5, 0.0]], &[2.0, 2.0, 2.0]);
-        assert_eq!(d[0], 2.0);
-        assert_eq!(d[1], 0.0);
-        assert!((d[2] - 2.0 * 0.75 * 0.75).abs() < 1e-15);
     }
 }

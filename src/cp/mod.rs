@@ -7,11 +7,11 @@
 
 pub mod distance;
 pub mod features;
+pub mod graph;
 pub mod locate;
 pub mod mobius;
 pub mod prepare;
 pub mod procrustes;
-pub mod provisional;
 pub mod samples;
 
 pub use distance::{compare, compare_directed, Comparison, Directed};

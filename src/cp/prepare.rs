@@ -1,13 +1,11 @@
 //! Preparation of a surface for comparison: normalization, flattening,
 //! conformal factor, features, samples and the point-location grid.
 
-use super::features::{
-    hyperbolic_density, local_maxima, smooth_vertex_function, vertex_conformal_factor,
-};
+use super::features::{local_maxima, smooth_vertex_function};
+use super::graph::{graph_distance, vertex_adjacency};
 use super::locate::LocateGrid;
-use super::mobius::Mobius;
-use super::provisional::{graph_distance, vertex_adjacency};
 use super::samples::farthest_point_samples;
+use crate::conformal::{self, conformal_factor, hyperbolic_density};
 use crate::mesh::{self, Mesh};
 use serde::{Deserialize, Serialize};
 
@@ -148,25 +146,6 @@ impl Prepared {
     }
 }
 
-/// Area-weighted centroid and total area.
-fn area_centroid(m: &Mesh) -> ([f64; 3], f64) {
-    let mut c = [0.0; 3];
-    let mut total = 0.0;
-    for (f, a) in m.faces.iter().zip(mesh::face_areas(m)) {
-        for &v in f {
-            let p = m.vertices[v as usize];
-            for k in 0..3 {
-                c[k] += a / 3.0 * p[k];
-            }
-        }
-        total += a;
-    }
-    if total > 0.0 {
-        c = c.map(|x| x / total);
-    }
-    (c, total)
-}
-
 /// Signed volume of the surface closed by a cone from its boundary
 /// centroid (the cone itself contributes nothing from its apex).
 fn capped_volume(m: &Mesh, boundary: &[u32]) -> f64 {
@@ -203,22 +182,9 @@ pub fn prepare(input: &Mesh, params: &CpParams) -> Result<Prepared, CpError> {
     if input.vertices.iter().flatten().any(|x| !x.is_finite()) {
         return Err(CpError::InvalidMesh("a coordinate is not finite".into()));
     }
-    let (centroid, area) = area_centroid(input);
-    if !(area > 0.0) || !area.is_finite() {
-        return Err(CpError::Degenerate {
-            vertices: n,
-            faces: input.faces.len(),
-        });
-    }
-    let scale = area.sqrt();
-    let mut m = Mesh::new(
-        input
-            .vertices
-            .iter()
-            .map(|p| [0, 1, 2].map(|k| (p[k] - centroid[k]) / scale))
-            .collect(),
-        input.faces.clone(),
-    );
+    let norm = conformal::normalize(input).map_err(|e| CpError::Flatten(e.to_string()))?;
+    let (centroid, scale) = (norm.centroid, norm.scale);
+    let mut m = norm.mesh;
     let loops = mesh::boundary_loops(&m);
     let boundary = loops
         .first()
@@ -229,23 +195,14 @@ pub fn prepare(input: &Mesh, params: &CpParams) -> Result<Prepared, CpError> {
             f.swap(1, 2);
         }
     }
-    let (mut uv, center) =
-        super::provisional::flatten_to_disk(&m).map_err(|e| CpError::Flatten(e.to_string()))?;
-    // Send the centre vertex exactly to 0.
-    let to_origin = Mobius::from_point_rotation(uv[center as usize], 0.0);
-    for z in &mut uv {
-        *z = to_origin.apply(*z);
-        let r = z[0].hypot(z[1]);
-        if !r.is_finite() {
-            return Err(CpError::Flatten("non-finite disk coordinate".into()));
-        }
-        if r > 1.0 {
-            *z = [z[0] / r, z[1] / r];
-        }
+    let disk = conformal::flatten_to_disk(&m).map_err(|e| CpError::Flatten(e.to_string()))?;
+    let (uv, center) = (disk.uv, disk.center);
+    if uv.len() != n || uv.iter().any(|z| !(z[0].is_finite() && z[1].is_finite())) {
+        return Err(CpError::Flatten("invalid disk coordinates".into()));
     }
     let vertex_areas = mesh::vertex_areas(&m);
     let adjacency = vertex_adjacency(&m);
-    let factor = vertex_conformal_factor(&m, &uv);
+    let factor = conformal_factor(&m, &uv);
     let density = smooth_vertex_function(
         &adjacency,
         &vertex_areas,

@@ -2,7 +2,7 @@
 //! reader for its binary PLY files.
 #![allow(dead_code)]
 
-use morphoid::mesh::{edge_face_map, Mesh};
+use morphoid::mesh::{boundary_loops, edge_face_map, euler_characteristic, Mesh};
 use std::path::PathBuf;
 
 /// The PNAS teeth folder, if present.
@@ -57,26 +57,60 @@ pub fn read_ply(path: &std::path::Path) -> Mesh {
     Mesh::new(vertices, faces)
 }
 
-/// Drop every face incident to a non-manifold edge (J12 and S09 have one),
-/// standing in for the cleaning stage.
+/// Stand-in for the cleaning stage on J12 and S09 (one non-manifold edge
+/// each): drop the one face of the offending edge whose removal leaves a
+/// disk (one boundary loop, Euler characteristic 1), then unused vertices.
 pub fn drop_nonmanifold_faces(mesh: &Mesh) -> Mesh {
     let map = edge_face_map(mesh);
-    let mut bad = vec![false; mesh.faces.len()];
-    for faces in map.values() {
-        if faces.len() > 2 {
-            for &f in faces {
-                bad[f as usize] = true;
+    let mut keys: Vec<_> = map.iter().filter(|(_, f)| f.len() > 2).collect();
+    keys.sort();
+    let mut current = mesh.clone();
+    for (_, faces) in keys {
+        let mut best = None;
+        for &f in faces {
+            let candidate = without_faces(&current, &[f]);
+            if euler_characteristic(&candidate) == 1 && boundary_loops(&candidate).len() == 1 {
+                best = Some(candidate);
+                break;
+            }
+        }
+        current = match best {
+            Some(c) => c,
+            // Otherwise let the cleaning stage repair the edge.
+            None => {
+                morphoid::clean::clean(mesh, &morphoid::clean::CleanOptions::default())
+                    .expect("clean")
+                    .mesh
+            }
+        };
+    }
+    current
+}
+
+/// The mesh without the given faces and without unused vertices.
+fn without_faces(mesh: &Mesh, drop: &[u32]) -> Mesh {
+    let faces: Vec<[u32; 3]> = mesh
+        .faces
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !drop.contains(&(*i as u32)))
+        .map(|(_, f)| *f)
+        .collect();
+    let mut new_index = vec![u32::MAX; mesh.vertices.len()];
+    let mut vertices = Vec::new();
+    for f in &faces {
+        for &v in f {
+            if new_index[v as usize] == u32::MAX {
+                new_index[v as usize] = vertices.len() as u32;
+                vertices.push(mesh.vertices[v as usize]);
             }
         }
     }
-    let faces = mesh
-        .faces
+    let faces = faces
         .iter()
-        .zip(&bad)
-        .filter(|(_, &b)| !b)
-        .map(|(f, _)| *f)
+        .map(|f| f.map(|v| new_index[v as usize]))
         .collect();
-    Mesh::new(mesh.vertices.clone(), faces)
+    Mesh::new(vertices, faces)
 }
 
 /// Load a tooth by name, ready for preparation.
