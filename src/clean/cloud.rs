@@ -160,7 +160,7 @@ pub fn delaunay_surface(
 /// the open side on either side of the plane
 /// ([`stereographic_coordinates`], right for domes whose walls fold over
 /// in a planar projection). Triangles that bridge gaps or layers are gone;
-/// the candidate whose largest connected piece has the largest area wins.
+/// the candidate whose largest connected piece has the most triangles wins.
 /// The result may still have small pieces and holes: the cleaning pipeline
 /// keeps the largest piece and fills its holes. `None` when the points span
 /// no plane.
@@ -170,15 +170,17 @@ pub fn triangulate_point_cloud(points: &[[f64; 3]], max_edge_factor: f64) -> Opt
         stereographic_coordinates(points, 1.0),
         stereographic_coordinates(points, -1.0),
     ];
-    let mut best: Option<(f64, Mesh)> = None;
+    let mut best: Option<(usize, Mesh)> = None;
     for coords in candidates.into_iter().flatten() {
         let Some(m) = delaunay_surface(points, &coords, max_edge_factor) else {
             continue;
         };
         let (piece, _) = super::components::largest_component_by_area(&m);
-        let area = crate::mesh::surface_area(&piece);
-        if best.as_ref().is_none_or(|(a, _)| area > *a) {
-            best = Some((area, m));
+        // Coverage = triangles in the largest piece (area would reward
+        // triangles that bridge over a concave side).
+        let count = piece.faces.len();
+        if best.as_ref().is_none_or(|(c, _)| count > *c) {
+            best = Some((count, m));
         }
     }
     best.map(|(_, m)| m)
