@@ -49,3 +49,37 @@ fn all_teeth_clean_to_disks_on_their_surface() {
         reversed
     );
 }
+
+#[test]
+fn all_teeth_point_clouds_clean_to_disks_covering_the_tooth() {
+    let Some(teeth) = all_teeth() else {
+        println!("skipped: data not found");
+        return;
+    };
+    let opts = CleanOptions::default();
+    let mut coverage = Vec::new();
+    for (name, mesh) in &teeth {
+        let cloud = morphoid::mesh::synth::transform::to_point_cloud(mesh);
+        let c = clean(&cloud, &opts).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(boundary_loops(&c.mesh).len(), 1, "{name}");
+        assert_eq!(euler_characteristic(&c.mesh), 1, "{name}");
+        let nv = c.mesh.vertices.len() as f64;
+        assert!((nv - 5000.0).abs() <= 500.0, "{name}: {nv} vertices");
+        let (mean, _) = mean_max_distance(&c.mesh.vertices, mesh);
+        assert!(mean < 0.005 * bbox_diagonal(mesh), "{name}");
+        coverage.push((
+            c.report.area / morphoid::mesh::surface_area(mesh),
+            name.clone(),
+        ));
+    }
+    coverage.sort_by(|a, b| a.0.total_cmp(&b.0));
+    println!(
+        "point-cloud area / tooth area: min {:.3} ({}), median {:.3}, max {:.3}",
+        coverage[0].0,
+        coverage[0].1,
+        coverage[coverage.len() / 2].0,
+        coverage[coverage.len() - 1].0
+    );
+    assert!(coverage[0].0 > 0.8, "{:?}", &coverage[..5]);
+    assert!(coverage[coverage.len() / 2].0 > 0.95);
+}

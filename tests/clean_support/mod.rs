@@ -1,6 +1,5 @@
-//! Helpers shared by the cleaning tests: the real-data location, a minimal
-//! reader for the teeth (binary little-endian PLY, float32 xyz, uchar-count
-//! int32 faces) and the distance from points to a surface.
+//! Helpers shared by the cleaning tests: the real-data location, loading
+//! the teeth and the distance from points to a surface.
 
 #![allow(dead_code)]
 
@@ -17,47 +16,9 @@ pub fn teeth_dir() -> Option<PathBuf> {
     p.is_dir().then(|| p.to_path_buf())
 }
 
-/// Read one of the teeth (the exact format of the data set only).
+/// Read one of the teeth.
 pub fn read_tooth(path: &Path) -> Mesh {
-    let bytes = std::fs::read(path).expect("read tooth");
-    let end = b"end_header\n";
-    let hdr_len = bytes
-        .windows(end.len())
-        .position(|w| w == end)
-        .expect("header")
-        + end.len();
-    let header = std::str::from_utf8(&bytes[..hdr_len]).expect("utf8 header");
-    let count = |el: &str| -> usize {
-        header
-            .lines()
-            .find_map(|l| l.strip_prefix(&format!("element {el} ")))
-            .and_then(|n| n.trim().parse().ok())
-            .expect("element count")
-    };
-    let (nv, nf) = (count("vertex"), count("face"));
-    let mut at = hdr_len;
-    let f32_at =
-        |i: usize| f32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
-    let mut vertices = Vec::with_capacity(nv);
-    for _ in 0..nv {
-        vertices.push([
-            f32_at(at) as f64,
-            f32_at(at + 4) as f64,
-            f32_at(at + 8) as f64,
-        ]);
-        at += 12;
-    }
-    let mut faces = Vec::with_capacity(nf);
-    for _ in 0..nf {
-        assert_eq!(bytes[at], 3);
-        at += 1;
-        let i = |k: usize| {
-            i32::from_le_bytes([bytes[k], bytes[k + 1], bytes[k + 2], bytes[k + 3]]) as u32
-        };
-        faces.push([i(at), i(at + 4), i(at + 8)]);
-        at += 12;
-    }
-    Mesh::new(vertices, faces)
+    morphoid::mesh::io::load(path).expect("tooth loads").mesh
 }
 
 /// All teeth, sorted by name.

@@ -1,0 +1,269 @@
+//! The continuous Procrustes distance between two prepared surfaces.
+
+use super::locate::Location;
+use super::mobius::Mobius;
+use super::prepare::{CpParams, Prepared};
+use super::procrustes::{Handedness, Moments, RigidFit};
+use serde::{Deserialize, Serialize};
+
+/// The result of one directed comparison `S → S′`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Directed {
+    /// `d(S, S′)`: root of the area-weighted mean squared residual over all
+    /// vertices of S after the optimal rigid motion (surfaces of area 1).
+    pub distance: f64,
+    /// Whether the map reverses orientation (a mirror-image match, with an
+    /// improper rigid motion).
+    pub reflected: bool,
+    /// The disk map from S's disk to S′'s disk.
+    pub mobius: Mobius,
+    /// The optimal orthogonal matrix (row-major) applied to S.
+    pub rotation: [[f64; 3]; 3],
+    /// The optimal translation applied to S after the rotation.
+    pub translation: [f64; 3],
+    /// For each vertex of S: the face of S′ and barycentric coordinates of
+    /// its image.
+    pub correspondence: Vec<(u32, [f64; 3])>,
+}
+
+/// Both directed comparisons and the symmetric distance.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Comparison {
+    /// `min(d(S, S′), d(S′, S))`.
+    pub distance: f64,
+    /// `S → S′`.
+    pub forward: Directed,
+    /// `S′ → S`.
+    pub backward: Directed,
+    /// Whether the better direction matched a mirror image.
+    pub reflected: bool,
+}
+
+#[inline]
+fn handedness(m: &Mobius) -> Handedness {
+    if m.reverses_orientation() {
+        Handedness::Improper
+    } else {
+        Handedness::Proper
+    }
+}
+
+/// Locate `z` in `t`'s disk and interpolate the 3D position there.
+#[inline]
+fn image(t: &Prepared, z: [f64; 2]) -> Option<(Location, [f64; 3])> {
+    let loc = t.grid.locate(&t.uv, &t.faces, z)?;
+    let f = t.faces.get(loc.face as usize)?;
+    let mut y = [0.0; 3];
+    for (k, &v) in f.iter().enumerate() {
+        let p = t.vertices.get(v as usize)?;
+        for d in 0..3 {
+            y[d] += loc.bary[k] * p[d];
+        }
+    }
+    Some((loc, y))
+}
+
+/// Weighted Procrustes residual of the first `count` samples of `s` and
+/// their images in `t` under `m`.
+pub fn sample_residual(s: &Prepared, t: &Prepared, m: &Mobius, count: usize) -> f64 {
+    let mut mom = Moments::default();
+    for (&v, &w) in s.samples.iter().zip(&s.sample_weights).take(count) {
+        let (Some(&z), Some(&x)) = (s.uv.get(v as usize), s.vertices.get(v as usize)) else {
+            return f64::MAX;
+        };
+        match image(t, m.apply(z)) {
+            Some((_, y)) => mom.add(x, y, w),
+            None => return f64::MAX,
+        }
+    }
+    mom.residual(handedness(m))
+}
+
+/// Evaluate a disk map on all vertices of `s` weighted by vertex area:
+/// the optimal rigid motion, its residual and the correspondence.
+pub fn evaluate_map(
+    s: &Prepared,
+    t: &Prepared,
+    m: &Mobius,
+) -> Option<(RigidFit, Vec<(u32, [f64; 3])>)> {
+    let mut mom = Moments::default();
+    let mut corr = Vec::with_capacity(s.vertices.len());
+    for ((&z, &x), &w) in s.uv.iter().zip(&s.vertices).zip(&s.vertex_areas) {
+        let (loc, y) = image(t, m.apply(z))?;
+        mom.add(x, y, w);
+        corr.push((loc.face, loc.bary));
+    }
+    Some((mom.fit(handedness(m)), corr))
+}
+
+/// Minimize `f` over R³ from `x0` with the Nelder–Mead simplex method,
+/// initial steps `step`, at most `max_evals` evaluations.
+pub fn nelder_mead(
+    f: impl Fn([f64; 3]) -> f64,
+    x0: [f64; 3],
+    step: [f64; 3],
+    max_evals: usize,
+) -> ([f64; 3], f64) {
+    let mut simplex: Vec<([f64; 3], f64)> = Vec::with_capacity(4);
+    simplex.push((x0, f(x0)));
+    for k in 0..3 {
+        let mut x = x0;
+        x[k] += step[k];
+        simplex.push((x, f(x)));
+    }
+    let mut evals = 4;
+    let lerp = |a: [f64; 3], b: [f64; 3], t: f64| [0, 1, 2].map(|k| a[k] + t * (b[k] - a[k]));
+    while evals + 2 <= max_evals {
+        simplex.sort_by(|a, b| a.1.total_cmp(&b.1));
+        let worst = simplex[3];
+        let centroid =
+            [0, 1, 2].map(|k| (simplex[0].0[k] + simplex[1].0[k] + simplex[2].0[k]) / 3.0);
+        let xr = lerp(centroid, worst.0, -1.0);
+        let fr = f(xr);
+        evals += 1;
+        if fr < simplex[0].1 {
+            let xe = lerp(centroid, worst.0, -2.0);
+            let fe = f(xe);
+            evals += 1;
+            simplex[3] = if fe < fr { (xe, fe) } else { (xr, fr) };
+        } else if fr < simplex[2].1 {
+            simplex[3] = (xr, fr);
+        } else {
+            let xc = if fr < worst.1 {
+                lerp(centroid, xr, 0.5)
+            } else {
+                lerp(centroid, worst.0, 0.5)
+            };
+            let fc = f(xc);
+            evals += 1;
+            if fc < worst.1.min(fr) {
+                simplex[3] = (xc, fc);
+            } else {
+                // Shrink towards the best vertex.
+                let best = simplex[0].0;
+                for s in simplex.iter_mut().skip(1) {
+                    let x = lerp(best, s.0, 0.5);
+                    *s = (x, f(x));
+                    evals += 1;
+                }
+            }
+        }
+        let spread = simplex
+            .iter()
+            .map(|s| s.1)
+            .fold(f64::NEG_INFINITY, f64::max)
+            - simplex.iter().map(|s| s.1).fold(f64::INFINITY, f64::min);
+        if spread <= 1e-14 * simplex[0].1.abs().max(1e-300) {
+            break;
+        }
+    }
+    simplex.sort_by(|a, b| a.1.total_cmp(&b.1));
+    simplex[0]
+}
+
+/// `m ∘ φ` with φ the automorphism of parameters `(Re a, Im a, θ)`.
+fn perturbed(m: &Mobius, x: [f64; 3]) -> Option<Mobius> {
+    if x[0].hypot(x[1]) >= 0.9 || !x.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    Some(m.compose(&Mobius::from_point_rotation([x[0], x[1]], x[2])))
+}
+
+/// The directed comparison `S → S′`.
+pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Directed {
+    let orientations: &[bool] = if params.reflections {
+        &[false, true]
+    } else {
+        &[false]
+    };
+    let angles = params.angles.max(1);
+    let coarse = params.coarse_samples.max(1);
+    let all = s.samples.len();
+    let mut cands: Vec<(f64, usize, Mobius)> = Vec::new();
+    let mut index = 0usize;
+    for &p in &s.features {
+        for &q in &t.features {
+            let (Some(&zp), Some(&zq)) = (s.uv.get(p as usize), t.uv.get(q as usize)) else {
+                continue;
+            };
+            for &refl in orientations {
+                for k in 0..angles {
+                    let th = k as f64 / angles as f64 * std::f64::consts::TAU;
+                    let m = Mobius::sending(zp, zq, th, refl);
+                    cands.push((sample_residual(s, t, &m, coarse), index, m));
+                    index += 1;
+                }
+            }
+        }
+    }
+    if cands.is_empty() {
+        cands.push((0.0, 0, Mobius::identity()));
+    }
+    cands.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    let mut best: Option<(f64, Mobius, RigidFit, Vec<(u32, [f64; 3])>)> = None;
+    let step = std::f64::consts::TAU / angles as f64;
+    for &(_, _, m0) in cands.iter().take(params.refine_candidates.max(1)) {
+        let m = if params.refine_evaluations > 0 {
+            let score = sample_residual(s, t, &m0, all);
+            let obj = |x: [f64; 3]| {
+                perturbed(&m0, x).map_or(f64::MAX, |m| sample_residual(s, t, &m, all))
+            };
+            let (x, fx) = nelder_mead(
+                obj,
+                [0.0; 3],
+                [0.05, 0.05, 0.5 * step],
+                params.refine_evaluations,
+            );
+            if fx < score {
+                perturbed(&m0, x).unwrap_or(m0)
+            } else {
+                m0
+            }
+        } else {
+            m0
+        };
+        if let Some((fit, corr)) = evaluate_map(s, t, &m) {
+            if best.as_ref().is_none_or(|b| fit.residual < b.0) {
+                best = Some((fit.residual, m, fit, corr));
+            }
+        }
+    }
+    match best {
+        Some((res, m, fit, corr)) => Directed {
+            distance: res.max(0.0).sqrt(),
+            reflected: m.reverses_orientation(),
+            mobius: m,
+            rotation: fit.rotation,
+            translation: fit.translation,
+            correspondence: corr,
+        },
+        // Only reachable for a target with no triangles, which prepare
+        // rejects; report the largest distance rather than NaN.
+        None => Directed {
+            distance: f64::MAX,
+            reflected: false,
+            mobius: Mobius::identity(),
+            rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            translation: [0.0; 3],
+            correspondence: Vec::new(),
+        },
+    }
+}
+
+/// The cP distance between two prepared surfaces: both directed
+/// comparisons and the smaller of the two.
+pub fn compare(s: &Prepared, t: &Prepared, params: &CpParams) -> Comparison {
+    let forward = compare_directed(s, t, params);
+    let backward = compare_directed(t, s, params);
+    let (distance, reflected) = if forward.distance <= backward.distance {
+        (forward.distance, forward.reflected)
+    } else {
+        (backward.distance, backward.reflected)
+    };
+    Comparison {
+        distance,
+        forward,
+        backward,
+        reflected,
+    }
+}

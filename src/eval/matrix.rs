@@ -1,0 +1,215 @@
+//! Distance matrices: computation over prepared surfaces and CSV files.
+
+use super::{csv_field, split_csv_line};
+use crate::cp::{compare, CpParams, Prepared};
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// A square matrix of distances between named specimens.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DistanceMatrix {
+    /// Specimen names (row and column order).
+    pub names: Vec<String>,
+    /// `values[i][j]`: distance between specimens `i` and `j`.
+    pub values: Vec<Vec<f64>>,
+}
+
+/// Why a matrix file could not be read or written.
+#[derive(Debug, thiserror::Error)]
+pub enum MatrixError {
+    /// The file could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The content is malformed.
+    #[error("{path}:{line}: {message}")]
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+impl DistanceMatrix {
+    /// Distance between specimens `i` and `j` (NaN when out of range).
+    pub fn get(&self, i: usize, j: usize) -> f64 {
+        self.values
+            .get(i)
+            .and_then(|r| r.get(j))
+            .copied()
+            .unwrap_or(f64::NAN)
+    }
+
+    /// The CSV text: header `name,<name1>,…`, then one row per specimen.
+    pub fn to_csv(&self) -> String {
+        let mut s = String::from("name");
+        for n in &self.names {
+            s.push(',');
+            s.push_str(&csv_field(n));
+        }
+        s.push('\n');
+        for (n, row) in self.names.iter().zip(&self.values) {
+            s.push_str(&csv_field(n));
+            for v in row {
+                // Shortest representation that reads back exactly.
+                s.push_str(&format!(",{v:?}"));
+            }
+            s.push('\n');
+        }
+        s
+    }
+
+    /// Parse CSV text (`path` is only used in errors). Rows must follow the
+    /// header's order of names.
+    pub fn parse_csv(text: &str, path: &Path) -> Result<Self, MatrixError> {
+        let err = |line: usize, message: String| MatrixError::Format {
+            path: path.to_path_buf(),
+            line,
+            message,
+        };
+        let mut lines = text
+            .lines()
+            .enumerate()
+            .filter(|(_, l)| !l.trim().is_empty());
+        let (_, head) = lines.next().ok_or_else(|| err(1, "empty file".into()))?;
+        let header = split_csv_line(head).map_err(|m| err(1, m.into()))?;
+        if header.first().map(|h| h.trim()) != Some("name") {
+            return Err(err(1, "the header must start with `name`".into()));
+        }
+        let names: Vec<String> = header[1..].iter().map(|h| h.trim().to_string()).collect();
+        let mut values = Vec::with_capacity(names.len());
+        for (i, line) in lines {
+            let f = split_csv_line(line).map_err(|m| err(i + 1, m.into()))?;
+            let row = values.len();
+            if row >= names.len() {
+                return Err(err(i + 1, "more rows than columns".into()));
+            }
+            if f.len() != names.len() + 1 {
+                return Err(err(
+                    i + 1,
+                    format!("{} fields, expected {}", f.len(), names.len() + 1),
+                ));
+            }
+            if f[0].trim() != names[row] {
+                return Err(err(
+                    i + 1,
+                    format!("row `{}` where `{}` was expected", f[0].trim(), names[row]),
+                ));
+            }
+            let mut r = Vec::with_capacity(names.len());
+            for (k, v) in f[1..].iter().enumerate() {
+                let x: f64 = v.trim().parse().map_err(|_| {
+                    err(
+                        i + 1,
+                        format!("column {}: `{}` is not a number", k + 2, v.trim()),
+                    )
+                })?;
+                if !x.is_finite() {
+                    return Err(err(i + 1, format!("column {}: not finite", k + 2)));
+                }
+                r.push(x);
+            }
+            values.push(r);
+        }
+        if values.len() != names.len() {
+            return Err(err(
+                text.lines().count(),
+                format!("{} rows for {} columns", values.len(), names.len()),
+            ));
+        }
+        Ok(Self { names, values })
+    }
+
+    /// Read a matrix CSV file.
+    pub fn read_csv(path: &Path) -> Result<Self, MatrixError> {
+        let text = std::fs::read_to_string(path).map_err(|source| MatrixError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::parse_csv(&text, path)
+    }
+
+    /// Write a matrix CSV file.
+    pub fn write_csv(&self, path: &Path) -> Result<(), MatrixError> {
+        std::fs::write(path, self.to_csv()).map_err(|source| MatrixError::Io {
+            path: path.to_path_buf(),
+            source,
+        })
+    }
+}
+
+/// The symmetric matrix of cP distances between all pairs of prepared
+/// surfaces (zero diagonal), computed in parallel; `progress` receives the
+/// number of pairs done so far. The values do not depend on the number of
+/// threads.
+pub fn distance_matrix(
+    prepared: &[Prepared],
+    params: &CpParams,
+    progress: impl Fn(usize) + Sync,
+) -> DistanceMatrix {
+    let n = prepared.len();
+    let pairs: Vec<(usize, usize)> = (0..n)
+        .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
+        .collect();
+    let done = AtomicUsize::new(0);
+    let d: Vec<f64> = pairs
+        .par_iter()
+        .map(|&(i, j)| {
+            let c = compare(&prepared[i], &prepared[j], params);
+            progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+            c.distance
+        })
+        .collect();
+    let mut values = vec![vec![0.0; n]; n];
+    for (&(i, j), &v) in pairs.iter().zip(&d) {
+        values[i][j] = v;
+        values[j][i] = v;
+    }
+    DistanceMatrix {
+        names: prepared.iter().map(|p| p.name.clone()).collect(),
+        values,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> DistanceMatrix {
+        DistanceMatrix {
+            names: vec!["a".into(), "b,c".into()],
+            values: vec![vec![0.0, 0.1234567890123], vec![0.1234567890123, 0.0]],
+        }
+    }
+
+    #[test]
+    fn csv_round_trip_is_exact() {
+        let m = sample();
+        let text = m.to_csv();
+        assert!(text.starts_with("name,a,\"b,c\"\n"));
+        assert_eq!(
+            DistanceMatrix::parse_csv(&text, Path::new("m.csv")).unwrap(),
+            m
+        );
+    }
+
+    #[test]
+    fn malformed_csv_names_file_and_line() {
+        let p = Path::new("m.csv");
+        let e = DistanceMatrix::parse_csv("name,a,b\na,0,1\nb,1,x\n", p).unwrap_err();
+        assert!(e.to_string().starts_with("m.csv:3:"), "{e}");
+        let e = DistanceMatrix::parse_csv("name,a,b\na,0,1\n", p).unwrap_err();
+        assert!(e.to_string().contains("1 rows"), "{e}");
+        let e = DistanceMatrix::parse_csv("name,a,b\nb,0,1\na,1,0\n", p).unwrap_err();
+        assert!(e.to_string().starts_with("m.csv:2:"), "{e}");
+        assert!(DistanceMatrix::parse_csv("id,a\n", p).is_err());
+    }
+}

@@ -1,0 +1,58 @@
+//! Leave-one-out accuracy of the cP distance on the 116 PNAS teeth.
+//!
+//! Slow (all 6,670 pairs): run with
+//! `cargo test --release --test cp_accuracy -- --ignored --nocapture`.
+//! Writes the matrix to `$CP_MATRIX_OUT` when set.
+
+mod cp_support;
+
+use morphoid::cp::{self, CpParams};
+use morphoid::eval::{distance_matrix, leave_one_out, Labels};
+use rayon::prelude::*;
+
+#[test]
+#[ignore]
+fn leave_one_out_on_real_teeth() {
+    let Some(dir) = cp_support::data_dir() else {
+        return;
+    };
+    let params: CpParams = match std::env::var("CP_PARAMS") {
+        Ok(json) => serde_json::from_str(&json).expect("CP_PARAMS is CpParams JSON"),
+        Err(_) => CpParams::default(),
+    };
+    println!(
+        "params: {}",
+        serde_json::to_string(&params).unwrap_or_default()
+    );
+    let names = cp_support::tooth_names(&dir);
+    let t0 = std::time::Instant::now();
+    let prepared: Vec<cp::Prepared> = names
+        .par_iter()
+        .map(|n| {
+            let mut p = cp::prepare(&cp_support::load_tooth(&dir, n), &params).expect("prepare");
+            p.name = n.clone();
+            p
+        })
+        .collect();
+    println!("prepared {} in {:.1?}", prepared.len(), t0.elapsed());
+    let t0 = std::time::Instant::now();
+    let m = distance_matrix(&prepared, &params, |_| {});
+    println!("matrix in {:.1?}", t0.elapsed());
+    if let Ok(out) = std::env::var("CP_MATRIX_OUT") {
+        m.write_csv(std::path::Path::new(&out))
+            .expect("write matrix");
+    }
+    let ranks: Vec<String> = ["order", "family", "genus"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    let labels = Labels::read(&dir.join("labels.csv"), Some(&ranks)).expect("labels");
+    let scores = leave_one_out(&m, &labels, &ranks);
+    for s in &scores {
+        println!("LOO {}: {}/{}", s.rank, s.correct, s.total);
+    }
+    // The authors' implementation reaches 114/116, 99/106, 89/101; we
+    // require at least most of that.
+    assert!(scores[0].correct * 100 >= 95 * scores[0].total);
+    assert!(scores[2].correct * 100 >= 80 * scores[2].total);
+}

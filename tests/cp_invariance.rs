@@ -1,0 +1,93 @@
+//! Invariance of the cP distance on real teeth: rigid motions, uniform
+//! scalings and mirror images.
+
+mod cp_support;
+
+use morphoid::cp::{self, CpParams};
+use morphoid::mesh::Mesh;
+use nalgebra::{Rotation3, Vector3};
+use rand::{Rng, SeedableRng};
+
+fn transformed(m: &Mesh, rng: &mut rand_chacha::ChaCha8Rng) -> Mesh {
+    let r = Rotation3::from_euler_angles(
+        rng.gen_range(-3.1..3.1),
+        rng.gen_range(-1.5..1.5),
+        rng.gen_range(-3.1..3.1),
+    );
+    let s: f64 = rng.gen_range(0.2..5.0);
+    let t = Vector3::new(
+        rng.gen_range(-10.0..10.0),
+        rng.gen_range(-10.0..10.0),
+        rng.gen_range(-10.0..10.0),
+    );
+    let vertices = m
+        .vertices
+        .iter()
+        .map(|p| {
+            let q = r * Vector3::from(*p) * s + t;
+            [q[0], q[1], q[2]]
+        })
+        .collect();
+    Mesh::new(vertices, m.faces.clone())
+}
+
+fn mirrored(m: &Mesh) -> Mesh {
+    // Mirror through the plane x = 0 and keep the normals outward.
+    let vertices = m.vertices.iter().map(|p| [-p[0], p[1], p[2]]).collect();
+    let faces = m.faces.iter().map(|f| [f[0], f[2], f[1]]).collect();
+    Mesh::new(vertices, faces)
+}
+
+#[test]
+fn rigid_motions_scalings_and_mirrors_are_at_distance_zero() {
+    let Some(dir) = cp_support::data_dir() else {
+        return;
+    };
+    let params = CpParams::default();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let names = cp_support::tooth_names(&dir);
+    let mut worst_rigid: f64 = 0.0;
+    let mut worst_mirror: f64 = 0.0;
+    for name in names.iter().step_by(12).take(10) {
+        let mesh = cp_support::load_tooth(&dir, name);
+        let a = cp::prepare(&mesh, &params).expect("prepare");
+        let b = cp::prepare(&transformed(&mesh, &mut rng), &params).expect("prepare");
+        let c = cp::compare(&a, &b, &params);
+        assert!(!c.reflected, "{name}: rigid copy matched as a mirror image");
+        worst_rigid = worst_rigid.max(c.distance);
+        let mir = cp::prepare(&transformed(&mirrored(&mesh), &mut rng), &params).expect("prepare");
+        let c = cp::compare(&a, &mir, &params);
+        assert!(c.reflected, "{name}: mirror image not matched as reflected");
+        worst_mirror = worst_mirror.max(c.distance);
+        // A mirror image is also found when the mirrored copy's faces are
+        // wound the other way (orientation is made canonical).
+        let raw = Mesh::new(mirrored(&mesh).vertices, mesh.faces.clone());
+        let c = cp::compare(&a, &cp::prepare(&raw, &params).expect("prepare"), &params);
+        assert!(c.reflected && c.distance < 1e-3, "{name}: {}", c.distance);
+    }
+    println!("worst d(S, R(S)) = {worst_rigid:.2e}, worst d(S, mirror(S)) = {worst_mirror:.2e}");
+    assert!(worst_rigid < 1e-3);
+    assert!(worst_mirror < 1e-3);
+}
+
+#[test]
+fn distance_is_symmetric_and_positive_between_different_teeth() {
+    let Some(dir) = cp_support::data_dir() else {
+        return;
+    };
+    let params = CpParams::default();
+    let names = cp_support::tooth_names(&dir);
+    let a = cp::prepare(&cp_support::load_tooth(&dir, &names[2]), &params).expect("prepare");
+    let b = cp::prepare(&cp_support::load_tooth(&dir, &names[40]), &params).expect("prepare");
+    let ab = cp::compare(&a, &b, &params);
+    let ba = cp::compare(&b, &a, &params);
+    assert_eq!(ab.distance, ba.distance);
+    assert!(ab.distance > 0.01 && ab.distance.is_finite());
+    assert_eq!(ab.forward.correspondence.len(), a.vertices.len());
+    assert_eq!(ab.backward.correspondence.len(), b.vertices.len());
+    assert!(ab
+        .forward
+        .correspondence
+        .iter()
+        .all(|(f, l)| (*f as usize) < b.faces.len() && (l.iter().sum::<f64>() - 1.0).abs() < 1e-9));
+}
