@@ -15,3 +15,4 @@ pub mod conformal;
 pub mod cp;
 pub mod eval;
 pub mod mesh;
+pub mod pipeline;

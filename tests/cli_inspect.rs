@@ -69,7 +69,11 @@ fn inspect_reports_a_disk_for_a_soup_with_debris() {
         "--write-clean",
         clean_path.to_str().unwrap(),
     ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let v = json_of(&out);
     assert_eq!(v["status"], "ok");
     assert_eq!(v["input"]["format"], "stl");

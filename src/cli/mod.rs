@@ -2,7 +2,10 @@
 //! clap builds the argument structs here, the modules do the work and turn
 //! library errors into one-line messages with context.
 
+mod distance;
+mod evaluate;
 mod inspect;
+mod matrix;
 mod synth;
 
 use clap::{Parser, Subcommand};
@@ -23,6 +26,12 @@ struct Cli {
 enum Command {
     /// Load and clean a surface, print the cleaning report.
     Inspect(inspect::Args),
+    /// The cP distance and correspondence of two surfaces.
+    Distance(distance::Args),
+    /// The all-pairs cP distance matrix of a folder of surfaces.
+    Matrix(matrix::Args),
+    /// Leave-one-out nearest-neighbour classification from a distance matrix.
+    Evaluate(evaluate::Args),
     /// Write a synthetic crown-like surface (to try morphoid without data).
     Synth(synth::Args),
 }
@@ -34,6 +43,9 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Inspect(a) => inspect::run(a),
         Command::Synth(a) => synth::run(a),
+        Command::Distance(a) => distance::run(a),
+        Command::Matrix(a) => matrix::run(a),
+        Command::Evaluate(a) => evaluate::run(a),
     };
     match result {
         Ok(code) => code,
@@ -60,4 +72,15 @@ fn init_tracing(verbose: u8) {
         .with_writer(std::io::stderr)
         .with_target(false)
         .try_init();
+}
+
+/// Size rayon's global pool once, before any parallel work.
+fn configure_threads(threads: Option<usize>) -> anyhow::Result<()> {
+    if let Some(n) = threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n.max(1))
+            .build_global()
+            .map_err(|e| anyhow::anyhow!("cannot start {n} worker threads: {e}"))?;
+    }
+    Ok(())
 }

@@ -1,0 +1,142 @@
+//! The preparation pipeline every surface goes through, from a file to a
+//! [`Prepared`] surface: load, clean, prepare. One function so that the
+//! command line, the library build and the daemon treat a scan the same way.
+
+use crate::clean::{self, CleanError, CleanOptions, CleanReport};
+use crate::cp::{self, CpError, CpParams, Prepared};
+use crate::mesh::io::{self, LoadError};
+use crate::mesh::Mesh;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Parameters of the whole preparation.
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
+pub struct Settings {
+    /// Cleaning parameters.
+    pub clean: CleanOptions,
+    /// cP engine parameters.
+    pub cp: CpParams,
+}
+
+/// Wall time of each stage, in milliseconds.
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
+pub struct StageTimings {
+    /// Reading the file.
+    pub load: f64,
+    /// Cleaning and resampling.
+    pub clean: f64,
+    /// Normalization, flattening, features and samples.
+    pub prepare: f64,
+}
+
+/// A surface ready for comparisons, with what was done to get there.
+#[derive(Debug, Clone)]
+pub struct PreparedSurface {
+    /// The cleaned surface in the units of the file.
+    pub cleaned: Mesh,
+    /// The prepared form the cP engine compares.
+    pub prepared: Prepared,
+    /// What cleaning changed.
+    pub cleaning: CleanReport,
+    /// Time spent in each stage.
+    pub timings: StageTimings,
+}
+
+/// Why a file could not be prepared; every message names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    /// The file could not be read (the message names the file).
+    #[error(transparent)]
+    Load(#[from] LoadError),
+    /// The surface could not be made disk-type.
+    #[error("{path}: {source}")]
+    Clean {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        source: CleanError,
+    },
+    /// The surface could not be flattened or prepared.
+    #[error("{path}: {source}")]
+    Prepare {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        source: CpError,
+    },
+}
+
+/// Load, clean and prepare the surface in `path`; the prepared surface is
+/// named after the file stem.
+pub fn prepare_file(path: &Path, settings: &Settings) -> Result<PreparedSurface, PipelineError> {
+    let name = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let t = Instant::now();
+    let loaded = {
+        let _s = tracing::debug_span!("load", scan = %name).entered();
+        io::load(path)?
+    };
+    let load_ms = ms(t);
+    prepare_mesh(&loaded.mesh, &name, settings)
+        .map(|mut p| {
+            p.timings.load = load_ms;
+            p
+        })
+        .map_err(|e| match e {
+            MeshError::Clean(source) => PipelineError::Clean {
+                path: path.to_path_buf(),
+                source,
+            },
+            MeshError::Prepare(source) => PipelineError::Prepare {
+                path: path.to_path_buf(),
+                source,
+            },
+        })
+}
+
+/// Why a mesh could not be prepared (no file involved).
+#[derive(Debug, thiserror::Error)]
+pub enum MeshError {
+    /// The surface could not be made disk-type.
+    #[error(transparent)]
+    Clean(#[from] CleanError),
+    /// The surface could not be flattened or prepared.
+    #[error(transparent)]
+    Prepare(#[from] CpError),
+}
+
+/// Clean and prepare a mesh already in memory, naming the result `name`.
+pub fn prepare_mesh(
+    mesh: &Mesh,
+    name: &str,
+    settings: &Settings,
+) -> Result<PreparedSurface, MeshError> {
+    let t = Instant::now();
+    let cleaned = {
+        let _s = tracing::debug_span!("clean", scan = %name).entered();
+        clean::clean(mesh, &settings.clean)?
+    };
+    let clean_ms = ms(t);
+    let t = Instant::now();
+    let mut prepared = {
+        let _s = tracing::debug_span!("prepare", scan = %name).entered();
+        cp::prepare(&cleaned.mesh, &settings.cp)?
+    };
+    prepared.name = name.to_string();
+    Ok(PreparedSurface {
+        cleaned: cleaned.mesh,
+        prepared,
+        cleaning: cleaned.report,
+        timings: StageTimings {
+            load: 0.0,
+            clean: clean_ms,
+            prepare: ms(t),
+        },
+    })
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
