@@ -1,0 +1,58 @@
+//! What `morphoid inspect` costs: load + clean of a 5k-vertex surface and of
+//! one 16 times denser (~80k vertices). Uses a PNAS tooth when the data is
+//! beside the project, else a synthetic crown.
+//!
+//! `cargo bench --bench inspect`
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use morphoid::clean::{clean, CleanOptions};
+use morphoid::mesh::io;
+use morphoid::mesh::synth::{self, CROWN_GENERA};
+use std::hint::black_box;
+use std::path::{Path, PathBuf};
+
+fn source_surface() -> morphoid::mesh::Mesh {
+    let tooth =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/pnas-teeth/meshes/J12.ply");
+    match io::load(&tooth) {
+        Ok(l) => l.mesh,
+        Err(_) => {
+            eprintln!("pnas-teeth not found: using a synthetic crown");
+            synth::crown(&CROWN_GENERA[0], 1, 5000)
+        }
+    }
+}
+
+fn inspect(path: &Path) -> usize {
+    let loaded = io::load(path).expect("bench input loads");
+    let cleaned = clean(&loaded.mesh, &CleanOptions::default()).expect("bench input cleans");
+    cleaned.mesh.vertex_count()
+}
+
+fn bench(c: &mut Criterion) {
+    let dir = std::env::temp_dir().join(format!("morphoid-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let base = source_surface();
+    let dense = synth::subdivide_midpoint(&base, 2);
+    let files: Vec<(String, PathBuf)> = [("5k", &base), ("16x denser", &dense)]
+        .into_iter()
+        .map(|(label, m)| {
+            let p = dir.join(format!("{}.ply", label.replace(' ', "_")));
+            io::save(&p, m).expect("write bench input");
+            (
+                format!("inspect {label} ({} vertices)", m.vertex_count()),
+                p,
+            )
+        })
+        .collect();
+    let mut group = c.benchmark_group("inspect");
+    group.sample_size(10);
+    for (label, path) in &files {
+        group.bench_function(label.as_str(), |b| b.iter(|| black_box(inspect(path))));
+    }
+    group.finish();
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
