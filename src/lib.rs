@@ -14,5 +14,6 @@ pub mod clean;
 pub mod conformal;
 pub mod cp;
 pub mod eval;
+pub mod library;
 pub mod mesh;
 pub mod pipeline;

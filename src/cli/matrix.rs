@@ -3,7 +3,7 @@
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use morphoid::eval;
-use morphoid::mesh::io::Format;
+use morphoid::library;
 use morphoid::pipeline::{self, Settings};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -63,33 +63,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
 }
 
 /// The surface files of a library folder, sorted by name.
-pub fn surface_files(dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut files = list_surfaces(dir)?;
-    if files.is_empty() && dir.join("meshes").is_dir() {
-        files = list_surfaces(&dir.join("meshes"))?;
-    }
+fn surface_files(dir: &Path) -> Result<Vec<PathBuf>> {
+    let files = library::surface_files(dir)?;
     if files.is_empty() {
         bail!(
             "{}: no surface files (.obj, .ply, .stl, .off)",
             dir.display()
         );
     }
-    Ok(files)
-}
-
-fn list_surfaces(dir: &Path) -> Result<Vec<PathBuf>> {
-    let entries =
-        std::fs::read_dir(dir).with_context(|| format!("{}: cannot read folder", dir.display()))?;
-    let mut files = Vec::new();
-    for e in entries {
-        let path = e
-            .with_context(|| format!("{}: cannot read folder", dir.display()))?
-            .path();
-        if path.is_file() && Format::from_path(&path).is_some() {
-            files.push(path);
-        }
-    }
-    files.sort();
     Ok(files)
 }
 
