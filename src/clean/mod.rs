@@ -43,8 +43,8 @@ fn euler_characteristic(m: &Mesh) -> i64 {
 }
 
 /// Parameters of the cleaning pipeline.
-#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
-#[serde(default)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct CleanOptions {
     /// Working resolution: the cleaned mesh has about this many vertices
     /// (within ±10 %).

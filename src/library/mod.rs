@@ -5,13 +5,17 @@
 //! [`identify`] turns the distances of a scan to the references into the
 //! nearest taxon at each rank.
 
+mod cache;
 mod identify;
 
+pub use cache::{content_hash, Cache, CacheError, CachedReference};
 pub use identify::{identify, Identification, Neighbour, RankResult};
 
 use crate::eval::{Labels, LabelsError};
-use crate::mesh::io::Format;
-use std::collections::BTreeMap;
+use crate::mesh::io::{self, Format};
+use crate::pipeline::{self, Settings};
+use rayon::prelude::*;
+use std::collections::{BTreeMap, HashSet};
 use std::path::{Path, PathBuf};
 
 /// Why a library folder cannot be used; each message names the folder or file.
@@ -140,6 +144,94 @@ impl Library {
             members,
         })
     }
+}
+
+/// What [`build`] did.
+#[derive(Debug, Clone, Default)]
+pub struct BuildOutcome {
+    /// The prepared references, in library order (failed ones left out).
+    pub references: Vec<CachedReference>,
+    /// References that could not be prepared: name and one-line reason.
+    pub failures: Vec<(String, String)>,
+    /// How many were prepared now.
+    pub prepared: usize,
+    /// How many came from the cache.
+    pub reused: usize,
+    /// Cache entries deleted (removed or changed references, old settings).
+    pub removed: usize,
+}
+
+/// Whether a reference came from the cache.
+enum Source {
+    Cache,
+    Prepared,
+}
+
+/// Prepare every reference of `library`, reusing the cache where the file
+/// and the settings are unchanged, and drop cache entries no reference
+/// uses any more. `progress` is called once per reference. A reference that
+/// cannot be prepared is reported in `failures`; the others still build.
+pub fn build(
+    library: &Library,
+    cache: &Cache,
+    settings: &Settings,
+    progress: impl Fn(&str) + Sync,
+) -> Result<BuildOutcome, CacheError> {
+    let results: Vec<Result<(CachedReference, String, Source), String>> = library
+        .members
+        .par_iter()
+        .map(|m| {
+            let r = prepare_member(m, cache, settings);
+            progress(&m.name);
+            r
+        })
+        .collect();
+    let mut out = BuildOutcome::default();
+    let mut keep = HashSet::new();
+    for (m, r) in library.members.iter().zip(results) {
+        match r {
+            Ok((reference, key, source)) => {
+                match source {
+                    Source::Cache => out.reused += 1,
+                    Source::Prepared => {
+                        cache.put(&key, &reference)?;
+                        out.prepared += 1;
+                    }
+                }
+                keep.insert((m.name.clone(), key));
+                out.references.push(reference);
+            }
+            Err(message) => out.failures.push((m.name.clone(), message)),
+        }
+    }
+    out.removed = cache.retain(&keep)?;
+    Ok(out)
+}
+
+fn prepare_member(
+    m: &Member,
+    cache: &Cache,
+    settings: &Settings,
+) -> Result<(CachedReference, String, Source), String> {
+    let _span = tracing::info_span!("reference", name = %m.name).entered();
+    let bytes = std::fs::read(&m.path).map_err(|e| format!("{}: {e}", m.path.display()))?;
+    let hash = content_hash(&bytes);
+    let key = Cache::key(&hash, settings);
+    if let Some(hit) = cache.get(&m.name, &key) {
+        return Ok((hit, key, Source::Cache));
+    }
+    let format = Format::from_path(&m.path)
+        .ok_or_else(|| format!("{}: unsupported file type", m.path.display()))?;
+    let loaded = io::load_bytes(&bytes, format, &m.path).map_err(|e| e.to_string())?;
+    let surface = pipeline::prepare_mesh(&loaded.mesh, &m.name, settings)
+        .map_err(|e| format!("{}: {e}", m.path.display()))?;
+    let reference = CachedReference {
+        name: m.name.clone(),
+        content_hash: hash,
+        prepared: surface.prepared,
+        cleaning: surface.cleaning,
+    };
+    Ok((reference, key, Source::Prepared))
 }
 
 /// The surface files of a folder (by extension), sorted. When the folder

@@ -1,0 +1,230 @@
+//! The configuration file (`config/morphoid.toml` is the documented
+//! example). Unknown keys are errors, so a typo never silently falls back
+//! to a default.
+
+use crate::pipeline::Settings;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The whole configuration.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Config {
+    /// The scanner's export folder.
+    pub watch: Watch,
+    /// The reference library.
+    pub library: LibraryConfig,
+    /// The SQLite database.
+    pub database: Database,
+    /// Optional serial trigger (absent: none).
+    pub serial: Option<Serial>,
+    /// Cleaning parameters.
+    pub clean: crate::clean::CleanOptions,
+    /// cP engine parameters.
+    pub cp: crate::cp::CpParams,
+}
+
+/// `[watch]`: the export folder.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Watch {
+    /// Folder to watch.
+    pub dir: PathBuf,
+    /// Watch subfolders too.
+    pub recursive: bool,
+    /// A file counts as complete when unchanged this long.
+    pub settle_seconds: f64,
+    /// Glob patterns of names to skip (temporary files).
+    pub ignore: Vec<String>,
+    /// Where unusable files are moved (absent: left in place).
+    pub quarantine: Option<PathBuf>,
+}
+
+impl Default for Watch {
+    fn default() -> Self {
+        Watch {
+            dir: "export".into(),
+            recursive: true,
+            settle_seconds: 2.0,
+            ignore: vec!["*.part".into(), "*.tmp".into(), ".*".into()],
+            quarantine: None,
+        }
+    }
+}
+
+/// `[library]`: the reference library.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LibraryConfig {
+    /// Folder with labels.csv and the surfaces.
+    pub dir: PathBuf,
+    /// Rank columns of labels.csv, broadest first (empty: all but `name`).
+    pub ranks: Vec<String>,
+    /// Cache of prepared references (absent: the user's cache folder).
+    pub cache: Option<PathBuf>,
+}
+
+impl Default for LibraryConfig {
+    fn default() -> Self {
+        LibraryConfig {
+            dir: "library".into(),
+            ranks: vec!["order".into(), "family".into(), "genus".into()],
+            cache: None,
+        }
+    }
+}
+
+/// `[database]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Database {
+    /// The SQLite file.
+    pub path: PathBuf,
+}
+
+impl Default for Database {
+    fn default() -> Self {
+        Database {
+            path: "morphoid.sqlite".into(),
+        }
+    }
+}
+
+/// `[serial]`: a "scan complete" line from the scanner triggers a rescan.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Serial {
+    /// Device, e.g. `/dev/ttyUSB0`.
+    pub port: String,
+    /// Baud rate.
+    #[serde(default = "default_baud")]
+    pub baud: u32,
+    /// Regular expression matched against each received line.
+    #[serde(default = "default_trigger")]
+    pub trigger: String,
+}
+
+fn default_baud() -> u32 {
+    9600
+}
+
+fn default_trigger() -> String {
+    "^SCAN (COMPLETE|DONE)".into()
+}
+
+/// Why a configuration cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// The file cannot be read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The file is not valid TOML or has a wrong key or value.
+    #[error("{path}: {message}")]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// The parser's message (names the key and the line).
+        message: String,
+    },
+}
+
+impl Config {
+    /// Read and check a configuration file.
+    pub fn read(path: &Path) -> Result<Self, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::parse(&text, path)
+    }
+
+    /// Parse configuration text; `path` names it in errors.
+    pub fn parse(text: &str, path: &Path) -> Result<Self, ConfigError> {
+        let invalid = |message: String| ConfigError::Invalid {
+            path: path.to_path_buf(),
+            message,
+        };
+        let config: Config =
+            toml::from_str(text).map_err(|e| invalid(e.to_string().trim().replace('\n', " ")))?;
+        config.validate().map_err(invalid)?;
+        Ok(config)
+    }
+
+    /// Checks of values that the types alone do not catch.
+    fn validate(&self) -> Result<(), String> {
+        if !(self.watch.settle_seconds.is_finite() && self.watch.settle_seconds >= 0.0) {
+            return Err(format!(
+                "watch.settle_seconds must be a non-negative number, not {}",
+                self.watch.settle_seconds
+            ));
+        }
+        if self.clean.target_vertices < 100 {
+            return Err(format!(
+                "clean.target_vertices must be at least 100, not {}",
+                self.clean.target_vertices
+            ));
+        }
+        if let Some(s) = &self.serial {
+            if s.port.is_empty() {
+                return Err("serial.port is empty".into());
+            }
+            if s.baud == 0 {
+                return Err("serial.baud must be positive".into());
+            }
+        }
+        Ok(())
+    }
+
+    /// The preparation settings (cleaning + engine).
+    pub fn settings(&self) -> Settings {
+        Settings {
+            clean: self.clean.clone(),
+            cp: self.cp.clone(),
+        }
+    }
+
+    /// The rank columns, `None` meaning every column but `name`.
+    pub fn ranks(&self) -> Option<&[String]> {
+        (!self.library.ranks.is_empty()).then_some(self.library.ranks.as_slice())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_documented_example_parses() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/morphoid.toml");
+        let c = Config::read(&path).unwrap();
+        assert_eq!(c.library.ranks, ["order", "family", "genus"]);
+        assert!(c.serial.is_none());
+    }
+
+    #[test]
+    fn wrong_keys_and_values_are_named() {
+        let p = Path::new("x.toml");
+        let e = Config::parse("[watch]\nsettle_secs = 2\n", p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("settle_secs") && e.contains("x.toml"), "{e}");
+        let e = Config::parse("[watch]\nsettle_seconds = -1\n", p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("settle_seconds"), "{e}");
+        let e = Config::parse("[watch]\nrecursive = \"yes\"\n", p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("recursive"), "{e}");
+        let e = Config::parse("[serial]\nbaud = 9600\n", p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("port"), "{e}");
+        assert_eq!(Config::parse("", p).unwrap(), Config::default());
+    }
+}

@@ -1,0 +1,166 @@
+//! The cache of prepared references: one file per reference, keyed by the
+//! content hash of its surface file and by the preparation settings, so a
+//! restart or a new scan never prepares a reference twice, and a changed
+//! file or changed settings are prepared again.
+
+use crate::clean::CleanReport;
+use crate::cp::Prepared;
+use crate::pipeline::Settings;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+use std::collections::HashSet;
+use std::path::{Path, PathBuf};
+
+/// Bumped whenever the cached layout or the meaning of `Prepared` changes,
+/// so old entries are ignored instead of misread.
+const CACHE_FORMAT: u32 = 1;
+
+/// Extension of cache entries.
+const EXTENSION: &str = "prep";
+
+/// Hex SHA-256 of a file's bytes: the identity of a surface.
+pub fn content_hash(bytes: &[u8]) -> String {
+    hex(&Sha256::digest(bytes))
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Why the cache cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum CacheError {
+    /// The folder or an entry cannot be written or listed.
+    #[error("{path}: {source}")]
+    Io {
+        /// The folder or file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// An entry cannot be encoded.
+    #[error("cannot encode the prepared form of `{name}`: {message}")]
+    Encode {
+        /// The reference.
+        name: String,
+        /// The encoder's message.
+        message: String,
+    },
+}
+
+/// A prepared reference as kept in the cache.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct CachedReference {
+    /// Reference name.
+    pub name: String,
+    /// Content hash of the surface file it was prepared from.
+    pub content_hash: String,
+    /// The prepared form.
+    pub prepared: Prepared,
+    /// What cleaning changed.
+    pub cleaning: CleanReport,
+}
+
+#[derive(Serialize, Deserialize)]
+struct Entry {
+    format: u32,
+    key: String,
+    reference: CachedReference,
+}
+
+/// A cache folder.
+#[derive(Debug, Clone)]
+pub struct Cache {
+    dir: PathBuf,
+}
+
+impl Cache {
+    /// Use (and create if needed) the folder `dir`.
+    pub fn open(dir: &Path) -> Result<Self, CacheError> {
+        std::fs::create_dir_all(dir).map_err(|source| CacheError::Io {
+            path: dir.to_path_buf(),
+            source,
+        })?;
+        Ok(Cache {
+            dir: dir.to_path_buf(),
+        })
+    }
+
+    /// The folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The key of a surface with content hash `content_hash` prepared with
+    /// `settings`.
+    pub fn key(content_hash: &str, settings: &Settings) -> String {
+        let params = serde_json::to_string(settings).unwrap_or_default();
+        let mut h = Sha256::new();
+        h.update(CACHE_FORMAT.to_le_bytes());
+        h.update(content_hash.as_bytes());
+        h.update(params.as_bytes());
+        hex(&h.finalize()[..16])
+    }
+
+    fn path_of(&self, name: &str, key: &str) -> PathBuf {
+        self.dir.join(format!("{name}.{key}.{EXTENSION}"))
+    }
+
+    /// The cached entry of `name` under `key`, if present and readable. An
+    /// unreadable entry counts as absent (it will be prepared again).
+    pub fn get(&self, name: &str, key: &str) -> Option<CachedReference> {
+        let bytes = std::fs::read(self.path_of(name, key)).ok()?;
+        let entry: Entry = match postcard::from_bytes(&bytes) {
+            Ok(e) => e,
+            Err(e) => {
+                tracing::warn!(reference = name, "ignoring an unreadable cache entry: {e}");
+                return None;
+            }
+        };
+        (entry.format == CACHE_FORMAT && entry.key == key && entry.reference.name == name)
+            .then_some(entry.reference)
+    }
+
+    /// Store an entry under `key`, atomically (write, then rename).
+    pub fn put(&self, key: &str, reference: &CachedReference) -> Result<(), CacheError> {
+        let entry = Entry {
+            format: CACHE_FORMAT,
+            key: key.to_string(),
+            reference: reference.clone(),
+        };
+        let bytes = postcard::to_stdvec(&entry).map_err(|e| CacheError::Encode {
+            name: reference.name.clone(),
+            message: e.to_string(),
+        })?;
+        let path = self.path_of(&reference.name, key);
+        let tmp = path.with_extension("tmp");
+        let io = |source| CacheError::Io {
+            path: path.clone(),
+            source,
+        };
+        std::fs::write(&tmp, bytes).map_err(io)?;
+        std::fs::rename(&tmp, &path).map_err(io)
+    }
+
+    /// Delete every entry whose (name, key) is not in `keep`; returns how
+    /// many were deleted.
+    pub fn retain(&self, keep: &HashSet<(String, String)>) -> Result<usize, CacheError> {
+        let io = |source| CacheError::Io {
+            path: self.dir.clone(),
+            source,
+        };
+        let wanted: HashSet<PathBuf> = keep.iter().map(|(n, k)| self.path_of(n, k)).collect();
+        let mut removed = 0;
+        for entry in std::fs::read_dir(&self.dir).map_err(io)? {
+            let path = entry.map_err(io)?.path();
+            let ours = path
+                .extension()
+                .is_some_and(|e| e == EXTENSION || e == "tmp");
+            if ours && !wanted.contains(&path) {
+                std::fs::remove_file(&path).map_err(io)?;
+                removed += 1;
+            }
+        }
+        Ok(removed)
+    }
+}
