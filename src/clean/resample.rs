@@ -106,6 +106,9 @@ pub fn decimate_to_vertex_count(mesh: &Mesh, target_vertices: usize) -> Mesh {
     best.map_or_else(|| mesh.clone(), |(_, m)| m)
 }
 
+/// Angle (radians) beyond which a triangle counts as a cap.
+const CAP_ANGLE: f64 = 150.0 * std::f64::consts::PI / 180.0;
+
 /// No face.
 const NONE: u32 = u32::MAX;
 
@@ -124,7 +127,9 @@ fn angle_at(p: [f64; 3], q: [f64; 3], r: [f64; 3]) -> f64 {
 /// opposite angles sum to more than π is flipped, provided its two faces
 /// are nearly coplanar (normals within `max_dihedral` radians, so the shape
 /// is kept), the flipped faces keep their orientation and the edge's end
-/// vertices keep at least three edges. Returns the mesh and the flip count.
+/// vertices keep at least three edges. A face with an angle over 150° at
+/// the edge (a cap) is flipped whatever the dihedral angle. Returns the mesh
+/// and the flip count.
 pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
     let ef = EdgeFaces::new(&mesh.faces);
     let mut faces = mesh.faces.clone();
@@ -191,10 +196,20 @@ pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
         }
         let (n1, n2) = (triangle_normal2(pa, pb, pc), triangle_normal2(pb, pa, pd));
         let (l1, l2) = (norm(n1), norm(n2));
-        if l1 <= 0.0 || l2 <= 0.0 || dot(n1, n2) < cos_max * l1 * l2 {
-            continue;
-        }
-        let n = [0, 1, 2].map(|i| n1[i] / l1 + n2[i] / l2);
+        // A cap (an angle near 180°) has no reliable normal: flip it away
+        // whatever the dihedral angle, judging by its neighbour's normal.
+        let cap1 = angle_at(pc, pa, pb) > CAP_ANGLE;
+        let cap2 = angle_at(pd, pa, pb) > CAP_ANGLE;
+        let n = if cap1 && !cap2 && l2 > 0.0 {
+            n2.map(|x| x / l2)
+        } else if cap2 && !cap1 && l1 > 0.0 {
+            n1.map(|x| x / l1)
+        } else {
+            if l1 <= 0.0 || l2 <= 0.0 || dot(n1, n2) < cos_max * l1 * l2 {
+                continue;
+            }
+            [0, 1, 2].map(|i| n1[i] / l1 + n2[i] / l2)
+        };
         let (m1, m2) = (triangle_normal2(pa, pd, pc), triangle_normal2(pd, pb, pc));
         let (k1, k2) = (norm(m1), norm(m2));
         if k1 <= 0.0 || k2 <= 0.0 || dot(m1, n) <= 0.5 * k1 || dot(m2, n) <= 0.5 * k2 {
@@ -319,6 +334,48 @@ pub fn resample_to_vertex_count(mesh: &Mesh, target_vertices: usize) -> Mesh {
     m
 }
 
+/// Remove boundary caps: a face whose boundary edge faces an angle over
+/// 150° at an interior vertex is nearly flat and cannot be flipped away;
+/// dropping it moves the boundary onto the two other edges (by less than
+/// the cap's height), and the vertex joins the boundary. Returns the mesh
+/// and the number of faces removed.
+pub fn remove_boundary_caps(mesh: &Mesh) -> (Mesh, usize) {
+    let ef = EdgeFaces::new(&mesh.faces);
+    let mut on_boundary = boundary_vertices(mesh);
+    let mut remove = vec![false; mesh.faces.len()];
+    for e in 0..ef.len() {
+        let fs = ef.faces_of(e);
+        if fs.len() != 1 {
+            continue;
+        }
+        let (a, b) = ef.edges[e];
+        let f = mesh.faces[fs[0] as usize];
+        let Some(&c) = f.iter().find(|&&x| x != a && x != b) else {
+            continue;
+        };
+        if remove[fs[0] as usize] || on_boundary[c as usize] {
+            continue;
+        }
+        let v = &mesh.vertices;
+        if angle_at(v[c as usize], v[a as usize], v[b as usize]) > CAP_ANGLE {
+            remove[fs[0] as usize] = true;
+            on_boundary[c as usize] = true;
+        }
+    }
+    let faces: Vec<[u32; 3]> = mesh
+        .faces
+        .iter()
+        .zip(&remove)
+        .filter_map(|(f, &r)| (!r).then_some(*f))
+        .collect();
+    let removed = mesh.faces.len() - faces.len();
+    if removed == 0 {
+        return (mesh.clone(), 0);
+    }
+    let m = super::faces::remove_unreferenced_vertices(&Mesh::new(mesh.vertices.clone(), faces));
+    (m, removed)
+}
+
 /// Improve the triangles of `mesh` without changing its vertex count or
 /// topology: `iterations` rounds of Delaunay edge flips (faces within 30°
 /// of coplanar) and tangential relaxation projected onto `reference`, then
@@ -329,7 +386,7 @@ pub fn improve_triangles(
     iterations: usize,
 ) -> (Mesh, usize) {
     let dihedral = 30f64.to_radians();
-    let mut m = mesh.clone();
+    let (mut m, _) = remove_boundary_caps(mesh);
     let mut flips = 0;
     for _ in 0..iterations {
         let (f, k) = flip_to_delaunay(&m, dihedral);
@@ -337,6 +394,7 @@ pub fn improve_triangles(
         m = relax_tangential(&f, reference, 0.5);
     }
     let (f, k) = flip_to_delaunay(&m, dihedral);
+    let (f, _) = remove_boundary_caps(&f);
     (f, flips + k)
 }
 
@@ -399,6 +457,17 @@ mod tests {
         assert!(f.faces.iter().any(|t| t.contains(&2) && t.contains(&3)));
         assert_eq!(euler_characteristic(&f), 1);
         assert!((surface_area(&f) - surface_area(&m)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn boundary_cap_is_removed() {
+        // Square grid with an interior vertex pulled next to the bottom edge.
+        let mut m = grid(2);
+        m.vertices[4] = [0.5, 0.02, 0.0];
+        let (c, removed) = remove_boundary_caps(&m);
+        assert_eq!(removed, 1);
+        assert_eq!(euler_characteristic(&c), 1);
+        assert_eq!(crate::mesh::boundary_loops(&c).len(), 1);
     }
 
     #[test]
