@@ -108,6 +108,10 @@ pub(crate) fn read_ply(bytes: &[u8]) -> ParseResult<Mesh> {
         .find(|e| e.name == "vertex")
         .map(|e| e.count)
         .ok_or("PLY header has no 'vertex' element")?;
+    if header.elements.iter().any(|e| e.name == "tristrips") {
+        // Skipping them would silently turn the surface into a point cloud.
+        return Err("PLY triangle strips ('tristrips') are not supported".into());
+    }
     let body = bytes.get(header.body..).unwrap_or(&[]);
     let mut reader = match header.storage {
         Storage::Ascii => Body::Ascii(Tokens::new(body, header.lines + 1, false)),
@@ -177,19 +181,22 @@ fn roles_of(element: &Element) -> ParseResult<Vec<Role>> {
                 .properties
                 .iter()
                 .position(|p| p.name == "vertex_indices" || p.name == "vertex_index");
-            if let Some(i) = found {
-                match element.properties[i].kind {
-                    PropertyKind::List { count, item }
-                        if count.is_integer() && item.is_integer() =>
-                    {
-                        roles[i] = Role::FaceIndices
-                    }
-                    _ => {
-                        return Err(format!(
-                            "PLY face property '{}' is not a list of integers",
-                            element.properties[i].name
-                        ))
-                    }
+            let Some(i) = found else {
+                if element.count == 0 {
+                    return Ok(roles);
+                }
+                // Skipping the faces would silently give a point cloud.
+                return Err("PLY face element has no 'vertex_indices' list".into());
+            };
+            match element.properties[i].kind {
+                PropertyKind::List { count, item } if count.is_integer() && item.is_integer() => {
+                    roles[i] = Role::FaceIndices
+                }
+                _ => {
+                    return Err(format!(
+                        "PLY face property '{}' is not a list of integers",
+                        element.properties[i].name
+                    ))
                 }
             }
         }
@@ -583,6 +590,18 @@ mod tests {
                     0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n";
         let err = read_ply(text.as_bytes()).unwrap_err();
         assert!(err.contains("vertex 3") && err.contains("line 13"), "{err}");
+    }
+
+    #[test]
+    fn faces_without_an_index_list_are_an_error() {
+        let text = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n\
+                    property float y\nproperty float z\nelement face 1\n\
+                    property list uchar int corners\nend_header\n\
+                    0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+        let err = read_ply(text.as_bytes()).unwrap_err();
+        assert!(err.contains("vertex_indices"), "{err}");
+        let strips = text.replace("element face 1", "element tristrips 1");
+        assert!(read_ply(strips.as_bytes()).is_err());
     }
 
     #[test]

@@ -3,7 +3,9 @@
 //!
 //! A file is binary exactly when its size is `84 + 50·n` for the triangle
 //! count `n` stored at byte 80: binary files often start with "solid" too,
-//! so the leading word alone decides nothing.
+//! so the leading word alone decides nothing. An ASCII file cannot pass for
+//! binary: its bytes 80–83 are text, which read as a count of at least
+//! 0x09090909 triangles, far more than the size limit allows.
 
 use super::text::{shorten, Tokens};
 use super::{push_fan, ParseResult};

@@ -243,7 +243,7 @@ fn sym(rng: &mut ChaCha8Rng) -> f64 {
 /// A crown-like disk-type surface of the given configuration with about
 /// `target_vertices` vertices. The seed fixes the individual: cusp
 /// positions (±0.04), heights and widths (±8 %), overall scale (±8 %),
-/// footprint aspect (±3 %) and a slight smooth noise (amplitude 0.4 % of
+/// footprint aspect (±3 %) and a slight smooth noise (at most 0.4 % of
 /// the radius). The crown's occlusal surface faces +z, footprint radius
 /// about 1.
 pub fn crown(genus: &CrownGenus, seed: u64, target_vertices: usize) -> Mesh {

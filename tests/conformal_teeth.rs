@@ -1,0 +1,176 @@
+//! Conformal flattening of the 116 real teeth (skipped when the data set is
+//! absent).
+
+use morphoid::conformal::{
+    conformal_factor, flatten_to_disk, flatten_to_disk_with, flipped_triangles, normalize,
+    quasi_conformal_ratios, FlattenError, LaplacianWeights,
+};
+use morphoid::mesh::Mesh;
+use std::path::{Path, PathBuf};
+
+const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/pnas-teeth");
+
+/// Teeth with a non-manifold edge, which only cleaning repairs.
+const NEEDS_CLEANING: [&str; 2] = ["J12", "S09"];
+
+/// Minimal reader for the data set's binary little-endian PLY files (float32
+/// x y z; faces as uchar count + int32 indices).
+fn read_tooth(path: &Path) -> Mesh {
+    let bytes = std::fs::read(path).unwrap();
+    let marker = b"end_header\n";
+    let end = bytes
+        .windows(marker.len())
+        .position(|w| w == marker)
+        .unwrap()
+        + marker.len();
+    let header = std::str::from_utf8(&bytes[..end]).unwrap();
+    let count = |name: &str| -> usize {
+        header
+            .lines()
+            .find_map(|l| l.strip_prefix(&format!("element {name} ")))
+            .unwrap()
+            .trim()
+            .parse()
+            .unwrap()
+    };
+    let (nv, nf) = (count("vertex"), count("face"));
+    let f32_at = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().unwrap()) as f64;
+    let i32_at = |o: usize| i32::from_le_bytes(bytes[o..o + 4].try_into().unwrap()) as u32;
+    let mut off = end;
+    let mut vertices = Vec::with_capacity(nv);
+    for _ in 0..nv {
+        vertices.push([f32_at(off), f32_at(off + 4), f32_at(off + 8)]);
+        off += 12;
+    }
+    let mut faces = Vec::with_capacity(nf);
+    for _ in 0..nf {
+        assert_eq!(bytes[off], 3);
+        faces.push([i32_at(off + 1), i32_at(off + 5), i32_at(off + 9)]);
+        off += 13;
+    }
+    Mesh::new(vertices, faces)
+}
+
+fn tooth_paths() -> Option<Vec<PathBuf>> {
+    let dir = Path::new(DATA).join("meshes");
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .ok()?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "ply"))
+        .collect();
+    paths.sort();
+    Some(paths)
+}
+
+fn percentile(sorted: &[f64], q: f64) -> f64 {
+    sorted[((sorted.len() - 1) as f64 * q).round() as usize]
+}
+
+#[test]
+fn all_teeth_flatten_without_flips() {
+    let Some(paths) = tooth_paths() else {
+        println!("skipped: data not found");
+        return;
+    };
+    assert_eq!(paths.len(), 116);
+    let mut all_ratios = Vec::new();
+    let mut done = 0;
+    for path in &paths {
+        let name = path.file_stem().unwrap().to_string_lossy().to_string();
+        let mesh = read_tooth(path);
+        if NEEDS_CLEANING.contains(&name.as_str()) {
+            assert!(matches!(
+                flatten_to_disk(&mesh),
+                Err(FlattenError::NonManifold { .. } | FlattenError::NotDisk { .. })
+            ));
+            continue;
+        }
+        let norm = normalize(&mesh).unwrap();
+        let map = flatten_to_disk(&norm.mesh).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(flipped_triangles(&norm.mesh.faces, &map.uv), 0, "{name}");
+        let on_boundary = boundary_vertices(&norm.mesh);
+        for (v, z) in map.uv.iter().enumerate() {
+            let r = z[0].hypot(z[1]);
+            if on_boundary[v] {
+                assert!(
+                    (r - 1.0).abs() < 1e-6,
+                    "{name}: boundary vertex {v} at |z| = {r}"
+                );
+            } else {
+                assert!(r < 1.0, "{name}: interior vertex {v} at |z| = {r}");
+            }
+        }
+        assert_eq!(map.uv[map.center as usize], [0.0, 0.0]);
+        let f = conformal_factor(&norm.mesh, &map.uv);
+        assert!(f.iter().all(|x| x.is_finite() && *x > 0.0), "{name}");
+        let q = quasi_conformal_ratios(&norm.mesh, &map.uv);
+        let mut sq = q.clone();
+        sq.sort_by(f64::total_cmp);
+        println!(
+            "{name}: median {:.4} p95 {:.4} max {:.3}",
+            percentile(&sq, 0.5),
+            percentile(&sq, 0.95),
+            sq[sq.len() - 1]
+        );
+        all_ratios.extend(q);
+        done += 1;
+    }
+    all_ratios.sort_by(f64::total_cmp);
+    println!(
+        "{done} teeth, {} triangles: quasi-conformal ratio median {:.4}, 95th percentile {:.4}, 99th {:.4}",
+        all_ratios.len(),
+        percentile(&all_ratios, 0.5),
+        percentile(&all_ratios, 0.95),
+        percentile(&all_ratios, 0.99)
+    );
+    assert_eq!(done, 114);
+    assert!(percentile(&all_ratios, 0.5) < 1.1);
+}
+
+fn boundary_vertices(mesh: &Mesh) -> Vec<bool> {
+    let mut on = vec![false; mesh.vertices.len()];
+    for lp in morphoid::mesh::boundary_loops(mesh) {
+        for v in lp {
+            on[v as usize] = true;
+        }
+    }
+    on
+}
+
+/// Compares the two Laplacians on all teeth (prints; asserts only that each
+/// method either succeeds or reports flips).
+#[test]
+fn compare_laplacians_on_teeth() {
+    let Some(paths) = tooth_paths() else {
+        println!("skipped: data not found");
+        return;
+    };
+    for method in [
+        LaplacianWeights::IntrinsicDelaunay,
+        LaplacianWeights::ClampedCotangent,
+    ] {
+        let mut ratios = Vec::new();
+        let mut failed = Vec::new();
+        for path in &paths {
+            let name = path.file_stem().unwrap().to_string_lossy().to_string();
+            if NEEDS_CLEANING.contains(&name.as_str()) {
+                continue;
+            }
+            let mesh = normalize(&read_tooth(path)).unwrap().mesh;
+            match flatten_to_disk_with(&mesh, method) {
+                Ok(map) => ratios.extend(quasi_conformal_ratios(&mesh, &map.uv)),
+                Err(FlattenError::Flipped { count }) => failed.push(format!("{name} ({count})")),
+                Err(e) => panic!("{name}: {e}"),
+            }
+        }
+        ratios.sort_by(f64::total_cmp);
+        println!(
+            "{method:?}: flipped on {} teeth {:?}; quasi-conformal ratio median {:.4}, p95 {:.4}, p99 {:.4}",
+            failed.len(),
+            failed,
+            percentile(&ratios, 0.5),
+            percentile(&ratios, 0.95),
+            percentile(&ratios, 0.99)
+        );
+    }
+}

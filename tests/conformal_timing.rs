@@ -1,0 +1,89 @@
+//! Timing of normalization, flattening and conformal factor on real teeth.
+//! Prints, never asserts timing; run with
+//! `cargo test --release --test conformal_timing -- --nocapture`.
+
+use morphoid::conformal::{
+    conformal_factor, flatten_to_disk_with, intrinsic_delaunay_weights, normalize, LaplacianWeights,
+};
+use morphoid::mesh::Mesh;
+use std::path::Path;
+use std::time::Instant;
+
+const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/pnas-teeth");
+
+/// Minimal reader for the data set's binary little-endian PLY files.
+fn read_tooth(path: &Path) -> Option<Mesh> {
+    let bytes = std::fs::read(path).ok()?;
+    let marker = b"end_header\n";
+    let end = bytes.windows(marker.len()).position(|w| w == marker)? + marker.len();
+    let header = std::str::from_utf8(&bytes[..end]).ok()?;
+    let count = |name: &str| -> Option<usize> {
+        header
+            .lines()
+            .find_map(|l| l.strip_prefix(&format!("element {name} ")))?
+            .trim()
+            .parse()
+            .ok()
+    };
+    let (nv, nf) = (count("vertex")?, count("face")?);
+    let f32_at = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().unwrap()) as f64;
+    let i32_at = |o: usize| i32::from_le_bytes(bytes[o..o + 4].try_into().unwrap()) as u32;
+    let mut off = end;
+    let mut vertices = Vec::with_capacity(nv);
+    for _ in 0..nv {
+        vertices.push([f32_at(off), f32_at(off + 4), f32_at(off + 8)]);
+        off += 12;
+    }
+    let mut faces = Vec::with_capacity(nf);
+    for _ in 0..nf {
+        faces.push([i32_at(off + 1), i32_at(off + 5), i32_at(off + 9)]);
+        off += 13;
+    }
+    Some(Mesh::new(vertices, faces))
+}
+
+#[test]
+fn time_preparation_of_teeth() {
+    let names = ["B03", "D09", "H10", "Q02", "T04"];
+    let dir = Path::new(DATA).join("meshes");
+    if !dir.is_dir() {
+        println!("skipped: data not found");
+        return;
+    }
+    for name in names {
+        let Some(mesh) = read_tooth(&dir.join(format!("{name}.ply"))) else {
+            println!("skipped: data not found");
+            return;
+        };
+        // Best of a few runs, to leave out warm-up.
+        let mut best = [f64::INFINITY; 4];
+        for _ in 0..5 {
+            let t0 = Instant::now();
+            let norm = normalize(&mesh).unwrap();
+            let t1 = Instant::now();
+            let map = flatten_to_disk_with(&norm.mesh, LaplacianWeights::IntrinsicDelaunay);
+            let t2 = Instant::now();
+            let f = map.as_ref().map(|m| conformal_factor(&norm.mesh, &m.uv));
+            let t3 = Instant::now();
+            let _ = intrinsic_delaunay_weights(&norm.mesh);
+            let t4 = Instant::now();
+            assert!(f.is_ok());
+            let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
+            for (b, x) in best
+                .iter_mut()
+                .zip([ms(t0, t1), ms(t1, t2), ms(t2, t3), ms(t3, t4)])
+            {
+                *b = b.min(x);
+            }
+        }
+        println!(
+            "{name} ({} vertices): normalize {:.2} ms, flatten {:.2} ms (of which intrinsic Delaunay {:.2} ms), conformal factor {:.2} ms, total {:.2} ms",
+            mesh.vertices.len(),
+            best[0],
+            best[1],
+            best[3],
+            best[2],
+            best[0] + best[1] + best[2]
+        );
+    }
+}
