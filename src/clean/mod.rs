@@ -260,7 +260,7 @@ pub fn clean(mesh: &Mesh, opts: &CleanOptions) -> Result<Cleaned, CleanError> {
     } else {
         make_disk(&resampled, &mut CleanReport::default())?
     };
-    let reference = closest::TriangleGrid::new(&m3).ok_or(CleanError::TooFewFaces(0))?;
+    let reference = resample::SurfaceReference::new(&m3).ok_or(CleanError::TooFewFaces(0))?;
     let (out, flips) = resample::improve_triangles(&m4, &reference, opts.relax_iterations);
     report.edge_flips = flips;
     let loops = boundary_loops(&out).len();
