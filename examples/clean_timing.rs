@@ -56,7 +56,11 @@ fn main() {
         100.0 * ob
     );
     let cloud = morphoid::mesh::synth::transform::to_point_cloud(&tooth);
-    for (label, m) in [("tooth", &tooth), ("16x denser", &dense), ("point cloud", &cloud)] {
+    for (label, m) in [
+        ("tooth", &tooth),
+        ("16x denser", &dense),
+        ("point cloud", &cloud),
+    ] {
         let runs = 5;
         let t = Instant::now();
         let mut out = None;
