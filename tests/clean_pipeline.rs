@@ -179,6 +179,10 @@ fn cleaning_is_deterministic() {
     let b = clean(&m, &CleanOptions::default()).expect("b");
     assert_eq!(a.mesh, b.mesh);
     assert_eq!(a.report, b.report);
+    let cloud = transform::to_point_cloud(&crown(5000));
+    let a = clean(&cloud, &CleanOptions::default()).expect("a");
+    let b = clean(&cloud, &CleanOptions::default()).expect("b");
+    assert_eq!(a.mesh, b.mesh);
 }
 
 #[test]
