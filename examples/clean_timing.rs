@@ -55,7 +55,12 @@ fn main() {
         tooth.vertices.len(),
         100.0 * ob
     );
-    for (label, m) in [("tooth", &tooth), ("16x denser", &dense)] {
+    let cloud = morphoid::mesh::synth::transform::to_point_cloud(&tooth);
+    for (label, m) in [
+        ("tooth", &tooth),
+        ("16x denser", &dense),
+        ("point cloud", &cloud),
+    ] {
         let runs = 5;
         let t = Instant::now();
         let mut out = None;

@@ -173,12 +173,28 @@ fn coarse_dense_and_cloud_crowns_reach_the_target() {
 }
 
 #[test]
+fn flat_disk_keeps_its_orientation() {
+    let disk = synth::unit_disk(4000);
+    for m in [disk.clone(), transform::flip_faces(&disk, 1.0, 1)] {
+        let up = vector_area(&m)[2] > 0.0;
+        let c = clean(&m, &CleanOptions::default()).expect("disk");
+        assert!(!c.report.reversed_orientation);
+        assert_eq!(vector_area(&c.mesh)[2] > 0.0, up);
+        assert_disk_on(&c.mesh, &m, 5000);
+    }
+}
+
+#[test]
 fn cleaning_is_deterministic() {
     let m = transform::flip_faces(&crown(12000), 0.2, 9);
     let a = clean(&m, &CleanOptions::default()).expect("a");
     let b = clean(&m, &CleanOptions::default()).expect("b");
     assert_eq!(a.mesh, b.mesh);
     assert_eq!(a.report, b.report);
+    let cloud = transform::to_point_cloud(&crown(5000));
+    let a = clean(&cloud, &CleanOptions::default()).expect("a");
+    let b = clean(&cloud, &CleanOptions::default()).expect("b");
+    assert_eq!(a.mesh, b.mesh);
 }
 
 #[test]

@@ -16,6 +16,9 @@ fn all_teeth_clean_to_disks_on_their_surface() {
     let opts = CleanOptions::default();
     let mut rel = Vec::new();
     let mut reversed = 0;
+    let mut worst_in: f64 = 0.0;
+    let mut worst_out: f64 = 0.0;
+    let mut obtuse = (0.0, 0.0);
     for (name, mesh) in &teeth {
         let c = clean(mesh, &opts).unwrap_or_else(|e| panic!("{name}: {e}"));
         let m = &c.mesh;
@@ -30,6 +33,16 @@ fn all_teeth_clean_to_disks_on_their_surface() {
         let r = mean / bbox_diagonal(mesh);
         assert!(r < 0.005, "{name}: mean distance {r} of the diagonal");
         rel.push(r);
+        let (qi, qo) = (max_angles(mesh), max_angles(m));
+        worst_in = worst_in.max(qi.0);
+        worst_out = worst_out.max(qo.0);
+        if qo.0 > 170.0 {
+            println!("{name}: largest angle {:.1}° (input {:.1}°)", qo.0, qi.0);
+        }
+        obtuse.0 += qi.1 / teeth.len() as f64;
+        obtuse.1 += qo.1 / teeth.len() as f64;
+        // Resampling improves the triangles.
+        assert!(qo.1 < qi.1, "{name}: obtuse fraction {} -> {}", qi.1, qo.1);
         if c.report.reversed_orientation {
             reversed += 1;
         }
@@ -48,6 +61,33 @@ fn all_teeth_clean_to_disks_on_their_surface() {
         rel.iter().copied().fold(0.0, f64::max),
         reversed
     );
+    println!(
+        "largest angle in / out: {worst_in:.1}° / {worst_out:.1}°; obtuse triangles in / out: {:.1} % / {:.1} %",
+        100.0 * obtuse.0,
+        100.0 * obtuse.1
+    );
+    assert!(worst_out < 170.0);
+}
+
+/// Largest triangle angle (degrees) and fraction of obtuse triangles.
+fn max_angles(m: &morphoid::mesh::Mesh) -> (f64, f64) {
+    use morphoid::mesh::{dot, norm, sub};
+    let mut worst: f64 = 0.0;
+    let mut obtuse = 0;
+    for f in &m.faces {
+        let p = f.map(|v| m.vertices[v as usize]);
+        let mut mx: f64 = 0.0;
+        for k in 0..3 {
+            let (u, v) = (sub(p[(k + 1) % 3], p[k]), sub(p[(k + 2) % 3], p[k]));
+            let c = (dot(u, v) / (norm(u) * norm(v))).clamp(-1.0, 1.0);
+            mx = mx.max(c.acos().to_degrees());
+        }
+        worst = worst.max(mx);
+        if mx > 90.0 {
+            obtuse += 1;
+        }
+    }
+    (worst, obtuse as f64 / m.faces.len() as f64)
 }
 
 #[test]

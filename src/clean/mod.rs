@@ -156,6 +156,10 @@ pub enum CleanError {
         /// Number of vertices.
         count: usize,
     },
+    /// The topology is neither a disk nor a surface with handles (should
+    /// not happen after the repairs).
+    #[error("the surface is not disk-type (Euler characteristic {0} with one boundary loop)")]
+    NotDisk(i64),
     /// Resampling did not keep the disk topology (should not happen).
     #[error("resampling changed the topology ({0} boundary loops, Euler characteristic {1})")]
     Resampling(usize, i64),
@@ -209,7 +213,12 @@ fn make_disk(m: &Mesh, report: &mut CleanReport) -> Result<Mesh, CleanError> {
     report.filled_holes += filled;
     let chi = euler_characteristic(&m9);
     if chi != 1 {
-        return Err(CleanError::Handles(holes::handle_count(chi, 1), chi));
+        let handles = holes::handle_count(chi, 1);
+        return Err(if handles > 0 {
+            CleanError::Handles(handles, chi)
+        } else {
+            CleanError::NotDisk(chi)
+        });
     }
     let outer = holes::boundary_loops_by_length(&m9);
     if orient::normals_point_outward(&m9, outer.first().map_or(&[], |l| l)) {
@@ -260,7 +269,7 @@ pub fn clean(mesh: &Mesh, opts: &CleanOptions) -> Result<Cleaned, CleanError> {
     } else {
         make_disk(&resampled, &mut CleanReport::default())?
     };
-    let reference = closest::TriangleGrid::new(&m3).ok_or(CleanError::TooFewFaces(0))?;
+    let reference = resample::SurfaceReference::new(&m3).ok_or(CleanError::TooFewFaces(0))?;
     let (out, flips) = resample::improve_triangles(&m4, &reference, opts.relax_iterations);
     report.edge_flips = flips;
     let loops = boundary_loops(&out).len();

@@ -93,7 +93,8 @@ pub fn reverse_faces(mesh: &Mesh) -> Mesh {
 /// `boundary` (a vertex loop): `true` when the vector area Σ n·A points from
 /// the centroid of the boundary loop towards the area centroid of the
 /// surface, i.e. the normals point to the convex ("outer") side of a dome
-/// such as a tooth crown with its cervical margin as boundary. The test is
+/// such as a tooth crown with its cervical margin as boundary (`true` too
+/// when the surface is flat to rounding: nothing to decide). The test is
 /// invariant under rigid motions, scaling and mirroring (a mirrored input
 /// yields the mirrored output with outward normals again).
 pub fn normals_point_outward(mesh: &Mesh, boundary: &[u32]) -> bool {
@@ -120,7 +121,11 @@ pub fn normals_point_outward(mesh: &Mesh, boundary: &[u32]) -> bool {
         }
     }
     let offset = [0, 1, 2].map(|d| centroid[d] / area - bc[d]);
-    dot(vector_area, offset) >= 0.0
+    // A flat (or perfectly balanced) surface has no outer side: keep the
+    // orientation it has rather than follow rounding noise.
+    let scale = area * crate::mesh::bbox_diagonal(mesh);
+    let s = dot(vector_area, offset);
+    s >= 0.0 || s.abs() <= 1e-9 * scale
 }
 
 #[cfg(test)]

@@ -106,6 +106,12 @@ pub fn decimate_to_vertex_count(mesh: &Mesh, target_vertices: usize) -> Mesh {
     best.map_or_else(|| mesh.clone(), |(_, m)| m)
 }
 
+/// Angle (radians) beyond which a triangle counts as a cap.
+const CAP_ANGLE: f64 = 150.0 * std::f64::consts::PI / 180.0;
+
+/// Angle (radians) below which a boundary ear counts as a sliver.
+const EAR_ANGLE: f64 = 10.0 * std::f64::consts::PI / 180.0;
+
 /// No face.
 const NONE: u32 = u32::MAX;
 
@@ -124,7 +130,9 @@ fn angle_at(p: [f64; 3], q: [f64; 3], r: [f64; 3]) -> f64 {
 /// opposite angles sum to more than π is flipped, provided its two faces
 /// are nearly coplanar (normals within `max_dihedral` radians, so the shape
 /// is kept), the flipped faces keep their orientation and the edge's end
-/// vertices keep at least three edges. Returns the mesh and the flip count.
+/// vertices keep at least three edges. A face with an angle over 150° at
+/// the edge (a cap) is flipped whatever the dihedral angle. Returns the mesh
+/// and the flip count.
 pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
     let ef = EdgeFaces::new(&mesh.faces);
     let mut faces = mesh.faces.clone();
@@ -191,10 +199,20 @@ pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
         }
         let (n1, n2) = (triangle_normal2(pa, pb, pc), triangle_normal2(pb, pa, pd));
         let (l1, l2) = (norm(n1), norm(n2));
-        if l1 <= 0.0 || l2 <= 0.0 || dot(n1, n2) < cos_max * l1 * l2 {
-            continue;
-        }
-        let n = [0, 1, 2].map(|i| n1[i] / l1 + n2[i] / l2);
+        // A cap (an angle near 180°) has no reliable normal: flip it away
+        // whatever the dihedral angle, judging by its neighbour's normal.
+        let cap1 = angle_at(pc, pa, pb) > CAP_ANGLE;
+        let cap2 = angle_at(pd, pa, pb) > CAP_ANGLE;
+        let n = if cap1 && !cap2 && l2 > 0.0 {
+            n2.map(|x| x / l2)
+        } else if cap2 && !cap1 && l1 > 0.0 {
+            n1.map(|x| x / l1)
+        } else {
+            if l1 <= 0.0 || l2 <= 0.0 || dot(n1, n2) < cos_max * l1 * l2 {
+                continue;
+            }
+            [0, 1, 2].map(|i| n1[i] / l1 + n2[i] / l2)
+        };
         let (m1, m2) = (triangle_normal2(pa, pd, pc), triangle_normal2(pd, pb, pc));
         let (k1, k2) = (norm(m1), norm(m2));
         if k1 <= 0.0 || k2 <= 0.0 || dot(m1, n) <= 0.5 * k1 || dot(m2, n) <= 0.5 * k2 {
@@ -237,16 +255,82 @@ pub fn boundary_vertices(mesh: &Mesh) -> Vec<bool> {
     on
 }
 
+/// The surface that relaxed vertices are projected back onto: its
+/// triangles (for interior vertices) and its boundary segments (for
+/// boundary vertices, which thereby stay on the original boundary).
+#[derive(Debug, Clone)]
+pub struct SurfaceReference {
+    grid: TriangleGrid,
+    boundary: Vec<[[f64; 3]; 2]>,
+}
+
+impl SurfaceReference {
+    /// Reference of `mesh`; `None` without faces.
+    pub fn new(mesh: &Mesh) -> Option<Self> {
+        let grid = TriangleGrid::new(mesh)?;
+        let ef = EdgeFaces::new(&mesh.faces);
+        let boundary = (0..ef.len())
+            .filter(|&e| ef.faces_of(e).len() == 1)
+            .map(|e| {
+                let (a, b) = ef.edges[e];
+                [mesh.vertices[a as usize], mesh.vertices[b as usize]]
+            })
+            .collect();
+        Some(Self { grid, boundary })
+    }
+
+    /// Closest point of the surface.
+    pub fn closest_point(&self, p: [f64; 3]) -> [f64; 3] {
+        self.grid.closest_point(p).point
+    }
+
+    /// Closest point of the boundary (`p` itself when there is none).
+    pub fn closest_boundary_point(&self, p: [f64; 3]) -> [f64; 3] {
+        let mut best = (f64::INFINITY, p);
+        for &[a, b] in &self.boundary {
+            let ab = sub(b, a);
+            let l2 = dot(ab, ab);
+            let t = if l2 > 0.0 {
+                (dot(sub(p, a), ab) / l2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let q = [0, 1, 2].map(|d| a[d] + t * ab[d]);
+            let d = sub(q, p);
+            let d2 = dot(d, d);
+            if d2 < best.0 {
+                best = (d2, q);
+            }
+        }
+        best.1
+    }
+}
+
 /// One step of tangential relaxation: every interior vertex moves by
 /// `lambda` towards the area-weighted centroid of its incident triangles,
 /// with the normal component of the move removed, then onto the closest
-/// point of `reference`. Boundary vertices stay. A move that would turn an
+/// point of the reference surface. A boundary vertex moves by `lambda`
+/// towards the midpoint of its two boundary neighbours, then onto the
+/// closest point of the reference boundary; where the boundary turns by
+/// more than 60° it stays (corners are kept). A move that would turn an
 /// incident triangle over (or shrink it below a tenth of its area) is
 /// dropped. Jacobi update: the result does not depend on vertex order.
-pub fn relax_tangential(mesh: &Mesh, reference: &TriangleGrid, lambda: f64) -> Mesh {
+pub fn relax_tangential(mesh: &Mesh, reference: &SurfaceReference, lambda: f64) -> Mesh {
     let n = mesh.vertices.len();
     let v = &mesh.vertices;
-    let fixed = boundary_vertices(mesh);
+    // Boundary neighbours (u32::MAX = none); a third one marks a pinch.
+    let mut bnbr = vec![[u32::MAX; 3]; n];
+    let ef = EdgeFaces::new(&mesh.faces);
+    for e in 0..ef.len() {
+        if ef.faces_of(e).len() == 1 {
+            let (a, b) = ef.edges[e];
+            for (x, y) in [(a, b), (b, a)] {
+                if let Some(slot) = bnbr[x as usize].iter_mut().find(|s| **s == u32::MAX) {
+                    *slot = y;
+                }
+            }
+        }
+    }
     let mut centroid = vec![[0.0; 3]; n];
     let mut weight = vec![0.0; n];
     let mut normal = vec![[0.0; 3]; n];
@@ -266,24 +350,39 @@ pub fn relax_tangential(mesh: &Mesh, reference: &TriangleGrid, lambda: f64) -> M
             incident[i].push(fi as u32);
         }
     }
+    let target = |i: usize| -> Option<[f64; 3]> {
+        let p = v[i];
+        let nb = bnbr[i];
+        if nb[0] != u32::MAX {
+            // Boundary vertex: exactly two boundary neighbours, gentle turn.
+            if nb[1] == u32::MAX || nb[2] != u32::MAX {
+                return None;
+            }
+            let (pa, pb) = (v[nb[0] as usize], v[nb[1] as usize]);
+            let (u, w) = (sub(p, pa), sub(pb, p));
+            if dot(u, w) < 0.5 * norm(u) * norm(w) {
+                return None;
+            }
+            let d = [0, 1, 2].map(|k| lambda * (0.5 * (pa[k] + pb[k]) - p[k]));
+            return Some(reference.closest_boundary_point([p[0] + d[0], p[1] + d[1], p[2] + d[2]]));
+        }
+        let nl = norm(normal[i]);
+        if weight[i] <= 0.0 || nl <= 0.0 {
+            return None;
+        }
+        let nn = normal[i].map(|x| x / nl);
+        let c = centroid[i].map(|x| x / weight[i]);
+        let mut d = sub(c, p);
+        let dn = dot(d, nn);
+        d = [0, 1, 2].map(|k| lambda * (d[k] - dn * nn[k]));
+        Some(reference.closest_point([p[0] + d[0], p[1] + d[1], p[2] + d[2]]))
+    };
     let moved: Vec<[f64; 3]> = (0..n)
         .map(|i| {
             let p = v[i];
-            if fixed[i] || weight[i] <= 0.0 {
+            let Some(q) = target(i) else {
                 return p;
-            }
-            let nl = norm(normal[i]);
-            if nl <= 0.0 {
-                return p;
-            }
-            let nn = normal[i].map(|x| x / nl);
-            let c = centroid[i].map(|x| x / weight[i]);
-            let mut d = sub(c, p);
-            let dn = dot(d, nn);
-            d = [0, 1, 2].map(|k| lambda * (d[k] - dn * nn[k]));
-            let q = reference
-                .closest_point([p[0] + d[0], p[1] + d[1], p[2] + d[2]])
-                .point;
+            };
             // Reject moves that fold or crush an incident triangle.
             for &fi in &incident[i] {
                 let f = mesh.faces[fi as usize];
@@ -319,17 +418,92 @@ pub fn resample_to_vertex_count(mesh: &Mesh, target_vertices: usize) -> Mesh {
     m
 }
 
+/// Remove boundary slivers that no flip can fix, in up to three passes:
+/// - a cap, a face whose boundary edge faces an angle over 150° at an
+///   interior vertex: dropping it moves the boundary onto its two other
+///   edges (by less than the cap's height) and the vertex joins the
+///   boundary;
+/// - an ear with an angle under 10°, a face with two boundary edges: its
+///   tip vertex goes with it.
+///
+/// Returns the mesh and the number of faces removed.
+pub fn remove_boundary_caps(mesh: &Mesh) -> (Mesh, usize) {
+    let mut m = mesh.clone();
+    let mut total = 0;
+    for _ in 0..3 {
+        let (next, removed) = remove_boundary_slivers_once(&m);
+        if removed == 0 {
+            break;
+        }
+        m = next;
+        total += removed;
+    }
+    (m, total)
+}
+
+fn remove_boundary_slivers_once(mesh: &Mesh) -> (Mesh, usize) {
+    let ef = EdgeFaces::new(&mesh.faces);
+    let mut on_boundary = boundary_vertices(mesh);
+    let mut boundary_edges = vec![0u8; mesh.faces.len()];
+    for e in 0..ef.len() {
+        if let [f] = ef.faces_of(e) {
+            boundary_edges[*f as usize] += 1;
+        }
+    }
+    let v = &mesh.vertices;
+    let mut remove = vec![false; mesh.faces.len()];
+    for e in 0..ef.len() {
+        let fs = ef.faces_of(e);
+        if fs.len() != 1 {
+            continue;
+        }
+        let fi = fs[0] as usize;
+        let (a, b) = ef.edges[e];
+        let f = mesh.faces[fi];
+        let Some(&c) = f.iter().find(|&&x| x != a && x != b) else {
+            continue;
+        };
+        if remove[fi] {
+            continue;
+        }
+        let (pa, pb, pc) = (v[a as usize], v[b as usize], v[c as usize]);
+        let cap = !on_boundary[c as usize] && angle_at(pc, pa, pb) > CAP_ANGLE;
+        let min_angle = angle_at(pa, pb, pc)
+            .min(angle_at(pb, pc, pa))
+            .min(angle_at(pc, pa, pb));
+        // Only one face per vertex fan changes per pass (ears must not
+        // share a vertex with another removal, or a pinch could appear).
+        let ear = boundary_edges[fi] == 2 && min_angle < EAR_ANGLE;
+        if cap || ear {
+            remove[fi] = true;
+            on_boundary[c as usize] = true;
+        }
+    }
+    let faces: Vec<[u32; 3]> = mesh
+        .faces
+        .iter()
+        .zip(&remove)
+        .filter_map(|(f, &r)| (!r).then_some(*f))
+        .collect();
+    let removed = mesh.faces.len() - faces.len();
+    if removed == 0 {
+        return (mesh.clone(), 0);
+    }
+    let m = super::faces::remove_unreferenced_vertices(&Mesh::new(mesh.vertices.clone(), faces));
+    (m, removed)
+}
+
 /// Improve the triangles of `mesh` without changing its vertex count or
 /// topology: `iterations` rounds of Delaunay edge flips (faces within 30°
 /// of coplanar) and tangential relaxation projected onto `reference`, then
 /// a final round of flips. Returns the mesh and the number of flips.
 pub fn improve_triangles(
     mesh: &Mesh,
-    reference: &TriangleGrid,
+    reference: &SurfaceReference,
     iterations: usize,
 ) -> (Mesh, usize) {
     let dihedral = 30f64.to_radians();
-    let mut m = mesh.clone();
+    let (mut m, _) = remove_boundary_caps(mesh);
     let mut flips = 0;
     for _ in 0..iterations {
         let (f, k) = flip_to_delaunay(&m, dihedral);
@@ -337,6 +511,7 @@ pub fn improve_triangles(
         m = relax_tangential(&f, reference, 0.5);
     }
     let (f, k) = flip_to_delaunay(&m, dihedral);
+    let (f, _) = remove_boundary_caps(&f);
     (f, flips + k)
 }
 
@@ -399,6 +574,17 @@ mod tests {
         assert!(f.faces.iter().any(|t| t.contains(&2) && t.contains(&3)));
         assert_eq!(euler_characteristic(&f), 1);
         assert!((surface_area(&f) - surface_area(&m)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn boundary_cap_is_removed() {
+        // Square grid with an interior vertex pulled next to the bottom edge.
+        let mut m = grid(2);
+        m.vertices[4] = [0.5, 0.02, 0.0];
+        let (c, removed) = remove_boundary_caps(&m);
+        assert_eq!(removed, 1);
+        assert_eq!(euler_characteristic(&c), 1);
+        assert_eq!(crate::mesh::boundary_loops(&c).len(), 1);
     }
 
     #[test]
