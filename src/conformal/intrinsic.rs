@@ -14,6 +14,10 @@ struct IntrinsicMesh {
     faces: Vec<[u32; 3]>,
     twin: Vec<Option<usize>>,
     length: Vec<f64>,
+    /// Number of edges at each vertex.
+    degree: Vec<u32>,
+    /// Fewest edges each vertex may keep: 3 inside, 2 on the boundary.
+    min_degree: Vec<u32>,
 }
 
 /// Sum of the cotangents of the two angles opposite half-edge `h` and its
@@ -76,16 +80,38 @@ impl IntrinsicMesh {
                 twin[3 * f + k] = by_edge.get(&(b, a)).copied();
             }
         }
+        let mut degree = vec![0u32; mesh.vertices.len()];
+        for &(a, b) in by_edge.keys() {
+            // Count each undirected edge once: interior edges appear in both
+            // directions, boundary edges in one.
+            if a < b || !by_edge.contains_key(&(b, a)) {
+                degree[a as usize] += 1;
+                degree[b as usize] += 1;
+            }
+        }
+        let mut min_degree = vec![3u32; mesh.vertices.len()];
+        for &(a, b) in by_edge.keys() {
+            if !by_edge.contains_key(&(b, a)) {
+                min_degree[a as usize] = 2;
+                min_degree[b as usize] = 2;
+            }
+        }
         Self {
             faces: mesh.faces.clone(),
             twin,
             length,
+            degree,
+            min_degree,
         }
     }
 
     /// Flip the interior edge `h` (with twin `t`). Faces `(a, b, c)` and
     /// `(b, a, d)` become `(d, b, c)` and `(c, a, d)`. Returns false (and
-    /// does nothing) when the flip is impossible.
+    /// does nothing) when the flip is impossible or would leave `a` or `b`
+    /// with fewer than three edges (two on the boundary): such a vertex
+    /// would end up inside a
+    /// self-folded triangle, where the harmonic map squeezes it onto a
+    /// neighbour and the input's faces around it degenerate.
     fn flip(&mut self, h: usize, t: usize) -> bool {
         let (f0, k0) = (h / 3, h % 3);
         let (f1, k1) = (t / 3, t % 3);
@@ -94,7 +120,10 @@ impl IntrinsicMesh {
         }
         let [a, b, c] = [0, 1, 2].map(|i| self.faces[f0][(k0 + i) % 3]);
         let d = self.faces[f1][(k1 + 2) % 3];
-        if c == d {
+        if c == d
+            || self.degree[a as usize] <= self.min_degree[a as usize]
+            || self.degree[b as usize] <= self.min_degree[b as usize]
+        {
             return false;
         }
         let h1 = 3 * f0 + (k0 + 1) % 3; // b → c
@@ -134,6 +163,10 @@ impl IntrinsicMesh {
         self.twin[3 * f1 + 2] = Some(3 * f0 + 2);
         self.length[3 * f0 + 2] = l_cd;
         self.length[3 * f1 + 2] = l_cd;
+        self.degree[a as usize] -= 1;
+        self.degree[b as usize] -= 1;
+        self.degree[c as usize] += 1;
+        self.degree[d as usize] += 1;
         true
     }
 
@@ -187,8 +220,10 @@ impl IntrinsicMesh {
 }
 
 /// Cotangent edge weights of the intrinsic Delaunay triangulation of `mesh`
-/// (all non-negative up to rounding), as `((i, j), w)` with `i < j`, sorted,
-/// and the number of edge flips it took. Faces must have valid indices and
+/// (non-negative up to rounding), as `((i, j), w)` with `i < j`, sorted,
+/// and the number of edge flips it took. Flips that would leave a vertex
+/// with fewer than three edges are skipped, so a few weights may stay
+/// negative next to such vertices. Faces must have valid indices and
 /// consistent orientation.
 pub fn intrinsic_delaunay_weights(mesh: &Mesh) -> (EdgeWeights, usize) {
     let mut m = IntrinsicMesh::new(mesh);
