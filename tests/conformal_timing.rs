@@ -87,3 +87,47 @@ fn time_preparation_of_teeth() {
         );
     }
 }
+
+/// A `k × k` grid of the unit square lifted onto the paraboloid
+/// z = x² + y² (a disk-type surface).
+fn paraboloid_grid(k: usize) -> Mesh {
+    let idx = |i: usize, j: usize| (j * (k + 1) + i) as u32;
+    let mut vertices = Vec::new();
+    for j in 0..=k {
+        for i in 0..=k {
+            let (x, y) = (
+                -1.0 + 2.0 * i as f64 / k as f64,
+                -1.0 + 2.0 * j as f64 / k as f64,
+            );
+            vertices.push([x, y, 0.5 * (x * x + y * y)]);
+        }
+    }
+    let mut faces = Vec::new();
+    for j in 0..k {
+        for i in 0..k {
+            faces.push([idx(i, j), idx(i + 1, j), idx(i + 1, j + 1)]);
+            faces.push([idx(i, j), idx(i + 1, j + 1), idx(i, j + 1)]);
+        }
+    }
+    Mesh::new(vertices, faces)
+}
+
+#[test]
+fn time_preparation_by_size() {
+    for k in [70, 140, 223] {
+        let mesh = paraboloid_grid(k);
+        let mut best = f64::INFINITY;
+        for _ in 0..3 {
+            let t0 = Instant::now();
+            let norm = normalize(&mesh).unwrap();
+            let map = morphoid::conformal::flatten_to_disk(&norm.mesh).unwrap();
+            let f = conformal_factor(&norm.mesh, &map.uv);
+            best = best.min(t0.elapsed().as_secs_f64() * 1e3);
+            assert_eq!(f.len(), mesh.vertices.len());
+        }
+        println!(
+            "paraboloid grid, {} vertices: normalize + flatten + conformal factor {best:.1} ms",
+            mesh.vertices.len()
+        );
+    }
+}
