@@ -32,21 +32,27 @@ pub struct DiskMap {
 /// unit source at the centre and `u = 0` on the boundary gives, through its
 /// flux across the boundary, the harmonic measure of the boundary seen from
 /// the centre; cumulated along the boundary loop it is the angle of each
-/// boundary vertex under the conformal map sending the centre to 0. The
+/// boundary vertex under the conformal map sending the centre to 0 (every
+/// boundary vertex gets at least a tenth of its share by boundary length, so
+/// the tips of "ear" faces, which carry no flux, stay distinct). The
 /// interior is then the harmonic (cotangent) extension of those boundary
-/// positions, solved with the same Cholesky factor. The cotangent weights
-/// are those of the intrinsic Delaunay triangulation, which are
-/// non-negative, so that Tutte's theorem (the boundary polygon is convex)
-/// rules out fold-overs; should a face of the input still come out flipped,
-/// the extrinsic cotangent weights with negative ones raised to a small
-/// positive floor are used instead. A final Möbius transformation puts the
-/// centre exactly at 0.
+/// positions, solved with the same Cholesky factor.
+///
+/// The cotangent weights are those of the intrinsic Delaunay triangulation
+/// (non-negative; any left negative are raised to a tiny positive floor),
+/// so by Tutte's theorem the map embeds that triangulation in the convex
+/// boundary polygon. The input's own faces are then checked: faces that
+/// come out flipped or squeezed (rare: slivers next to vertices with three
+/// edges) are repaired locally with mean-value weights; if that fails, the
+/// whole map is recomputed with the input's cotangent weights, negative ones
+/// raised to a small positive floor (an embedding of the input itself).
+/// A final Möbius transformation puts the centre exactly at 0.
 ///
 /// Errors: the mesh is not a clean disk (see [`FlattenError`]), has
 /// degenerate faces, the solve fails, or the result has flipped triangles.
 pub fn flatten_to_disk(mesh: &Mesh) -> Result<DiskMap, FlattenError> {
     let (boundary, center) = prepare(mesh)?;
-    let idt = positive_weights(intrinsic_delaunay_weights(mesh).0, INTRINSIC_FLOOR);
+    let idt = positive_weights(intrinsic_delaunay_weights(mesh)?.0, INTRINSIC_FLOOR);
     let mut uv = harmonic_disk_map(&mesh.vertices, &boundary, center, &idt)?;
     let mut fixed = vec![false; mesh.vertices.len()];
     for &b in &boundary {
@@ -83,7 +89,7 @@ pub fn flatten_to_disk_with(
     let (boundary, center) = prepare(mesh)?;
     let w = match weights {
         LaplacianWeights::IntrinsicDelaunay => {
-            positive_weights(intrinsic_delaunay_weights(mesh).0, INTRINSIC_FLOOR)
+            positive_weights(intrinsic_delaunay_weights(mesh)?.0, INTRINSIC_FLOOR)
         }
         LaplacianWeights::ClampedCotangent => {
             positive_weights(cotangent_edge_weights(mesh), CLAMPED_FLOOR)

@@ -4,6 +4,7 @@
 //! Laplacian discretizes the same piecewise-flat surface as the input.
 
 use super::laplacian::EdgeWeights;
+use super::FlattenError;
 use crate::mesh::{norm, sub, Mesh};
 use std::collections::{BTreeMap, HashMap};
 
@@ -223,12 +224,26 @@ impl IntrinsicMesh {
 /// (non-negative up to rounding), as `((i, j), w)` with `i < j`, sorted,
 /// and the number of edge flips it took. Flips that would leave a vertex
 /// with fewer than three edges are skipped, so a few weights may stay
-/// negative next to such vertices. Faces must have valid indices and
-/// consistent orientation.
-pub fn intrinsic_delaunay_weights(mesh: &Mesh) -> (EdgeWeights, usize) {
+/// negative next to such vertices.
+///
+/// The mesh should be manifold and consistently oriented (as
+/// [`check_disk_topology`](super::check_disk_topology) ensures); faces with
+/// out-of-range indices are an error.
+pub fn intrinsic_delaunay_weights(mesh: &Mesh) -> Result<(EdgeWeights, usize), FlattenError> {
+    let n = mesh.vertices.len();
+    if let Some(face) = mesh
+        .faces
+        .iter()
+        .position(|f| f.iter().any(|&v| v as usize >= n))
+    {
+        return Err(FlattenError::InvalidFace {
+            face,
+            reason: format!("vertex index out of range (mesh has {n} vertices)"),
+        });
+    }
     let mut m = IntrinsicMesh::new(mesh);
     let flips = m.make_delaunay();
-    (m.edge_weights(), flips)
+    Ok((m.edge_weights(), flips))
 }
 
 #[cfg(test)]
@@ -246,7 +261,7 @@ mod tests {
         );
         let raw = cotangent_edge_weights(&m);
         assert!(raw.iter().any(|&(_, w)| w < 0.0));
-        let (w, flips) = intrinsic_delaunay_weights(&m);
+        let (w, flips) = intrinsic_delaunay_weights(&m).unwrap();
         assert_eq!(flips, 1);
         assert!(w.iter().all(|&(_, x)| x >= 0.0));
         assert!(w.iter().any(|&(e, _)| e == (2, 3)));

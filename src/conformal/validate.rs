@@ -80,15 +80,15 @@ pub fn check_disk_topology(mesh: &Mesh) -> Result<Vec<u32>, FlattenError> {
         }
     }
     let mut loops: Vec<Vec<u32>> = Vec::new();
-    let mut visited: HashMap<u32, ()> = HashMap::with_capacity(next.len());
+    let mut visited = vec![false; n];
     for &(start, _) in &boundary_edges {
-        if visited.contains_key(&start) {
+        if visited[start as usize] {
             continue;
         }
         let mut lp = Vec::new();
         let mut cur = start;
         loop {
-            if visited.insert(cur, ()).is_some() {
+            if std::mem::replace(&mut visited[cur as usize], true) {
                 break;
             }
             lp.push(cur);
