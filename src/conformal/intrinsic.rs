@@ -3,10 +3,9 @@
 //! Delaunay. The cotangent weights of the result are non-negative, and its
 //! Laplacian discretizes the same piecewise-flat surface as the input.
 
-use super::laplacian::EdgeWeights;
+use super::laplacian::{half_edges_by_edge, sum_by_edge, EdgeWeights};
 use super::FlattenError;
 use crate::mesh::{norm, sub, Mesh};
-use std::collections::{BTreeMap, HashMap};
 
 /// A triangulation of the input's vertices by intrinsic triangles: face
 /// corners plus the length of each half-edge `3f + k` (from corner `k` to
@@ -65,37 +64,42 @@ impl IntrinsicMesh {
     /// From a mesh whose faces have valid indices.
     fn new(mesh: &Mesh) -> Self {
         let nf = mesh.faces.len();
-        let mut twin = vec![None; 3 * nf];
+        let nv = mesh.vertices.len();
         let mut length = vec![0.0; 3 * nf];
-        let mut by_edge: HashMap<(u32, u32), usize> = HashMap::with_capacity(3 * nf);
         for (f, face) in mesh.faces.iter().enumerate() {
             for k in 0..3 {
                 let (a, b) = (face[k], face[(k + 1) % 3]);
                 length[3 * f + k] = norm(sub(mesh.vertices[a as usize], mesh.vertices[b as usize]));
-                by_edge.insert((a, b), 3 * f + k);
             }
         }
-        for (f, face) in mesh.faces.iter().enumerate() {
-            for k in 0..3 {
-                let (a, b) = (face[k], face[(k + 1) % 3]);
-                twin[3 * f + k] = by_edge.get(&(b, a)).copied();
+        // Twins: the two half-edges of an interior edge. Count each edge
+        // once in the degrees; boundary vertices may keep two edges.
+        let mut twin = vec![None; 3 * nf];
+        let mut degree = vec![0u32; nv];
+        let mut min_degree = vec![3u32; nv];
+        let half = half_edges_by_edge(&mesh.faces);
+        let mut i = 0;
+        while i < half.len() {
+            let mut j = i + 1;
+            while j < half.len() && half[j].0 == half[i].0 {
+                j += 1;
             }
-        }
-        let mut degree = vec![0u32; mesh.vertices.len()];
-        for &(a, b) in by_edge.keys() {
-            // Count each undirected edge once: interior edges appear in both
-            // directions, boundary edges in one.
-            if a < b || !by_edge.contains_key(&(b, a)) {
-                degree[a as usize] += 1;
-                degree[b as usize] += 1;
+            let (a, b) = (
+                (half[i].0 >> 32) as usize,
+                (half[i].0 & 0xffff_ffff) as usize,
+            );
+            degree[a] += 1;
+            degree[b] += 1;
+            let (h0, h1) = (half[i].1 as usize, half[(i + 1).min(j - 1)].1 as usize);
+            let start = |h: usize| mesh.faces[h / 3][h % 3];
+            if j - i == 2 && start(h0) != start(h1) {
+                twin[h0] = Some(h1);
+                twin[h1] = Some(h0);
+            } else {
+                min_degree[a] = 2;
+                min_degree[b] = 2;
             }
-        }
-        let mut min_degree = vec![3u32; mesh.vertices.len()];
-        for &(a, b) in by_edge.keys() {
-            if !by_edge.contains_key(&(b, a)) {
-                min_degree[a as usize] = 2;
-                min_degree[b as usize] = 2;
-            }
+            i = j;
         }
         Self {
             faces: mesh.faces.clone(),
@@ -205,18 +209,17 @@ impl IntrinsicMesh {
     /// Cotangent weights `½ Σ cot` per vertex pair (parallel edges summed,
     /// loops dropped), sorted by pair.
     fn edge_weights(&self) -> EdgeWeights {
-        let mut w: BTreeMap<(u32, u32), f64> = BTreeMap::new();
+        let mut w = Vec::with_capacity(self.length.len());
         for (f, face) in self.faces.iter().enumerate() {
             for k in 0..3 {
                 let (i, j) = (face[k], face[(k + 1) % 3]);
                 if i == j {
                     continue;
                 }
-                *w.entry((i.min(j), i.max(j))).or_insert(0.0) +=
-                    0.5 * opposite_cot(self, 3 * f + k);
+                w.push(((i.min(j), i.max(j)), 0.5 * opposite_cot(self, 3 * f + k)));
             }
         }
-        w.into_iter().collect()
+        sum_by_edge(w)
     }
 }
 
