@@ -1,5 +1,10 @@
-//! The `morphoid` command-line tool.
+//! The `morphoid` command-line tool: argument parsing and dispatch only;
+//! each subcommand lives in its own module under `cli/`.
 
-fn main() {
-    println!("morphoid");
+mod cli;
+
+use std::process::ExitCode;
+
+fn main() -> ExitCode {
+    cli::main()
 }

@@ -1,27 +1,92 @@
 //! Cleaning: from a raw scan to a clean disk-type triangle mesh.
 //!
-//! (interface sketch; to be implemented)
+//! [`clean`] runs the steps below in order; each is a pure function over
+//! [`Mesh`] in its own submodule and can be used alone:
+//!
+//! 1. point clouds are triangulated ([`cloud::triangulate_point_cloud`]);
+//! 2. duplicate vertices are welded ([`weld::weld_vertices`]);
+//! 3. degenerate and duplicate faces go ([`faces`]);
+//! 4. the largest connected component by area is kept ([`components`]);
+//! 5. non-manifold edges and vertices are repaired ([`manifold`]);
+//! 6. face orientation is made consistent ([`orient`]);
+//! 7. all boundary loops but the longest are filled ([`holes`]); the
+//!    surface must then be a disk (one loop, Euler characteristic 1);
+//! 8. the orientation is chosen so that normals point outward
+//!    ([`orient::normals_point_outward`]: the vector area points from the
+//!    boundary loop towards the body of the surface, e.g. out of a tooth
+//!    crown);
+//! 9. the mesh is resampled to the working resolution with well-shaped
+//!    triangles ([`resample`]).
 
-use crate::mesh::Mesh;
+// Coordinate loops `for d in 0..3` read more clearly than zipped iterators.
+#![allow(clippy::needless_range_loop)]
+
+pub mod adjacency;
+pub mod closest;
+pub mod cloud;
+pub mod components;
+pub mod faces;
+pub mod holes;
+pub mod manifold;
+pub mod orient;
+pub mod resample;
+pub mod weld;
+
+use crate::mesh::{bbox_diagonal, surface_area, Mesh};
+
+fn boundary_loops(m: &Mesh) -> Vec<Vec<u32>> {
+    adjacency::boundary_loops_sorted(&m.faces)
+}
+
+fn euler_characteristic(m: &Mesh) -> i64 {
+    adjacency::euler_characteristic_sorted(m.vertices.len(), &m.faces)
+}
 
 /// Parameters of the cleaning pipeline.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
 pub struct CleanOptions {
-    /// Working resolution: the cleaned mesh has about this many vertices.
+    /// Working resolution: the cleaned mesh has about this many vertices
+    /// (within ±10 %).
     pub target_vertices: usize,
+    /// Weld tolerance as a fraction of the bounding-box diagonal.
+    pub weld_tolerance: f64,
+    /// Fewer (distinct) points or faces than this is an error.
+    pub min_elements: usize,
+    /// Rounds of edge flips + tangential relaxation after resampling.
+    pub relax_iterations: usize,
+    /// Point clouds: triangles with an edge longer than this many median
+    /// edge lengths are dropped.
+    pub cloud_max_edge_factor: f64,
 }
 
 impl Default for CleanOptions {
     fn default() -> Self {
         Self {
             target_vertices: 5000,
+            weld_tolerance: 1e-6,
+            min_elements: 20,
+            relax_iterations: 3,
+            cloud_max_edge_factor: 3.0,
         }
     }
 }
 
 /// What cleaning changed.
-#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CleanReport {
+    /// Vertices of the input.
+    pub input_vertices: usize,
+    /// Faces of the input.
+    pub input_faces: usize,
+    /// Vertices of the output.
+    pub output_vertices: usize,
+    /// Faces of the output.
+    pub output_faces: usize,
+    /// Boundary loops of the output (1 for a disk).
+    pub boundary_loops: usize,
+    /// Euler characteristic of the output (1 for a disk).
+    pub euler_characteristic: i64,
     /// Vertices merged into others by welding.
     pub welded_vertices: usize,
     /// Degenerate or duplicate faces removed.
@@ -30,6 +95,22 @@ pub struct CleanReport {
     pub dropped_components: usize,
     /// Holes filled.
     pub filled_holes: usize,
+    /// Non-manifold edges repaired (extra faces dropped).
+    pub repaired_nonmanifold_edges: usize,
+    /// Non-manifold vertices split.
+    pub repaired_nonmanifold_vertices: usize,
+    /// Faces reversed to make the orientation consistent.
+    pub flipped_faces: usize,
+    /// Whether the whole surface was reversed so its normals point outward.
+    pub reversed_orientation: bool,
+    /// The input was a point cloud and was triangulated.
+    pub triangulated_point_cloud: bool,
+    /// Edge flips made while improving triangle shapes.
+    pub edge_flips: usize,
+    /// Surface area of the output.
+    pub area: f64,
+    /// Bounding-box diagonal of the output.
+    pub bbox_diagonal: f64,
 }
 
 /// A cleaned mesh and the report of what was done.
@@ -42,15 +123,156 @@ pub struct Cleaned {
 }
 
 /// Why a surface cannot be made disk-type.
-#[derive(Debug, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CleanError {
     /// The surface is closed (no boundary).
     #[error("the surface is closed (no boundary loop); a disk-type surface is needed")]
     Closed,
+    /// The surface has handles (genus > 0).
+    #[error("the surface has {0} handle(s) (Euler characteristic {1} with one boundary loop); a disk-type surface is needed")]
+    Handles(i64, i64),
+    /// The surface is not orientable.
+    #[error("the surface is not orientable (Möbius-type); a disk-type surface is needed")]
+    NonOrientable,
+    /// Too few points to form a surface.
+    #[error("too few points ({0}) to form a surface")]
+    TooFewPoints(usize),
+    /// Too few faces to form a surface.
+    #[error("too few faces ({0}) to form a surface")]
+    TooFewFaces(usize),
+    /// A point cloud that no plane triangulation can follow.
+    #[error("the point cloud could not be triangulated (all points on a line?)")]
+    CloudTriangulation,
+    /// A coordinate is NaN or infinite.
+    #[error("vertex {0} has a non-finite coordinate")]
+    NonFinite(usize),
+    /// A face refers to a vertex that does not exist.
+    #[error("face {face} refers to vertex {vertex}, but the mesh has {count} vertices")]
+    BadIndex {
+        /// The face.
+        face: usize,
+        /// The missing vertex index.
+        vertex: u32,
+        /// Number of vertices.
+        count: usize,
+    },
+    /// Resampling did not keep the disk topology (should not happen).
+    #[error("resampling changed the topology ({0} boundary loops, Euler characteristic {1})")]
+    Resampling(usize, i64),
 }
 
-/// Run the whole cleaning pipeline.
+/// Check indices and coordinates.
+fn validate(mesh: &Mesh) -> Result<(), CleanError> {
+    if let Some(i) = mesh
+        .vertices
+        .iter()
+        .position(|p| p.iter().any(|x| !x.is_finite()))
+    {
+        return Err(CleanError::NonFinite(i));
+    }
+    let count = mesh.vertices.len();
+    for (face, f) in mesh.faces.iter().enumerate() {
+        if let Some(&vertex) = f.iter().find(|&&v| v as usize >= count) {
+            return Err(CleanError::BadIndex {
+                face,
+                vertex,
+                count,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Steps 4–8: largest component, manifold repair, consistent orientation,
+/// hole filling, disk test and outward orientation, with counts added to
+/// `report`.
+fn make_disk(m: &Mesh, report: &mut CleanReport) -> Result<Mesh, CleanError> {
+    let min = 3;
+    let (m3, d1) = components::largest_component_by_area(m);
+    let (m4, ne) = manifold::repair_nonmanifold_edges(&m3);
+    let (m5, nv) = manifold::split_nonmanifold_vertices(&m4);
+    let (m6, d2) = components::largest_component_by_area(&m5);
+    report.dropped_components += d1 + d2;
+    report.repaired_nonmanifold_edges += ne;
+    report.repaired_nonmanifold_vertices += nv;
+    let m7 = faces::remove_unreferenced_vertices(&m6);
+    if m7.faces.len() < min {
+        return Err(CleanError::TooFewFaces(m7.faces.len()));
+    }
+    let (m8, flipped) =
+        orient::orient_faces_consistently(&m7).map_err(|_| CleanError::NonOrientable)?;
+    report.flipped_faces += flipped;
+    if boundary_loops(&m8).is_empty() {
+        return Err(CleanError::Closed);
+    }
+    let (m9, filled) = holes::fill_holes_except_longest(&m8);
+    report.filled_holes += filled;
+    let chi = euler_characteristic(&m9);
+    if chi != 1 {
+        return Err(CleanError::Handles(holes::handle_count(chi, 1), chi));
+    }
+    let outer = holes::boundary_loops_by_length(&m9);
+    if orient::normals_point_outward(&m9, outer.first().map_or(&[], |l| l)) {
+        Ok(m9)
+    } else {
+        report.reversed_orientation = !report.reversed_orientation;
+        Ok(orient::reverse_faces(&m9))
+    }
+}
+
+/// Run the whole cleaning pipeline (see the module documentation).
 pub fn clean(mesh: &Mesh, opts: &CleanOptions) -> Result<Cleaned, CleanError> {
-    let _ = (mesh, opts);
-    todo!()
+    validate(mesh)?;
+    let mut report = CleanReport {
+        input_vertices: mesh.vertices.len(),
+        input_faces: mesh.faces.len(),
+        ..CleanReport::default()
+    };
+    let min = opts.min_elements.max(3);
+    let tol = opts.weld_tolerance * bbox_diagonal(mesh);
+    let (mut m, welded) = weld::weld_vertices(mesh, tol);
+    report.welded_vertices = welded;
+
+    if m.faces.is_empty() {
+        if m.vertices.len() < min {
+            return Err(CleanError::TooFewPoints(m.vertices.len()));
+        }
+        m = cloud::triangulate_point_cloud(&m.vertices, opts.cloud_max_edge_factor)
+            .ok_or(CleanError::CloudTriangulation)?;
+        report.triangulated_point_cloud = true;
+    }
+
+    let diag = bbox_diagonal(&m);
+    let (m1, r1) = faces::remove_degenerate_faces(&m, 1e-14 * diag * diag);
+    let (m2, r2) = faces::remove_duplicate_faces(&m1);
+    report.removed_faces = r1 + r2;
+    if m2.faces.len() < min {
+        return Err(CleanError::TooFewFaces(m2.faces.len()));
+    }
+
+    let m3 = make_disk(&m2, &mut report)?;
+
+    // Decimation may merge vertices that share a position (copies made by
+    // the vertex split) and create non-manifold spots: repair again.
+    let resampled = resample::resample_to_vertex_count(&m3, opts.target_vertices);
+    let m4 = if resampled.vertices.len() == m3.vertices.len() {
+        resampled
+    } else {
+        make_disk(&resampled, &mut CleanReport::default())?
+    };
+    let reference = closest::TriangleGrid::new(&m3).ok_or(CleanError::TooFewFaces(0))?;
+    let (out, flips) = resample::improve_triangles(&m4, &reference, opts.relax_iterations);
+    report.edge_flips = flips;
+    let loops = boundary_loops(&out).len();
+    let chi = euler_characteristic(&out);
+    if loops != 1 || chi != 1 {
+        return Err(CleanError::Resampling(loops, chi));
+    }
+    report.output_vertices = out.vertices.len();
+    report.output_faces = out.faces.len();
+    report.boundary_loops = loops;
+    report.euler_characteristic = chi;
+    report.area = surface_area(&out);
+    report.bbox_diagonal = bbox_diagonal(&out);
+    Ok(Cleaned { mesh: out, report })
 }

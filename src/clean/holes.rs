@@ -1,0 +1,121 @@
+//! Boundary loops, hole filling and the disk-type test.
+
+use super::adjacency::boundary_loops_sorted;
+use crate::mesh::{norm, sub, Mesh};
+
+/// Length of a closed vertex loop.
+pub fn loop_length(mesh: &Mesh, lp: &[u32]) -> f64 {
+    (0..lp.len())
+        .map(|i| {
+            norm(sub(
+                mesh.vertices[lp[i] as usize],
+                mesh.vertices[lp[(i + 1) % lp.len()] as usize],
+            ))
+        })
+        .sum()
+}
+
+/// Boundary loops of an oriented manifold mesh, longest (by length) first;
+/// ties keep the order of [`boundary_loops_sorted`].
+pub fn boundary_loops_by_length(mesh: &Mesh) -> Vec<Vec<u32>> {
+    let mut loops: Vec<(f64, Vec<u32>)> = boundary_loops_sorted(&mesh.faces)
+        .into_iter()
+        .map(|l| (loop_length(mesh, &l), l))
+        .collect();
+    loops.sort_by(|a, b| b.0.total_cmp(&a.0));
+    loops.into_iter().map(|(_, l)| l).collect()
+}
+
+/// Fill every boundary loop except the longest: a triangle for a 3-loop,
+/// otherwise a fan around a new vertex at the loop's centroid, oriented
+/// like the surrounding faces. Expects a consistently oriented manifold
+/// mesh. Returns the mesh and the number of holes filled.
+pub fn fill_holes_except_longest(mesh: &Mesh) -> (Mesh, usize) {
+    let loops = boundary_loops_by_length(mesh);
+    let mut out = mesh.clone();
+    let mut filled = 0;
+    for lp in loops.iter().skip(1) {
+        let n = lp.len();
+        if n < 3 {
+            continue;
+        }
+        // Boundary half-edges run lp[i] → lp[i+1]; the patch runs them back.
+        if n == 3 {
+            out.faces.push([lp[2], lp[1], lp[0]]);
+        } else {
+            let mut c = [0.0; 3];
+            for &v in lp {
+                for d in 0..3 {
+                    c[d] += mesh.vertices[v as usize][d] / n as f64;
+                }
+            }
+            let ci = out.vertices.len() as u32;
+            out.vertices.push(c);
+            for i in 0..n {
+                out.faces.push([lp[(i + 1) % n], lp[i], ci]);
+            }
+        }
+        filled += 1;
+    }
+    (out, filled)
+}
+
+/// Number of handles (genus) of a connected orientable surface with Euler
+/// characteristic `chi` and `boundaries` boundary loops:
+/// χ = 2 − 2g − b.
+pub fn handle_count(chi: i64, boundaries: usize) -> i64 {
+    (2 - chi - boundaries as i64) / 2
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::{boundary_loops, euler_characteristic};
+
+    /// A square annulus: outer square of side 3, inner hole of side 1.
+    fn annulus() -> Mesh {
+        let mut v = Vec::new();
+        for j in 0..4 {
+            for i in 0..4 {
+                v.push([i as f64, j as f64, 0.0]);
+            }
+        }
+        let mut f = Vec::new();
+        for j in 0..3u32 {
+            for i in 0..3u32 {
+                if (i, j) == (1, 1) {
+                    continue;
+                }
+                let a = j * 4 + i;
+                f.push([a, a + 1, a + 5]);
+                f.push([a, a + 5, a + 4]);
+            }
+        }
+        Mesh::new(v, f)
+    }
+
+    #[test]
+    fn disk_with_a_hole_is_filled() {
+        let m = annulus();
+        assert_eq!(euler_characteristic(&m), 0);
+        let loops = boundary_loops_by_length(&m);
+        assert_eq!(loops.len(), 2);
+        assert_eq!(loops[0].len(), 12);
+        let (f, n) = fill_holes_except_longest(&m);
+        assert_eq!(n, 1);
+        assert_eq!(euler_characteristic(&f), 1);
+        assert_eq!(boundary_loops(&f).len(), 1);
+        // The patch vertex is at the hole's centre.
+        assert_eq!(f.vertices.last().copied(), Some([1.5, 1.5, 0.0]));
+        // Orientation stays consistent: every interior edge is used once in
+        // each direction.
+        let mut dir = std::collections::HashSet::new();
+        for t in &f.faces {
+            for k in 0..3 {
+                assert!(dir.insert((t[k], t[(k + 1) % 3])));
+            }
+        }
+        assert_eq!(handle_count(1, 1), 0);
+        assert_eq!(handle_count(-1, 1), 1);
+    }
+}

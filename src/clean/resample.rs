@@ -1,0 +1,481 @@
+//! Resampling to the working resolution and triangle-quality improvement.
+
+use super::adjacency::EdgeFaces;
+use super::adjacency::FxHashMap as HashMap;
+use super::closest::TriangleGrid;
+use crate::mesh::{cross, dot, norm, sub, triangle_normal2, Mesh};
+
+/// Midpoint subdivision: every edge gets a vertex at its midpoint and every
+/// triangle becomes four. The surface (as a point set) is unchanged.
+pub fn subdivide_midpoint(mesh: &Mesh) -> Mesh {
+    let ef = EdgeFaces::new(&mesh.faces);
+    let base = mesh.vertices.len() as u32;
+    let mut vertices = mesh.vertices.clone();
+    for &(a, b) in &ef.edges {
+        let (p, q) = (mesh.vertices[a as usize], mesh.vertices[b as usize]);
+        vertices.push([0, 1, 2].map(|d| 0.5 * (p[d] + q[d])));
+    }
+    let mid = |a: u32, b: u32| base + ef.find(a, b).unwrap_or(0) as u32;
+    let mut faces = Vec::with_capacity(mesh.faces.len() * 4);
+    for f in &mesh.faces {
+        let (ab, bc, ca) = (mid(f[0], f[1]), mid(f[1], f[2]), mid(f[2], f[0]));
+        faces.push([f[0], ab, ca]);
+        faces.push([ab, f[1], bc]);
+        faces.push([ca, bc, f[2]]);
+        faces.push([ab, bc, ca]);
+    }
+    Mesh::new(vertices, faces)
+}
+
+/// Vertex positions in single precision for the simplifier, with copies of
+/// one position (left by splitting non-manifold vertices) moved 1 % of the
+/// way towards the centroid of their incident faces: the simplifier welds
+/// vertices that share a position, which would rebuild the non-manifold
+/// vertex and leave zero-area triangles.
+fn separated_positions(mesh: &Mesh) -> Vec<[f32; 3]> {
+    let mut positions: Vec<[f32; 3]> = mesh.vertices.iter().map(|p| p.map(|x| x as f32)).collect();
+    let mut order: Vec<u32> = (0..positions.len() as u32).collect();
+    let bits = |i: u32| positions[i as usize].map(f32::to_bits);
+    order.sort_by_key(|&i| (bits(i), i));
+    let mut moved = Vec::new();
+    for w in order.windows(2) {
+        if bits(w[0]) == bits(w[1]) {
+            moved.push(w[1]);
+        }
+    }
+    if moved.is_empty() {
+        return positions;
+    }
+    let mut centroid = vec![[0.0f64; 3]; mesh.vertices.len()];
+    let mut count = vec![0usize; mesh.vertices.len()];
+    for f in &mesh.faces {
+        let c =
+            [0, 1, 2].map(|d| f.iter().map(|&v| mesh.vertices[v as usize][d]).sum::<f64>() / 3.0);
+        for &v in f {
+            for d in 0..3 {
+                centroid[v as usize][d] += c[d];
+            }
+            count[v as usize] += 1;
+        }
+    }
+    for v in moved {
+        let v = v as usize;
+        if count[v] > 0 {
+            let p = mesh.vertices[v];
+            positions[v] =
+                [0, 1, 2].map(|d| (p[d] + 0.01 * (centroid[v][d] / count[v] as f64 - p[d])) as f32);
+        }
+    }
+    positions
+}
+
+/// Quadric-error edge-collapse decimation (meshoptimizer's simplifier, with
+/// its regularizing option for even triangle sizes) to about
+/// `target_vertices` vertices. Boundary vertices only slide along the
+/// boundary; decimated vertices are a subset of the input vertices, so the
+/// result stays on the input surface. The face target is corrected a few
+/// times from the vertex count obtained; the closest result is kept.
+pub fn decimate_to_vertex_count(mesh: &Mesh, target_vertices: usize) -> Mesh {
+    let positions = separated_positions(mesh);
+    let indices: Vec<u32> = mesh.faces.iter().flatten().copied().collect();
+    let mut target_faces = (2 * target_vertices).max(1) as f64;
+    let mut best: Option<(usize, Mesh)> = None;
+    for _ in 0..6 {
+        let out = meshopt::simplify_decoder(
+            &indices,
+            &positions,
+            3 * target_faces.round() as usize,
+            1.0,
+            meshopt::SimplifyOptions::Regularize,
+            None,
+        );
+        let faces: Vec<[u32; 3]> = out.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let m =
+            super::faces::remove_unreferenced_vertices(&Mesh::new(mesh.vertices.clone(), faces));
+        let nv = m.vertices.len();
+        let err = nv.abs_diff(target_vertices);
+        let better = best.as_ref().is_none_or(|(e, _)| err < *e);
+        if better {
+            best = Some((err, m));
+        }
+        if (err as f64) < 0.03 * target_vertices as f64 || nv == 0 {
+            break;
+        }
+        target_faces *= target_vertices as f64 / nv as f64;
+    }
+    best.map_or_else(|| mesh.clone(), |(_, m)| m)
+}
+
+/// Angle (radians) beyond which a triangle counts as a cap.
+const CAP_ANGLE: f64 = 150.0 * std::f64::consts::PI / 180.0;
+
+/// No face.
+const NONE: u32 = u32::MAX;
+
+#[inline]
+fn key(a: u32, b: u32) -> u64 {
+    ((a.min(b) as u64) << 32) | a.max(b) as u64
+}
+
+fn angle_at(p: [f64; 3], q: [f64; 3], r: [f64; 3]) -> f64 {
+    // Angle at p in triangle pqr.
+    let (u, v) = (sub(q, p), sub(r, p));
+    norm(cross(u, v)).atan2(dot(u, v))
+}
+
+/// Edge flips towards a Delaunay triangulation: an interior edge whose two
+/// opposite angles sum to more than π is flipped, provided its two faces
+/// are nearly coplanar (normals within `max_dihedral` radians, so the shape
+/// is kept), the flipped faces keep their orientation and the edge's end
+/// vertices keep at least three edges. A face with an angle over 150° at
+/// the edge (a cap) is flipped whatever the dihedral angle. Returns the mesh
+/// and the flip count.
+pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
+    let ef = EdgeFaces::new(&mesh.faces);
+    let mut faces = mesh.faces.clone();
+    let mut e2f: HashMap<u64, [u32; 2]> =
+        HashMap::with_capacity_and_hasher(ef.len(), Default::default());
+    let mut degree = vec![0u32; mesh.vertices.len()];
+    for e in 0..ef.len() {
+        let (a, b) = ef.edges[e];
+        degree[a as usize] += 1;
+        degree[b as usize] += 1;
+        let fs = ef.faces_of(e);
+        // Boundary edges are kept with NONE as second face: they must block
+        // flips that would create them again, but are never flipped.
+        let second = if fs.len() == 2 { fs[1] } else { NONE };
+        e2f.insert(key(a, b), [fs[0], second]);
+    }
+    let cos_max = max_dihedral.cos();
+    let v = &mesh.vertices;
+    let mut stack: Vec<(u32, u32)> = ef
+        .edges
+        .iter()
+        .rev()
+        .copied()
+        .filter(|&(a, b)| e2f.get(&key(a, b)).is_some_and(|fs| fs[1] != NONE))
+        .collect();
+    let mut flips = 0usize;
+    let budget = 20 * ef.len() + 16;
+    let mut steps = 0usize;
+    while let Some((x, y)) = stack.pop() {
+        steps += 1;
+        if steps > budget {
+            break;
+        }
+        let Some(&[f, g]) = e2f.get(&key(x, y)) else {
+            continue;
+        };
+        if g == NONE {
+            continue;
+        }
+        // Orient so that face f runs a → b.
+        let (ff, gg) = (faces[f as usize], faces[g as usize]);
+        let Some(k) = (0..3).find(|&k| {
+            (ff[k] == x && ff[(k + 1) % 3] == y) || (ff[k] == y && ff[(k + 1) % 3] == x)
+        }) else {
+            continue;
+        };
+        let (a, b, c) = (ff[k], ff[(k + 1) % 3], ff[(k + 2) % 3]);
+        let Some(d) = (0..3)
+            .find(|&j| gg[j] == b && gg[(j + 1) % 3] == a)
+            .map(|j| gg[(j + 2) % 3])
+        else {
+            continue;
+        };
+        if c == d
+            || e2f.contains_key(&key(c, d))
+            || degree[a as usize] <= 3
+            || degree[b as usize] <= 3
+        {
+            continue;
+        }
+        let (pa, pb, pc, pd) = (v[a as usize], v[b as usize], v[c as usize], v[d as usize]);
+        if angle_at(pc, pa, pb) + angle_at(pd, pa, pb) <= std::f64::consts::PI + 1e-9 {
+            continue;
+        }
+        let (n1, n2) = (triangle_normal2(pa, pb, pc), triangle_normal2(pb, pa, pd));
+        let (l1, l2) = (norm(n1), norm(n2));
+        // A cap (an angle near 180°) has no reliable normal: flip it away
+        // whatever the dihedral angle, judging by its neighbour's normal.
+        let cap1 = angle_at(pc, pa, pb) > CAP_ANGLE;
+        let cap2 = angle_at(pd, pa, pb) > CAP_ANGLE;
+        let n = if cap1 && !cap2 && l2 > 0.0 {
+            n2.map(|x| x / l2)
+        } else if cap2 && !cap1 && l1 > 0.0 {
+            n1.map(|x| x / l1)
+        } else {
+            if l1 <= 0.0 || l2 <= 0.0 || dot(n1, n2) < cos_max * l1 * l2 {
+                continue;
+            }
+            [0, 1, 2].map(|i| n1[i] / l1 + n2[i] / l2)
+        };
+        let (m1, m2) = (triangle_normal2(pa, pd, pc), triangle_normal2(pd, pb, pc));
+        let (k1, k2) = (norm(m1), norm(m2));
+        if k1 <= 0.0 || k2 <= 0.0 || dot(m1, n) <= 0.5 * k1 || dot(m2, n) <= 0.5 * k2 {
+            continue;
+        }
+        faces[f as usize] = [a, d, c];
+        faces[g as usize] = [d, b, c];
+        e2f.remove(&key(a, b));
+        e2f.insert(key(c, d), [f, g]);
+        for (e, from, to) in [(key(a, d), g, f), (key(b, c), f, g)] {
+            if let Some(fs) = e2f.get_mut(&e) {
+                for s in fs.iter_mut() {
+                    if *s == from {
+                        *s = to;
+                    }
+                }
+            }
+        }
+        degree[a as usize] -= 1;
+        degree[b as usize] -= 1;
+        degree[c as usize] += 1;
+        degree[d as usize] += 1;
+        flips += 1;
+        stack.extend([(a, d), (d, b), (b, c), (c, a)]);
+    }
+    (Mesh::new(mesh.vertices.clone(), faces), flips)
+}
+
+/// Boundary vertices (on an edge with one face).
+pub fn boundary_vertices(mesh: &Mesh) -> Vec<bool> {
+    let ef = EdgeFaces::new(&mesh.faces);
+    let mut on = vec![false; mesh.vertices.len()];
+    for e in 0..ef.len() {
+        if ef.faces_of(e).len() == 1 {
+            let (a, b) = ef.edges[e];
+            on[a as usize] = true;
+            on[b as usize] = true;
+        }
+    }
+    on
+}
+
+/// One step of tangential relaxation: every interior vertex moves by
+/// `lambda` towards the area-weighted centroid of its incident triangles,
+/// with the normal component of the move removed, then onto the closest
+/// point of `reference`. Boundary vertices stay. A move that would turn an
+/// incident triangle over (or shrink it below a tenth of its area) is
+/// dropped. Jacobi update: the result does not depend on vertex order.
+pub fn relax_tangential(mesh: &Mesh, reference: &TriangleGrid, lambda: f64) -> Mesh {
+    let n = mesh.vertices.len();
+    let v = &mesh.vertices;
+    let fixed = boundary_vertices(mesh);
+    let mut centroid = vec![[0.0; 3]; n];
+    let mut weight = vec![0.0; n];
+    let mut normal = vec![[0.0; 3]; n];
+    let mut incident: Vec<Vec<u32>> = vec![Vec::new(); n];
+    for (fi, f) in mesh.faces.iter().enumerate() {
+        let p = f.map(|i| v[i as usize]);
+        let n2 = triangle_normal2(p[0], p[1], p[2]);
+        let a = 0.5 * norm(n2);
+        let c = [0, 1, 2].map(|d| (p[0][d] + p[1][d] + p[2][d]) / 3.0);
+        for &i in f {
+            let i = i as usize;
+            for d in 0..3 {
+                centroid[i][d] += a * c[d];
+                normal[i][d] += n2[d];
+            }
+            weight[i] += a;
+            incident[i].push(fi as u32);
+        }
+    }
+    let moved: Vec<[f64; 3]> = (0..n)
+        .map(|i| {
+            let p = v[i];
+            if fixed[i] || weight[i] <= 0.0 {
+                return p;
+            }
+            let nl = norm(normal[i]);
+            if nl <= 0.0 {
+                return p;
+            }
+            let nn = normal[i].map(|x| x / nl);
+            let c = centroid[i].map(|x| x / weight[i]);
+            let mut d = sub(c, p);
+            let dn = dot(d, nn);
+            d = [0, 1, 2].map(|k| lambda * (d[k] - dn * nn[k]));
+            let q = reference
+                .closest_point([p[0] + d[0], p[1] + d[1], p[2] + d[2]])
+                .point;
+            // Reject moves that fold or crush an incident triangle.
+            for &fi in &incident[i] {
+                let f = mesh.faces[fi as usize];
+                let old = f.map(|j| v[j as usize]);
+                let new = f.map(|j| if j as usize == i { q } else { v[j as usize] });
+                let n0 = triangle_normal2(old[0], old[1], old[2]);
+                let n1 = triangle_normal2(new[0], new[1], new[2]);
+                if dot(n0, n1) <= 0.1 * dot(n0, n0) {
+                    return p;
+                }
+            }
+            q
+        })
+        .collect();
+    Mesh::new(moved, mesh.faces.clone())
+}
+
+/// Bring a mesh to about `target_vertices` vertices: midpoint subdivision
+/// while it is coarser than 90 % of the target, then quadric decimation when
+/// it is finer than 110 %. Unchanged when already within ±10 %.
+pub fn resample_to_vertex_count(mesh: &Mesh, target_vertices: usize) -> Mesh {
+    let mut m = mesh.clone();
+    let lo = (0.9 * target_vertices as f64) as usize;
+    let hi = (1.1 * target_vertices as f64) as usize;
+    let mut guard = 0;
+    while m.vertices.len() < lo && guard < 8 && !m.faces.is_empty() {
+        m = subdivide_midpoint(&m);
+        guard += 1;
+    }
+    if m.vertices.len() > hi {
+        m = decimate_to_vertex_count(&m, target_vertices);
+    }
+    m
+}
+
+/// Remove boundary caps: a face whose boundary edge faces an angle over
+/// 150° at an interior vertex is nearly flat and cannot be flipped away;
+/// dropping it moves the boundary onto the two other edges (by less than
+/// the cap's height), and the vertex joins the boundary. Returns the mesh
+/// and the number of faces removed.
+pub fn remove_boundary_caps(mesh: &Mesh) -> (Mesh, usize) {
+    let ef = EdgeFaces::new(&mesh.faces);
+    let mut on_boundary = boundary_vertices(mesh);
+    let mut remove = vec![false; mesh.faces.len()];
+    for e in 0..ef.len() {
+        let fs = ef.faces_of(e);
+        if fs.len() != 1 {
+            continue;
+        }
+        let (a, b) = ef.edges[e];
+        let f = mesh.faces[fs[0] as usize];
+        let Some(&c) = f.iter().find(|&&x| x != a && x != b) else {
+            continue;
+        };
+        if remove[fs[0] as usize] || on_boundary[c as usize] {
+            continue;
+        }
+        let v = &mesh.vertices;
+        if angle_at(v[c as usize], v[a as usize], v[b as usize]) > CAP_ANGLE {
+            remove[fs[0] as usize] = true;
+            on_boundary[c as usize] = true;
+        }
+    }
+    let faces: Vec<[u32; 3]> = mesh
+        .faces
+        .iter()
+        .zip(&remove)
+        .filter_map(|(f, &r)| (!r).then_some(*f))
+        .collect();
+    let removed = mesh.faces.len() - faces.len();
+    if removed == 0 {
+        return (mesh.clone(), 0);
+    }
+    let m = super::faces::remove_unreferenced_vertices(&Mesh::new(mesh.vertices.clone(), faces));
+    (m, removed)
+}
+
+/// Improve the triangles of `mesh` without changing its vertex count or
+/// topology: `iterations` rounds of Delaunay edge flips (faces within 30°
+/// of coplanar) and tangential relaxation projected onto `reference`, then
+/// a final round of flips. Returns the mesh and the number of flips.
+pub fn improve_triangles(
+    mesh: &Mesh,
+    reference: &TriangleGrid,
+    iterations: usize,
+) -> (Mesh, usize) {
+    let dihedral = 30f64.to_radians();
+    let (mut m, _) = remove_boundary_caps(mesh);
+    let mut flips = 0;
+    for _ in 0..iterations {
+        let (f, k) = flip_to_delaunay(&m, dihedral);
+        flips += k;
+        m = relax_tangential(&f, reference, 0.5);
+    }
+    let (f, k) = flip_to_delaunay(&m, dihedral);
+    let (f, _) = remove_boundary_caps(&f);
+    (f, flips + k)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::{euler_characteristic, surface_area};
+
+    fn grid(n: u32) -> Mesh {
+        let mut v = Vec::new();
+        for j in 0..=n {
+            for i in 0..=n {
+                v.push([i as f64, j as f64, 0.0]);
+            }
+        }
+        let mut f = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let a = j * (n + 1) + i;
+                f.push([a, a + 1, a + n + 2]);
+                f.push([a, a + n + 2, a + n + 1]);
+            }
+        }
+        Mesh::new(v, f)
+    }
+
+    #[test]
+    fn subdivision_keeps_area_and_topology() {
+        let m = grid(3);
+        let s = subdivide_midpoint(&m);
+        assert_eq!(s.faces.len(), 4 * m.faces.len());
+        assert_eq!(s.vertices.len(), 49);
+        assert!((surface_area(&s) - surface_area(&m)).abs() < 1e-12);
+        assert_eq!(euler_characteristic(&s), 1);
+    }
+
+    #[test]
+    fn obtuse_pair_is_flipped() {
+        // A flat rhombus split along its long diagonal: opposite angles > 90°.
+        let m = Mesh::new(
+            vec![
+                [0., 0., 0.],
+                [4., 0., 0.],
+                [2., 0.5, 0.],
+                [2., -0.5, 0.],
+                [2., 3., 0.],
+                [2., -3., 0.],
+            ],
+            vec![
+                [0, 1, 2],
+                [1, 0, 3],
+                [0, 2, 4],
+                [2, 1, 4],
+                [3, 0, 5],
+                [1, 3, 5],
+            ],
+        );
+        let (f, flips) = flip_to_delaunay(&m, 0.5);
+        assert!(flips >= 1);
+        assert!(f.faces.iter().any(|t| t.contains(&2) && t.contains(&3)));
+        assert_eq!(euler_characteristic(&f), 1);
+        assert!((surface_area(&f) - surface_area(&m)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn boundary_cap_is_removed() {
+        // Square grid with an interior vertex pulled next to the bottom edge.
+        let mut m = grid(2);
+        m.vertices[4] = [0.5, 0.02, 0.0];
+        let (c, removed) = remove_boundary_caps(&m);
+        assert_eq!(removed, 1);
+        assert_eq!(euler_characteristic(&c), 1);
+        assert_eq!(crate::mesh::boundary_loops(&c).len(), 1);
+    }
+
+    #[test]
+    fn decimation_hits_the_target() {
+        let m = subdivide_midpoint(&subdivide_midpoint(&grid(20)));
+        let d = decimate_to_vertex_count(&m, 1000);
+        let nv = d.vertices.len() as f64;
+        assert!((nv - 1000.0).abs() < 100.0, "{nv}");
+        assert_eq!(euler_characteristic(&d), 1);
+    }
+}

@@ -1,0 +1,192 @@
+//! `morphoid inspect`: load, clean, report.
+
+use anyhow::{Context, Result};
+use morphoid::clean::{self, CleanOptions, CleanReport};
+use morphoid::mesh::io::{self, Format};
+use serde::Serialize;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+/// Arguments of `morphoid inspect`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The surface file (OBJ, PLY, STL or OFF).
+    mesh: PathBuf,
+    /// Print the report as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+    /// Write the cleaned surface here (format from the extension).
+    #[arg(long, value_name = "OUT")]
+    write_clean: Option<PathBuf>,
+    /// Working resolution: about this many vertices after cleaning.
+    #[arg(long, default_value_t = CleanOptions::default().target_vertices)]
+    target_vertices: usize,
+}
+
+#[derive(Debug, Serialize)]
+struct Counts {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    format: Option<Format>,
+    vertices: usize,
+    faces: usize,
+}
+
+#[derive(Debug, Serialize)]
+struct Report {
+    status: &'static str,
+    file: String,
+    input: Counts,
+    output: OutputCounts,
+    welded_vertices: usize,
+    removed_faces: usize,
+    dropped_components: usize,
+    filled_holes: usize,
+    area: f64,
+    bbox_diagonal: f64,
+    repairs: Repairs,
+    timings_ms: Timings,
+}
+
+/// The rarer repairs, grouped so that the top level stays readable.
+#[derive(Debug, Serialize)]
+struct Repairs {
+    nonmanifold_edges: usize,
+    nonmanifold_vertices: usize,
+    flipped_faces: usize,
+    reversed_orientation: bool,
+    triangulated_point_cloud: bool,
+    edge_flips: usize,
+}
+
+impl Report {
+    fn new(file: String, format: Format, r: &CleanReport, timings_ms: Timings) -> Self {
+        Report {
+            status: "ok",
+            file,
+            input: Counts {
+                format: Some(format),
+                vertices: r.input_vertices,
+                faces: r.input_faces,
+            },
+            output: OutputCounts {
+                vertices: r.output_vertices,
+                faces: r.output_faces,
+                boundary_loops: r.boundary_loops,
+                euler_characteristic: r.euler_characteristic,
+            },
+            welded_vertices: r.welded_vertices,
+            removed_faces: r.removed_faces,
+            dropped_components: r.dropped_components,
+            filled_holes: r.filled_holes,
+            area: r.area,
+            bbox_diagonal: r.bbox_diagonal,
+            repairs: Repairs {
+                nonmanifold_edges: r.repaired_nonmanifold_edges,
+                nonmanifold_vertices: r.repaired_nonmanifold_vertices,
+                flipped_faces: r.flipped_faces,
+                reversed_orientation: r.reversed_orientation,
+                triangulated_point_cloud: r.triangulated_point_cloud,
+                edge_flips: r.edge_flips,
+            },
+            timings_ms,
+        }
+    }
+}
+
+#[derive(Debug, Serialize)]
+struct OutputCounts {
+    vertices: usize,
+    faces: usize,
+    boundary_loops: usize,
+    euler_characteristic: i64,
+}
+
+#[derive(Debug, Serialize)]
+struct Timings {
+    load: f64,
+    clean: f64,
+}
+
+/// Run `morphoid inspect`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let _span = tracing::info_span!("inspect", scan = %args.mesh.display()).entered();
+    match inspect(&args) {
+        Ok(report) => {
+            if args.json {
+                println!("{}", serde_json::to_string_pretty(&report)?);
+            } else {
+                print_human(&report);
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Err(e) => {
+            let message = format!("{e:#}");
+            if args.json {
+                let out = serde_json::json!({
+                    "status": "error",
+                    "file": args.mesh.display().to_string(),
+                    "error": message,
+                });
+                println!("{}", serde_json::to_string_pretty(&out)?);
+            }
+            eprintln!("morphoid: error: {message}");
+            Ok(ExitCode::FAILURE)
+        }
+    }
+}
+
+fn inspect(args: &Args) -> Result<Report> {
+    let t0 = Instant::now();
+    let loaded = io::load(&args.mesh)?;
+    let t_load = t0.elapsed();
+    let opts = CleanOptions {
+        target_vertices: args.target_vertices,
+        ..CleanOptions::default()
+    };
+    let cleaned =
+        clean::clean(&loaded.mesh, &opts).with_context(|| format!("{}", args.mesh.display()))?;
+    let t_clean = t0.elapsed() - t_load;
+    if let Some(out) = &args.write_clean {
+        io::save(out, &cleaned.mesh)
+            .with_context(|| format!("writing the cleaned surface of {}", args.mesh.display()))?;
+    }
+    Ok(Report::new(
+        args.mesh.display().to_string(),
+        loaded.format,
+        &cleaned.report,
+        Timings {
+            load: t_load.as_secs_f64() * 1e3,
+            clean: t_clean.as_secs_f64() * 1e3,
+        },
+    ))
+}
+
+fn print_human(r: &Report) {
+    println!("{}: ok", r.file);
+    println!(
+        "  input   {:>8} vertices {:>8} faces ({})",
+        r.input.vertices,
+        r.input.faces,
+        r.input
+            .format
+            .map(|f| format!("{f:?}").to_lowercase())
+            .unwrap_or_default()
+    );
+    println!(
+        "  output  {:>8} vertices {:>8} faces, {} boundary loop(s), Euler characteristic {}",
+        r.output.vertices, r.output.faces, r.output.boundary_loops, r.output.euler_characteristic
+    );
+    println!(
+        "  welded {} vertices, removed {} faces, dropped {} components, filled {} holes",
+        r.welded_vertices, r.removed_faces, r.dropped_components, r.filled_holes
+    );
+    println!(
+        "  area {:.6}, bounding-box diagonal {:.6}",
+        r.area, r.bbox_diagonal
+    );
+    println!(
+        "  load {:.1} ms, clean {:.1} ms",
+        r.timings_ms.load, r.timings_ms.clean
+    );
+}

@@ -1,0 +1,63 @@
+//! Subcommands of the `morphoid` binary. Each module parses nothing itself:
+//! clap builds the argument structs here, the modules do the work and turn
+//! library errors into one-line messages with context.
+
+mod inspect;
+mod synth;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// Identify anatomical surfaces with the continuous Procrustes distance.
+#[derive(Debug, Parser)]
+#[command(name = "morphoid", version, about)]
+struct Cli {
+    /// More log output (repeat for more).
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    verbose: u8,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Load and clean a surface, print the cleaning report.
+    Inspect(inspect::Args),
+    /// Write a synthetic crown-like surface (to try morphoid without data).
+    Synth(synth::Args),
+}
+
+/// Parse the command line, run the subcommand, map errors to an exit code.
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    init_tracing(cli.verbose);
+    let result = match cli.command {
+        Command::Inspect(a) => inspect::run(a),
+        Command::Synth(a) => synth::run(a),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            // One line: the context chain joined, as users read it in a log.
+            eprintln!("morphoid: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Logs go to stderr so that `--json` output on stdout stays parseable.
+fn init_tracing(verbose: u8) {
+    let default = match verbose {
+        0 => "warn",
+        1 => "info",
+        2 => "debug",
+        _ => "trace",
+    };
+    let filter = tracing_subscriber::EnvFilter::try_from_env("MORPHOID_LOG")
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default));
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .try_init();
+}

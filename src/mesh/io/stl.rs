@@ -1,0 +1,221 @@
+//! STL reader, binary and ASCII, as a triangle soup (three vertices per
+//! triangle; welding is left to cleaning).
+//!
+//! A file is binary exactly when its size is `84 + 50·n` for the triangle
+//! count `n` stored at byte 80: binary files often start with "solid" too,
+//! so the leading word alone decides nothing. An ASCII file cannot pass for
+//! binary: its bytes 80–83 are text, which read as a count of at least
+//! 0x09090909 triangles, far more than the size limit allows.
+
+use super::text::{shorten, Tokens};
+use super::{push_fan, ParseResult};
+use crate::mesh::Mesh;
+
+/// Parse an STL file.
+pub(crate) fn read_stl(bytes: &[u8]) -> ParseResult<Mesh> {
+    if let Some(n) = binary_triangle_count(bytes) {
+        return read_binary(bytes, n);
+    }
+    let start = bytes
+        .iter()
+        .position(|b| !b.is_ascii_whitespace())
+        .unwrap_or(bytes.len());
+    let begins_solid = bytes
+        .get(start..start + 5)
+        .is_some_and(|w| w.eq_ignore_ascii_case(b"solid"));
+    let size_mismatch = bytes.get(80..84).map(|c| {
+        let n = u32::from_le_bytes([c[0], c[1], c[2], c[3]]) as u64;
+        format!(
+            "{} bytes do not match a binary STL of {n} triangles ({} bytes)",
+            bytes.len(),
+            84 + 50 * n
+        )
+    });
+    if begins_solid {
+        return read_ascii(bytes).map_err(|e| {
+            // A binary file whose header happens to start with "solid".
+            let binary = bytes.iter().take(4096).any(|&b| b == 0 || b >= 0x80);
+            match (binary, &size_mismatch) {
+                (true, Some(m)) => format!("not an STL file: binary data after 'solid', and {m}"),
+                _ => e,
+            }
+        });
+    }
+    Err(match size_mismatch {
+        Some(m) => format!("not an STL file: {m}, and the file does not start with 'solid'"),
+        None => format!(
+            "not an STL file: {} bytes is too short for binary STL, and the file does \
+             not start with 'solid'",
+            bytes.len()
+        ),
+    })
+}
+
+/// The triangle count when the size matches a binary STL exactly.
+fn binary_triangle_count(bytes: &[u8]) -> Option<usize> {
+    let c = bytes.get(80..84)?;
+    let n = u32::from_le_bytes([c[0], c[1], c[2], c[3]]) as u64;
+    (84 + 50 * n == bytes.len() as u64).then_some(n as usize)
+}
+
+fn read_binary(bytes: &[u8], n: usize) -> ParseResult<Mesh> {
+    // The size check above bounds n by the file size.
+    let mut vertices = Vec::with_capacity(3 * n);
+    let mut faces = Vec::with_capacity(n);
+    for (t, record) in bytes[84..].chunks_exact(50).enumerate() {
+        for k in 0..3 {
+            let mut p = [0.0; 3];
+            for (c, value) in p.iter_mut().enumerate() {
+                let o = 12 + 12 * k + 4 * c;
+                let v =
+                    f32::from_le_bytes([record[o], record[o + 1], record[o + 2], record[o + 3]]);
+                if !v.is_finite() {
+                    return Err(format!(
+                        "triangle {t} has a non-finite coordinate (byte offset {})",
+                        84 + 50 * t + o
+                    ));
+                }
+                *value = v as f64;
+            }
+            vertices.push(p);
+        }
+        let b = (3 * t) as u32;
+        faces.push([b, b + 1, b + 2]);
+    }
+    Ok(Mesh::new(vertices, faces))
+}
+
+/// Compare a keyword case-insensitively, with a message naming the line.
+fn keyword(t: &mut Tokens, want: &str) -> ParseResult<()> {
+    let got = t.expect(&format!("'{want}'"))?;
+    if got.eq_ignore_ascii_case(want) {
+        Ok(())
+    } else {
+        Err(format!(
+            "line {}: expected '{want}', found '{}'",
+            t.line(),
+            shorten(got)
+        ))
+    }
+}
+
+fn read_ascii(bytes: &[u8]) -> ParseResult<Mesh> {
+    let mut t = Tokens::new(bytes, 1, false);
+    keyword(&mut t, "solid")?;
+    t.skip_line();
+    let mut mesh = Mesh::default();
+    let mut poly: Vec<u32> = Vec::new();
+    loop {
+        let Some(word) = t.next_token() else {
+            return Err("ASCII STL ends without 'endsolid' (is the file truncated?)".into());
+        };
+        if word.eq_ignore_ascii_case("endsolid") {
+            t.skip_line();
+            // Several solids may follow each other.
+            match t.next_token() {
+                None => return Ok(mesh),
+                Some(w) if w.eq_ignore_ascii_case("solid") => {
+                    t.skip_line();
+                    continue;
+                }
+                Some(w) => {
+                    return Err(format!(
+                        "line {}: unexpected '{}' after 'endsolid'",
+                        t.line(),
+                        shorten(w)
+                    ))
+                }
+            }
+        }
+        if !word.eq_ignore_ascii_case("facet") {
+            return Err(format!(
+                "line {}: expected 'facet' or 'endsolid', found '{}'",
+                t.line(),
+                shorten(word)
+            ));
+        }
+        keyword(&mut t, "normal")?;
+        for _ in 0..3 {
+            // The stored normal is not used, and may be anything numeric.
+            let w = t.expect("a normal component")?;
+            if w.parse::<f64>().is_err() {
+                return Err(format!(
+                    "line {}: expected a normal component, found '{}'",
+                    t.line(),
+                    shorten(w)
+                ));
+            }
+        }
+        keyword(&mut t, "outer")?;
+        keyword(&mut t, "loop")?;
+        poly.clear();
+        loop {
+            let w = t.expect("'vertex' or 'endloop'")?;
+            if w.eq_ignore_ascii_case("endloop") {
+                break;
+            }
+            if !w.eq_ignore_ascii_case("vertex") {
+                return Err(format!(
+                    "line {}: expected 'vertex' or 'endloop', found '{}'",
+                    t.line(),
+                    shorten(w)
+                ));
+            }
+            let mut p = [0.0; 3];
+            for c in &mut p {
+                *c = t.expect_f64("a vertex coordinate")?;
+            }
+            if mesh.vertices.len() >= u32::MAX as usize {
+                return Err(format!("line {}: too many vertices", t.line()));
+            }
+            poly.push(mesh.vertices.len() as u32);
+            mesh.vertices.push(p);
+        }
+        if poly.len() < 3 {
+            return Err(format!(
+                "line {}: facet has {} vertices, at least 3 are needed",
+                t.line(),
+                poly.len()
+            ));
+        }
+        push_fan(&mut mesh.faces, &poly);
+        keyword(&mut t, "endfacet")?;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const ASCII: &str = "solid test\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n\
+                         vertex 1 0 0\n vertex 0 1 0\n endloop\n endfacet\nendsolid test\n";
+
+    #[test]
+    fn ascii_triangle() {
+        let m = read_stl(ASCII.as_bytes()).unwrap();
+        assert_eq!(m.vertices.len(), 3);
+        assert_eq!(m.faces, vec![[0, 1, 2]]);
+        assert_eq!(m.vertices[1], [1.0, 0.0, 0.0]);
+    }
+
+    #[test]
+    fn truncated_ascii_is_an_error() {
+        let cut = &ASCII[..ASCII.len() - 30];
+        assert!(read_stl(cut.as_bytes()).is_err());
+    }
+
+    #[test]
+    fn binary_with_solid_header() {
+        let mut b = b"solid pretending to be ascii".to_vec();
+        b.resize(80, b' ');
+        b.extend_from_slice(&1u32.to_le_bytes());
+        for v in [[0f32, 0., 1.], [0., 0., 0.], [2., 0., 0.], [0., 3., 0.]] {
+            for c in v {
+                b.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        b.extend_from_slice(&[0, 0]);
+        let m = read_stl(&b).unwrap();
+        assert_eq!(m.vertices, vec![[0., 0., 0.], [2., 0., 0.], [0., 3., 0.]]);
+    }
+}

@@ -1,3 +1,0 @@
-//! Synthetic crown-like disk surfaces for tests and the demo.
-//!
-//! (to be implemented)

@@ -1,0 +1,89 @@
+//! The real `morphoid` binary on real files: `inspect` on good surfaces and
+//! on the eight bad inputs the product must survive.
+
+use morphoid::mesh::io;
+use morphoid::mesh::synth::{self, CROWN_GENERA};
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn morphoid(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_morphoid"))
+        .args(args)
+        .output()
+        .expect("the morphoid binary runs")
+}
+
+/// Peak resident memory of all waited-for children so far, in MB.
+fn children_max_rss_mb() -> f64 {
+    // SAFETY: getrusage only writes into the struct we pass.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    let rc = unsafe { libc::getrusage(libc::RUSAGE_CHILDREN, &mut usage) };
+    assert_eq!(rc, 0);
+    usage.ru_maxrss as f64 / 1024.0 // Linux reports kilobytes
+}
+
+fn json_of(out: &Output) -> serde_json::Value {
+    serde_json::from_slice(&out.stdout).expect("stdout is one JSON object")
+}
+
+#[test]
+fn every_bad_input_fails_with_one_line_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = synth::write_bad_inputs(dir.path()).unwrap();
+    assert_eq!(bad.len(), 8);
+    for (path, what) in &bad {
+        let p = path.to_str().unwrap();
+        let out = morphoid(&["inspect", p]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{what}: exit status was success");
+        assert_eq!(out.status.code(), Some(1), "{what}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{what}: panicked: {stderr}");
+        let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
+        assert_eq!(lines.len(), 1, "{what}: not one line: {stderr}");
+        assert!(lines[0].contains(p), "{what}: file not named: {stderr}");
+        eprintln!("{what}: {}", lines[0]);
+
+        let out = morphoid(&["inspect", "--json", p]);
+        assert!(!out.status.success());
+        let v = json_of(&out);
+        assert_eq!(v["status"], "error");
+        assert!(v["error"].as_str().unwrap().contains(p));
+    }
+    let rss = children_max_rss_mb();
+    eprintln!("peak memory of the inspect runs: {rss:.1} MB");
+    assert!(rss < 200.0, "peak memory {rss:.1} MB");
+}
+
+#[test]
+fn inspect_reports_a_disk_for_a_soup_with_debris() {
+    let dir = tempfile::tempdir().unwrap();
+    let crown = synth::crown(&CROWN_GENERA[1], 3, 3000);
+    let messy = synth::triangle_soup(&synth::add_debris(&crown, 3, 5));
+    let path = dir.path().join("messy.stl");
+    io::save(&path, &messy).unwrap();
+    let clean_path = dir.path().join("clean.ply");
+    let out = morphoid(&[
+        "inspect",
+        "--json",
+        path.to_str().unwrap(),
+        "--write-clean",
+        clean_path.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v = json_of(&out);
+    assert_eq!(v["status"], "ok");
+    assert_eq!(v["input"]["format"], "stl");
+    assert_eq!(v["output"]["boundary_loops"], 1);
+    assert_eq!(v["output"]["euler_characteristic"], 1);
+    assert_eq!(v["dropped_components"], 3);
+    assert!(v["welded_vertices"].as_u64().unwrap() > 0);
+    let n = v["output"]["vertices"].as_f64().unwrap();
+    assert!((n - 5000.0).abs() <= 500.0, "{n} vertices");
+    for key in ["removed_faces", "filled_holes", "area", "bbox_diagonal"] {
+        assert!(v.get(key).is_some(), "missing {key}");
+    }
+    // The written surface is the cleaned one.
+    let written = io::load(Path::new(&clean_path)).unwrap().mesh;
+    assert_eq!(written.vertex_count() as f64, n);
+    assert_eq!(morphoid::mesh::boundary_loops(&written).len(), 1);
+}
