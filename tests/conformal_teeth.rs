@@ -13,42 +13,9 @@ const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/pnas-tee
 /// Teeth with a non-manifold edge, which only cleaning repairs.
 const NEEDS_CLEANING: [&str; 2] = ["J12", "S09"];
 
-/// Minimal reader for the data set's binary little-endian PLY files (float32
-/// x y z; faces as uchar count + int32 indices).
+/// A tooth as stored (the library's PLY reader).
 fn read_tooth(path: &Path) -> Mesh {
-    let bytes = std::fs::read(path).unwrap();
-    let marker = b"end_header\n";
-    let end = bytes
-        .windows(marker.len())
-        .position(|w| w == marker)
-        .unwrap()
-        + marker.len();
-    let header = std::str::from_utf8(&bytes[..end]).unwrap();
-    let count = |name: &str| -> usize {
-        header
-            .lines()
-            .find_map(|l| l.strip_prefix(&format!("element {name} ")))
-            .unwrap()
-            .trim()
-            .parse()
-            .unwrap()
-    };
-    let (nv, nf) = (count("vertex"), count("face"));
-    let f32_at = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().unwrap()) as f64;
-    let i32_at = |o: usize| i32::from_le_bytes(bytes[o..o + 4].try_into().unwrap()) as u32;
-    let mut off = end;
-    let mut vertices = Vec::with_capacity(nv);
-    for _ in 0..nv {
-        vertices.push([f32_at(off), f32_at(off + 4), f32_at(off + 8)]);
-        off += 12;
-    }
-    let mut faces = Vec::with_capacity(nf);
-    for _ in 0..nf {
-        assert_eq!(bytes[off], 3);
-        faces.push([i32_at(off + 1), i32_at(off + 5), i32_at(off + 9)]);
-        off += 13;
-    }
-    Mesh::new(vertices, faces)
+    morphoid::mesh::io::load(path).unwrap().mesh
 }
 
 fn tooth_paths() -> Option<Vec<PathBuf>> {

@@ -11,35 +11,9 @@ use std::time::Instant;
 
 const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/pnas-teeth");
 
-/// Minimal reader for the data set's binary little-endian PLY files.
+/// A tooth as stored (the library's PLY reader).
 fn read_tooth(path: &Path) -> Option<Mesh> {
-    let bytes = std::fs::read(path).ok()?;
-    let marker = b"end_header\n";
-    let end = bytes.windows(marker.len()).position(|w| w == marker)? + marker.len();
-    let header = std::str::from_utf8(&bytes[..end]).ok()?;
-    let count = |name: &str| -> Option<usize> {
-        header
-            .lines()
-            .find_map(|l| l.strip_prefix(&format!("element {name} ")))?
-            .trim()
-            .parse()
-            .ok()
-    };
-    let (nv, nf) = (count("vertex")?, count("face")?);
-    let f32_at = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().unwrap()) as f64;
-    let i32_at = |o: usize| i32::from_le_bytes(bytes[o..o + 4].try_into().unwrap()) as u32;
-    let mut off = end;
-    let mut vertices = Vec::with_capacity(nv);
-    for _ in 0..nv {
-        vertices.push([f32_at(off), f32_at(off + 4), f32_at(off + 8)]);
-        off += 12;
-    }
-    let mut faces = Vec::with_capacity(nf);
-    for _ in 0..nf {
-        faces.push([i32_at(off + 1), i32_at(off + 5), i32_at(off + 9)]);
-        off += 13;
-    }
-    Some(Mesh::new(vertices, faces))
+    morphoid::mesh::io::load(path).ok().map(|l| l.mesh)
 }
 
 #[test]
