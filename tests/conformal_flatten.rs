@@ -2,8 +2,8 @@
 //! known in closed form, plus the error cases.
 
 use morphoid::conformal::{
-    conformal_factor, flatten_to_disk, flipped_triangles, normalize, quasi_conformal_ratios,
-    FlattenError,
+    conformal_factor, cotangent_edge_weights, flatten_to_disk, flatten_to_disk_with,
+    flipped_triangles, normalize, quasi_conformal_ratios, FlattenError, LaplacianWeights,
 };
 use morphoid::mesh::Mesh;
 use std::f64::consts::{PI, TAU};
@@ -451,4 +451,76 @@ fn disk_map_round_trips_through_json() {
         // last place.
         assert!((a[0] - b[0]).abs() <= 1e-15 && (a[1] - b[1]).abs() <= 1e-15);
     }
+}
+
+#[test]
+fn badly_shaped_triangles_still_give_an_embedding() {
+    // On a spherical cap, insert vertices just inside edges (each splits a
+    // face into three, one of them a sliver with an angle near π): the
+    // cotangent weights opposite those angles are strongly negative and the
+    // new vertices have only three edges, which intrinsic flips cannot fix.
+    let alpha = 0.6 * PI;
+    let (mut mesh, _) = spherical_cap(12, alpha);
+    let n0 = mesh.vertices.len();
+    let mut split = 0;
+    for fi in (7..mesh.faces.len()).step_by(23) {
+        let [a, b, c] = mesh.faces[fi];
+        let [pa, pb, pc] = [a, b, c].map(|v| mesh.vertices[v as usize]);
+        // 2% of the way from the midpoint of ab towards c, back on the sphere.
+        let q: [f64; 3] = std::array::from_fn(|k| {
+            let m = 0.5 * (pa[k] + pb[k]);
+            m + 0.02 * (pc[k] - m)
+        });
+        let r = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
+        let v = mesh.vertices.len() as u32;
+        mesh.vertices.push(q.map(|x| x / r));
+        mesh.faces[fi] = [a, b, v];
+        mesh.faces.push([b, c, v]);
+        mesh.faces.push([c, a, v]);
+        split += 1;
+    }
+    let negative = cotangent_edge_weights(&mesh)
+        .iter()
+        .filter(|&&(_, w)| w < -0.5)
+        .count();
+    assert!(negative >= split, "{negative} strongly negative weights");
+    let map = flatten_to_disk(&mesh).unwrap();
+    check_disk_invariants(&mesh, &map.uv);
+    // No squeezed image: the slivers stay proper triangles.
+    let q = quasi_conformal_ratios(&mesh, &map.uv);
+    let worst = q.iter().copied().fold(0.0, f64::max);
+    // Away from the inserted vertices the map is still the scaled
+    // stereographic projection up to rotation.
+    let t = (alpha / 2.0).tan();
+    let want: Vec<C> = mesh
+        .vertices
+        .iter()
+        .map(|p| {
+            let phi = p[2].clamp(-1.0, 1.0).acos();
+            let h = p[0].hypot(p[1]);
+            let r = (phi / 2.0).tan() / t;
+            if h > 0.0 {
+                (r * p[0] / h, r * p[1] / h)
+            } else {
+                (0.0, 0.0)
+            }
+        })
+        .collect();
+    let err = error_up_to_rotation(&uv_c(&map.uv), &want, |i| i < n0);
+    println!("cap with {split} slivers: max error {err:.2e}, worst ratio {worst:.1}");
+    assert!(worst < 1e3, "{worst}");
+    assert!(err < 1e-2, "{err}");
+    match flatten_to_disk_with(&mesh, LaplacianWeights::IntrinsicDelaunay) {
+        Ok(m) => println!(
+            "intrinsic Delaunay alone: worst ratio {:.3e}",
+            quasi_conformal_ratios(&mesh, &m.uv)
+                .iter()
+                .copied()
+                .fold(0.0, f64::max)
+        ),
+        Err(e) => println!("intrinsic Delaunay alone: {e}"),
+    }
+    // The clamped extrinsic Laplacian is an embedding too (Tutte).
+    let clamped = flatten_to_disk_with(&mesh, LaplacianWeights::ClampedCotangent).unwrap();
+    assert_eq!(flipped_triangles(&mesh.faces, &clamped.uv), 0);
 }

@@ -11,35 +11,9 @@ use std::time::Instant;
 
 const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/pnas-teeth");
 
-/// Minimal reader for the data set's binary little-endian PLY files.
+/// A tooth as stored (the library's PLY reader).
 fn read_tooth(path: &Path) -> Option<Mesh> {
-    let bytes = std::fs::read(path).ok()?;
-    let marker = b"end_header\n";
-    let end = bytes.windows(marker.len()).position(|w| w == marker)? + marker.len();
-    let header = std::str::from_utf8(&bytes[..end]).ok()?;
-    let count = |name: &str| -> Option<usize> {
-        header
-            .lines()
-            .find_map(|l| l.strip_prefix(&format!("element {name} ")))?
-            .trim()
-            .parse()
-            .ok()
-    };
-    let (nv, nf) = (count("vertex")?, count("face")?);
-    let f32_at = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().unwrap()) as f64;
-    let i32_at = |o: usize| i32::from_le_bytes(bytes[o..o + 4].try_into().unwrap()) as u32;
-    let mut off = end;
-    let mut vertices = Vec::with_capacity(nv);
-    for _ in 0..nv {
-        vertices.push([f32_at(off), f32_at(off + 4), f32_at(off + 8)]);
-        off += 12;
-    }
-    let mut faces = Vec::with_capacity(nf);
-    for _ in 0..nf {
-        faces.push([i32_at(off + 1), i32_at(off + 5), i32_at(off + 9)]);
-        off += 13;
-    }
-    Some(Mesh::new(vertices, faces))
+    morphoid::mesh::io::load(path).ok().map(|l| l.mesh)
 }
 
 #[test]
@@ -84,6 +58,50 @@ fn time_preparation_of_teeth() {
             best[3],
             best[2],
             best[0] + best[1] + best[2]
+        );
+    }
+}
+
+/// A `k × k` grid of the unit square lifted onto the paraboloid
+/// z = x² + y² (a disk-type surface).
+fn paraboloid_grid(k: usize) -> Mesh {
+    let idx = |i: usize, j: usize| (j * (k + 1) + i) as u32;
+    let mut vertices = Vec::new();
+    for j in 0..=k {
+        for i in 0..=k {
+            let (x, y) = (
+                -1.0 + 2.0 * i as f64 / k as f64,
+                -1.0 + 2.0 * j as f64 / k as f64,
+            );
+            vertices.push([x, y, 0.5 * (x * x + y * y)]);
+        }
+    }
+    let mut faces = Vec::new();
+    for j in 0..k {
+        for i in 0..k {
+            faces.push([idx(i, j), idx(i + 1, j), idx(i + 1, j + 1)]);
+            faces.push([idx(i, j), idx(i + 1, j + 1), idx(i, j + 1)]);
+        }
+    }
+    Mesh::new(vertices, faces)
+}
+
+#[test]
+fn time_preparation_by_size() {
+    for k in [70, 140, 223] {
+        let mesh = paraboloid_grid(k);
+        let mut best = f64::INFINITY;
+        for _ in 0..3 {
+            let t0 = Instant::now();
+            let norm = normalize(&mesh).unwrap();
+            let map = morphoid::conformal::flatten_to_disk(&norm.mesh).unwrap();
+            let f = conformal_factor(&norm.mesh, &map.uv);
+            best = best.min(t0.elapsed().as_secs_f64() * 1e3);
+            assert_eq!(f.len(), mesh.vertices.len());
+        }
+        println!(
+            "paraboloid grid, {} vertices: normalize + flatten + conformal factor {best:.1} ms",
+            mesh.vertices.len()
         );
     }
 }

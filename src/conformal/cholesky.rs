@@ -33,6 +33,13 @@ impl SpdFactor {
     /// Factor `a`, reading its lower triangle.
     pub fn new(a: &SparseColMat<usize, f64>) -> Result<Self, CholeskyError> {
         let a = a.as_ref();
+        if a.nrows() != a.ncols() {
+            return Err(CholeskyError::Assembly(format!(
+                "matrix is {} × {}, not square",
+                a.nrows(),
+                a.ncols()
+            )));
+        }
         let symbolic = factorize_symbolic_cholesky(
             a.symbolic(),
             Side::Lower,

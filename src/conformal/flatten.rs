@@ -3,7 +3,7 @@
 use super::cholesky::SpdFactor;
 use super::intrinsic::intrinsic_delaunay_weights;
 use super::laplacian::{cotangent_edge_weights, csc_from_columns, EdgeWeights};
-use super::quality::flipped_triangles;
+use super::quality::{flipped_triangles, signed_area_2d};
 use super::validate::check_disk_topology;
 use super::FlattenError;
 use crate::mesh::{norm, sub, Mesh};
@@ -32,25 +32,37 @@ pub struct DiskMap {
 /// unit source at the centre and `u = 0` on the boundary gives, through its
 /// flux across the boundary, the harmonic measure of the boundary seen from
 /// the centre; cumulated along the boundary loop it is the angle of each
-/// boundary vertex under the conformal map sending the centre to 0. The
+/// boundary vertex under the conformal map sending the centre to 0 (every
+/// boundary vertex gets at least a tenth of its share by boundary length, so
+/// the tips of "ear" faces, which carry no flux, stay distinct). The
 /// interior is then the harmonic (cotangent) extension of those boundary
-/// positions, solved with the same Cholesky factor. The cotangent weights
-/// are those of the intrinsic Delaunay triangulation, which are
-/// non-negative, so that Tutte's theorem (the boundary polygon is convex)
-/// rules out fold-overs; should a face of the input still come out flipped,
-/// the extrinsic cotangent weights with negative ones raised to a small
-/// positive floor are used instead. A final Möbius transformation puts the
-/// centre exactly at 0.
+/// positions, solved with the same Cholesky factor.
+///
+/// The cotangent weights are those of the intrinsic Delaunay triangulation
+/// (non-negative; any left negative are raised to a tiny positive floor),
+/// so by Tutte's theorem the map embeds that triangulation in the convex
+/// boundary polygon. The input's own faces are then checked: faces that
+/// come out flipped or squeezed (rare: slivers next to vertices with three
+/// edges) are repaired locally with mean-value weights; if that fails, the
+/// whole map is recomputed with the input's cotangent weights, negative ones
+/// raised to a small positive floor (an embedding of the input itself).
+/// A final Möbius transformation puts the centre exactly at 0.
 ///
 /// Errors: the mesh is not a clean disk (see [`FlattenError`]), has
 /// degenerate faces, the solve fails, or the result has flipped triangles.
 pub fn flatten_to_disk(mesh: &Mesh) -> Result<DiskMap, FlattenError> {
-    match flatten_to_disk_with(mesh, LaplacianWeights::IntrinsicDelaunay) {
-        Err(FlattenError::Flipped { .. }) => {
-            flatten_to_disk_with(mesh, LaplacianWeights::ClampedCotangent)
-        }
-        other => other,
+    let (boundary, center) = prepare(mesh)?;
+    let idt = positive_weights(intrinsic_delaunay_weights(mesh)?.0, INTRINSIC_FLOOR);
+    let mut uv = harmonic_disk_map(&mesh.vertices, &boundary, center, &idt)?;
+    let mut fixed = vec![false; mesh.vertices.len()];
+    for &b in &boundary {
+        fixed[b as usize] = true;
     }
+    if !bad_faces(mesh, &uv, &fixed).is_empty() && !repair_faces(mesh, &mut uv, &fixed) {
+        let clamped = positive_weights(cotangent_edge_weights(mesh), CLAMPED_FLOOR);
+        uv = harmonic_disk_map(&mesh.vertices, &boundary, center, &clamped)?;
+    }
+    finish(mesh, uv, center, &boundary)
 }
 
 /// Which cotangent weights the harmonic problems of [`flatten_to_disk_with`]
@@ -67,26 +79,45 @@ pub enum LaplacianWeights {
     ClampedCotangent,
 }
 
-/// [`flatten_to_disk`] with a given choice of Laplacian and no fallback.
+/// [`flatten_to_disk`] with one given Laplacian throughout and no repair
+/// (for comparisons): fails with [`FlattenError::Flipped`] when the map
+/// folds.
 pub fn flatten_to_disk_with(
     mesh: &Mesh,
     weights: LaplacianWeights,
 ) -> Result<DiskMap, FlattenError> {
-    let boundary = check_disk_topology(mesh)?;
-    check_faces_nondegenerate(mesh)?;
-    let center = central_vertex(mesh, &boundary).ok_or_else(|| FlattenError::Degenerate {
-        reason: "no interior vertex to use as the centre".into(),
-    })?;
+    let (boundary, center) = prepare(mesh)?;
     let w = match weights {
         LaplacianWeights::IntrinsicDelaunay => {
-            positive_weights(intrinsic_delaunay_weights(mesh).0, INTRINSIC_FLOOR)
+            positive_weights(intrinsic_delaunay_weights(mesh)?.0, INTRINSIC_FLOOR)
         }
         LaplacianWeights::ClampedCotangent => {
             positive_weights(cotangent_edge_weights(mesh), CLAMPED_FLOOR)
         }
     };
-    let mut uv = harmonic_disk_map(&mesh.vertices, &boundary, center, &w)?;
-    center_by_mobius(&mut uv, center as usize, &boundary);
+    let uv = harmonic_disk_map(&mesh.vertices, &boundary, center, &w)?;
+    finish(mesh, uv, center, &boundary)
+}
+
+/// Validate the mesh and choose the centre: the boundary loop and the
+/// central vertex.
+fn prepare(mesh: &Mesh) -> Result<(Vec<u32>, u32), FlattenError> {
+    let boundary = check_disk_topology(mesh)?;
+    check_faces_nondegenerate(mesh)?;
+    let center = central_vertex(mesh, &boundary).ok_or_else(|| FlattenError::Degenerate {
+        reason: "no interior vertex to use as the centre".into(),
+    })?;
+    Ok((boundary, center))
+}
+
+/// Send the centre to 0 and check the result: finite, no flipped face.
+fn finish(
+    mesh: &Mesh,
+    mut uv: Vec<[f64; 2]>,
+    center: u32,
+    boundary: &[u32],
+) -> Result<DiskMap, FlattenError> {
+    center_by_mobius(&mut uv, center as usize, boundary);
     if uv.iter().any(|z| !(z[0].is_finite() && z[1].is_finite())) {
         return Err(FlattenError::Solve {
             reason: "non-finite disk coordinates".into(),
@@ -97,6 +128,152 @@ pub fn flatten_to_disk_with(
         return Err(FlattenError::Flipped { count });
     }
     Ok(DiskMap { uv, center })
+}
+
+/// Faces with an interior vertex whose image is flipped or squeezed: disk
+/// area below [`SQUEEZED_AREA`] times what a uniform area scaling would
+/// give. (A face with all three vertices on the boundary is inscribed in the
+/// circle and may legitimately be thin.)
+fn bad_faces(mesh: &Mesh, uv: &[[f64; 2]], fixed: &[bool]) -> Vec<usize> {
+    let areas = crate::mesh::face_areas(mesh);
+    let total: f64 = areas.iter().sum();
+    let scale = std::f64::consts::PI / total;
+    mesh.faces
+        .iter()
+        .zip(&areas)
+        .enumerate()
+        .filter(|(_, (f, &a))| {
+            if f.iter().all(|&v| fixed[v as usize]) {
+                return false;
+            }
+            let s = signed_area_2d(uv[f[0] as usize], uv[f[1] as usize], uv[f[2] as usize]);
+            s.is_nan() || s <= SQUEEZED_AREA * a * scale
+        })
+        .map(|(i, _)| i)
+        .collect()
+}
+
+/// Relative disk area below which a face counts as squeezed.
+const SQUEEZED_AREA: f64 = 1e-4;
+
+/// Repair flipped or squeezed faces locally: in a growing neighbourhood of
+/// the [`bad_faces`] (1, 2, 4, 8 rings), re-place the interior vertices as
+/// the mean-value (Floater) convex combination of their neighbours, keeping
+/// the rest of `uv` fixed, until no bad face is left. Mean-value weights are
+/// positive for any triangle shape and close to the cotangent weights on
+/// well-shaped meshes, so the patch stays nearly conformal. Returns whether
+/// the result has no flipped face (the largest patch tried is kept when
+/// squeezed faces remain); `uv` is only changed then.
+fn repair_faces(mesh: &Mesh, uv: &mut [[f64; 2]], fixed: &[bool]) -> bool {
+    let n = mesh.vertices.len();
+    let adj = mean_value_weights(mesh);
+    let seeds: Vec<u32> = bad_faces(mesh, uv, fixed)
+        .into_iter()
+        .flat_map(|f| mesh.faces[f])
+        .collect();
+    let mut unflipped: Option<Vec<[f64; 2]>> = None;
+    for rings in [1, 2, 4, 8] {
+        // Region: interior vertices within `rings` edges of a flipped face.
+        let mut in_region = vec![false; n];
+        let mut frontier: Vec<u32> = Vec::new();
+        for &v in &seeds {
+            if !in_region[v as usize] {
+                in_region[v as usize] = true;
+                frontier.push(v);
+            }
+        }
+        for _ in 0..rings {
+            let mut next = Vec::new();
+            for &v in &frontier {
+                for &(u, _) in &adj[v as usize] {
+                    if !in_region[u as usize] {
+                        in_region[u as usize] = true;
+                        next.push(u);
+                    }
+                }
+            }
+            frontier = next;
+        }
+        let region: Vec<usize> = (0..n).filter(|&v| in_region[v] && !fixed[v]).collect();
+        if region.is_empty() {
+            break;
+        }
+        // Gauss–Seidel on the (non-symmetric, row-stochastic) mean-value
+        // system; it converges because the weights are positive and the
+        // region touches fixed vertices.
+        let mut trial = uv.to_vec();
+        for _ in 0..20_000 {
+            let mut change: f64 = 0.0;
+            for &v in &region {
+                let (mut sx, mut sy, mut sw) = (0.0, 0.0, 0.0);
+                for &(u, w) in &adj[v] {
+                    sx += w * trial[u as usize][0];
+                    sy += w * trial[u as usize][1];
+                    sw += w;
+                }
+                if sw > 0.0 {
+                    let z = [sx / sw, sy / sw];
+                    change = change.max((z[0] - trial[v][0]).abs() + (z[1] - trial[v][1]).abs());
+                    trial[v] = z;
+                }
+            }
+            if change.is_nan() || change < 1e-15 {
+                break;
+            }
+        }
+        if flipped_triangles(&mesh.faces, &trial) == 0 {
+            if bad_faces(mesh, &trial, fixed).is_empty() {
+                uv.copy_from_slice(&trial);
+                return true;
+            }
+            unflipped = Some(trial);
+        }
+    }
+    match unflipped {
+        Some(best) => {
+            uv.copy_from_slice(&best);
+            true
+        }
+        None => flipped_triangles(&mesh.faces, uv) == 0,
+    }
+}
+
+/// Mean-value weights (Floater 2003) of each vertex's neighbours:
+/// `w_ij = (tan(δ/2) + tan(γ/2)) / |x_j − x_i|`, with δ, γ the angles at
+/// `i` of the faces on either side of edge `ij`. Positive for any
+/// non-degenerate triangle; not symmetric.
+fn mean_value_weights(mesh: &Mesh) -> Vec<Vec<(u32, f64)>> {
+    let n = mesh.vertices.len();
+    let mut adj: Vec<Vec<(u32, f64)>> = vec![Vec::new(); n];
+    for f in &mesh.faces {
+        for k in 0..3 {
+            let (i, j, l) = (f[k], f[(k + 1) % 3], f[(k + 2) % 3]);
+            let xi = mesh.vertices[i as usize];
+            let e1 = sub(mesh.vertices[j as usize], xi);
+            let e2 = sub(mesh.vertices[l as usize], xi);
+            let (l1, l2) = (norm(e1), norm(e2));
+            // tan(θ/2) = |e1 × e2| / (|e1||e2| + e1·e2)
+            let den = l1 * l2 + crate::mesh::dot(e1, e2);
+            let t = norm(crate::mesh::cross(e1, e2)) / den;
+            if !(t.is_finite() && l1 > 0.0 && l2 > 0.0) {
+                continue;
+            }
+            adj[i as usize].push((j, t / l1));
+            adj[i as usize].push((l, t / l2));
+        }
+    }
+    for list in adj.iter_mut() {
+        list.sort_by_key(|&(u, _)| u);
+        list.dedup_by(|b, a| {
+            if a.0 == b.0 {
+                a.1 += b.1;
+                true
+            } else {
+                false
+            }
+        });
+    }
+    adj
 }
 
 /// Floor of the intrinsic Delaunay weights relative to their mean: only

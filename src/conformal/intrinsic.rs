@@ -3,9 +3,9 @@
 //! Delaunay. The cotangent weights of the result are non-negative, and its
 //! Laplacian discretizes the same piecewise-flat surface as the input.
 
-use super::laplacian::EdgeWeights;
+use super::laplacian::{half_edges_by_edge, sum_by_edge, EdgeWeights};
+use super::FlattenError;
 use crate::mesh::{norm, sub, Mesh};
-use std::collections::{BTreeMap, HashMap};
 
 /// A triangulation of the input's vertices by intrinsic triangles: face
 /// corners plus the length of each half-edge `3f + k` (from corner `k` to
@@ -14,6 +14,10 @@ struct IntrinsicMesh {
     faces: Vec<[u32; 3]>,
     twin: Vec<Option<usize>>,
     length: Vec<f64>,
+    /// Number of edges at each vertex.
+    degree: Vec<u32>,
+    /// Fewest edges each vertex may keep: 3 inside, 2 on the boundary.
+    min_degree: Vec<u32>,
 }
 
 /// Sum of the cotangents of the two angles opposite half-edge `h` and its
@@ -60,32 +64,59 @@ impl IntrinsicMesh {
     /// From a mesh whose faces have valid indices.
     fn new(mesh: &Mesh) -> Self {
         let nf = mesh.faces.len();
-        let mut twin = vec![None; 3 * nf];
+        let nv = mesh.vertices.len();
         let mut length = vec![0.0; 3 * nf];
-        let mut by_edge: HashMap<(u32, u32), usize> = HashMap::with_capacity(3 * nf);
         for (f, face) in mesh.faces.iter().enumerate() {
             for k in 0..3 {
                 let (a, b) = (face[k], face[(k + 1) % 3]);
                 length[3 * f + k] = norm(sub(mesh.vertices[a as usize], mesh.vertices[b as usize]));
-                by_edge.insert((a, b), 3 * f + k);
             }
         }
-        for (f, face) in mesh.faces.iter().enumerate() {
-            for k in 0..3 {
-                let (a, b) = (face[k], face[(k + 1) % 3]);
-                twin[3 * f + k] = by_edge.get(&(b, a)).copied();
+        // Twins: the two half-edges of an interior edge. Count each edge
+        // once in the degrees; boundary vertices may keep two edges.
+        let mut twin = vec![None; 3 * nf];
+        let mut degree = vec![0u32; nv];
+        let mut min_degree = vec![3u32; nv];
+        let half = half_edges_by_edge(&mesh.faces);
+        let mut i = 0;
+        while i < half.len() {
+            let mut j = i + 1;
+            while j < half.len() && half[j].0 == half[i].0 {
+                j += 1;
             }
+            let (a, b) = (
+                (half[i].0 >> 32) as usize,
+                (half[i].0 & 0xffff_ffff) as usize,
+            );
+            degree[a] += 1;
+            degree[b] += 1;
+            let (h0, h1) = (half[i].1 as usize, half[(i + 1).min(j - 1)].1 as usize);
+            let start = |h: usize| mesh.faces[h / 3][h % 3];
+            if j - i == 2 && start(h0) != start(h1) {
+                twin[h0] = Some(h1);
+                twin[h1] = Some(h0);
+            } else {
+                min_degree[a] = 2;
+                min_degree[b] = 2;
+            }
+            i = j;
         }
         Self {
             faces: mesh.faces.clone(),
             twin,
             length,
+            degree,
+            min_degree,
         }
     }
 
     /// Flip the interior edge `h` (with twin `t`). Faces `(a, b, c)` and
     /// `(b, a, d)` become `(d, b, c)` and `(c, a, d)`. Returns false (and
-    /// does nothing) when the flip is impossible.
+    /// does nothing) when the flip is impossible or would leave `a` or `b`
+    /// with fewer than three edges (two on the boundary): such a vertex
+    /// would end up inside a
+    /// self-folded triangle, where the harmonic map squeezes it onto a
+    /// neighbour and the input's faces around it degenerate.
     fn flip(&mut self, h: usize, t: usize) -> bool {
         let (f0, k0) = (h / 3, h % 3);
         let (f1, k1) = (t / 3, t % 3);
@@ -94,7 +125,10 @@ impl IntrinsicMesh {
         }
         let [a, b, c] = [0, 1, 2].map(|i| self.faces[f0][(k0 + i) % 3]);
         let d = self.faces[f1][(k1 + 2) % 3];
-        if c == d {
+        if c == d
+            || self.degree[a as usize] <= self.min_degree[a as usize]
+            || self.degree[b as usize] <= self.min_degree[b as usize]
+        {
             return false;
         }
         let h1 = 3 * f0 + (k0 + 1) % 3; // b → c
@@ -134,6 +168,10 @@ impl IntrinsicMesh {
         self.twin[3 * f1 + 2] = Some(3 * f0 + 2);
         self.length[3 * f0 + 2] = l_cd;
         self.length[3 * f1 + 2] = l_cd;
+        self.degree[a as usize] -= 1;
+        self.degree[b as usize] -= 1;
+        self.degree[c as usize] += 1;
+        self.degree[d as usize] += 1;
         true
     }
 
@@ -171,29 +209,44 @@ impl IntrinsicMesh {
     /// Cotangent weights `½ Σ cot` per vertex pair (parallel edges summed,
     /// loops dropped), sorted by pair.
     fn edge_weights(&self) -> EdgeWeights {
-        let mut w: BTreeMap<(u32, u32), f64> = BTreeMap::new();
+        let mut w = Vec::with_capacity(self.length.len());
         for (f, face) in self.faces.iter().enumerate() {
             for k in 0..3 {
                 let (i, j) = (face[k], face[(k + 1) % 3]);
                 if i == j {
                     continue;
                 }
-                *w.entry((i.min(j), i.max(j))).or_insert(0.0) +=
-                    0.5 * opposite_cot(self, 3 * f + k);
+                w.push(((i.min(j), i.max(j)), 0.5 * opposite_cot(self, 3 * f + k)));
             }
         }
-        w.into_iter().collect()
+        sum_by_edge(w)
     }
 }
 
 /// Cotangent edge weights of the intrinsic Delaunay triangulation of `mesh`
-/// (all non-negative up to rounding), as `((i, j), w)` with `i < j`, sorted,
-/// and the number of edge flips it took. Faces must have valid indices and
-/// consistent orientation.
-pub fn intrinsic_delaunay_weights(mesh: &Mesh) -> (EdgeWeights, usize) {
+/// (non-negative up to rounding), as `((i, j), w)` with `i < j`, sorted,
+/// and the number of edge flips it took. Flips that would leave a vertex
+/// with fewer than three edges are skipped, so a few weights may stay
+/// negative next to such vertices.
+///
+/// The mesh should be manifold and consistently oriented (as
+/// [`check_disk_topology`](super::check_disk_topology) ensures); faces with
+/// out-of-range indices are an error.
+pub fn intrinsic_delaunay_weights(mesh: &Mesh) -> Result<(EdgeWeights, usize), FlattenError> {
+    let n = mesh.vertices.len();
+    if let Some(face) = mesh
+        .faces
+        .iter()
+        .position(|f| f.iter().any(|&v| v as usize >= n))
+    {
+        return Err(FlattenError::InvalidFace {
+            face,
+            reason: format!("vertex index out of range (mesh has {n} vertices)"),
+        });
+    }
     let mut m = IntrinsicMesh::new(mesh);
     let flips = m.make_delaunay();
-    (m.edge_weights(), flips)
+    Ok((m.edge_weights(), flips))
 }
 
 #[cfg(test)]
@@ -211,7 +264,7 @@ mod tests {
         );
         let raw = cotangent_edge_weights(&m);
         assert!(raw.iter().any(|&(_, w)| w < 0.0));
-        let (w, flips) = intrinsic_delaunay_weights(&m);
+        let (w, flips) = intrinsic_delaunay_weights(&m).unwrap();
         assert_eq!(flips, 1);
         assert!(w.iter().all(|&(_, x)| x >= 0.0));
         assert!(w.iter().any(|&(e, _)| e == (2, 3)));

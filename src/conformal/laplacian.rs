@@ -2,7 +2,6 @@
 
 use crate::mesh::{cross, dot, norm, sub, Mesh};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
-use std::collections::BTreeMap;
 
 /// Symmetric edge weights `((i, j), w)` with `i < j`, sorted by edge.
 pub type EdgeWeights = Vec<((u32, u32), f64)>;
@@ -29,7 +28,7 @@ pub(crate) fn cot_at(o: [f64; 3], a: [f64; 3], b: [f64; 3]) -> Option<f64> {
 /// (the edge is not locally Delaunay).
 pub fn cotangent_edge_weights(mesh: &Mesh) -> EdgeWeights {
     let n = mesh.vertices.len();
-    let mut w: BTreeMap<(u32, u32), f64> = BTreeMap::new();
+    let mut w = Vec::with_capacity(3 * mesh.faces.len());
     for f in &mesh.faces {
         if f.iter().any(|&v| v as usize >= n) {
             continue;
@@ -38,10 +37,42 @@ pub fn cotangent_edge_weights(mesh: &Mesh) -> EdgeWeights {
         for k in 0..3 {
             let (i, j) = (f[(k + 1) % 3], f[(k + 2) % 3]);
             let c = cot_at(p[k], p[(k + 1) % 3], p[(k + 2) % 3]).unwrap_or(0.0);
-            *w.entry((i.min(j), i.max(j))).or_insert(0.0) += 0.5 * c;
+            w.push(((i.min(j), i.max(j)), 0.5 * c));
         }
     }
-    w.into_iter().collect()
+    sum_by_edge(w)
+}
+
+/// Sort `((i, j), w)` entries by edge and add up the weights of equal edges
+/// (a stable sort, so the summation order, and the result, are
+/// deterministic).
+pub(crate) fn sum_by_edge(mut entries: EdgeWeights) -> EdgeWeights {
+    entries.sort_by_key(|&(e, _)| e);
+    let mut out: EdgeWeights = Vec::with_capacity(entries.len() / 2 + 1);
+    for (e, w) in entries {
+        match out.last_mut() {
+            Some(last) if last.0 == e => last.1 += w,
+            _ => out.push((e, w)),
+        }
+    }
+    out
+}
+
+/// Half-edge `3f + k` runs from corner `k` to corner `k + 1` of face `f`.
+/// Returns all half-edges as `(undirected edge key, half-edge)`, sorted, so
+/// that the half-edges of each edge are adjacent. Faces must have valid
+/// indices.
+pub(crate) fn half_edges_by_edge(faces: &[[u32; 3]]) -> Vec<(u64, u32)> {
+    let mut h: Vec<(u64, u32)> = Vec::with_capacity(3 * faces.len());
+    for (f, face) in faces.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (face[k], face[(k + 1) % 3]);
+            let key = (u64::from(a.min(b)) << 32) | u64::from(a.max(b));
+            h.push((key, (3 * f + k) as u32));
+        }
+    }
+    h.sort_unstable();
+    h
 }
 
 /// The weighted graph Laplacian of symmetric edge weights: `L_ij = w_ij`,

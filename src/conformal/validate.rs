@@ -1,8 +1,8 @@
 //! Checks that a mesh is a clean, consistently oriented topological disk.
 
+use super::laplacian::half_edges_by_edge;
 use super::FlattenError;
 use crate::mesh::Mesh;
-use std::collections::HashMap;
 
 /// Check that `mesh` is a clean, consistently oriented, disk-type surface
 /// with at least one interior vertex, and return its boundary loop.
@@ -43,62 +43,69 @@ pub fn check_disk_topology(mesh: &Mesh) -> Result<Vec<u32>, FlattenError> {
         return Err(FlattenError::UnreferencedVertex { vertex });
     }
 
-    // Directed half-edges; a repeated one means either more than two faces on
-    // an edge or two faces with opposite orientation.
-    let mut half: HashMap<(u32, u32), u32> = HashMap::with_capacity(mesh.faces.len() * 3);
-    let mut undirected: HashMap<(u32, u32), u32> = HashMap::with_capacity(mesh.faces.len() * 2);
-    for f in &mesh.faces {
-        for k in 0..3 {
-            let (a, b) = (f[k], f[(k + 1) % 3]);
-            let key = (a.min(b), a.max(b));
-            let c = undirected.entry(key).or_insert(0);
-            *c += 1;
-            if *c > 2 {
+    // Half-edges grouped by undirected edge: one is a boundary edge, two
+    // must run in opposite directions, more is not a manifold.
+    let half = half_edges_by_edge(&mesh.faces);
+    let ends = |h: u32| {
+        let (f, k) = (h as usize / 3, h as usize % 3);
+        let face = mesh.faces[f];
+        (face[k], face[(k + 1) % 3])
+    };
+    let mut next = vec![u32::MAX; n];
+    let mut boundary_edges: Vec<(u32, u32)> = Vec::new();
+    let mut edge_count = 0usize;
+    let mut i = 0;
+    while i < half.len() {
+        let mut j = i + 1;
+        while j < half.len() && half[j].0 == half[i].0 {
+            j += 1;
+        }
+        edge_count += 1;
+        let (a, b) = ends(half[i].1);
+        match j - i {
+            1 => {
+                if next[a as usize] != u32::MAX {
+                    return Err(FlattenError::NonManifold {
+                        reason: format!("boundary loops touch at vertex {a}"),
+                    });
+                }
+                next[a as usize] = b;
+                boundary_edges.push((a, b));
+            }
+            2 => {
+                if ends(half[i + 1].1) == (a, b) {
+                    return Err(FlattenError::InconsistentOrientation { a, b });
+                }
+            }
+            _ => {
                 return Err(FlattenError::NonManifold {
                     reason: format!("edge {a}-{b} is shared by more than two faces"),
-                });
-            }
-            if half.insert((a, b), 1).is_some() {
-                return Err(FlattenError::InconsistentOrientation { a, b });
+                })
             }
         }
+        i = j;
     }
-
-    // Boundary half-edges: those whose twin is missing.
-    let mut next: HashMap<u32, u32> = HashMap::new();
-    let mut boundary_edges: Vec<(u32, u32)> = half
-        .keys()
-        .filter(|&&(a, b)| !half.contains_key(&(b, a)))
-        .copied()
-        .collect();
     boundary_edges.sort_unstable();
-    for &(a, b) in &boundary_edges {
-        if next.insert(a, b).is_some() {
-            return Err(FlattenError::NonManifold {
-                reason: format!("boundary loops touch at vertex {a}"),
-            });
-        }
-    }
     let mut loops: Vec<Vec<u32>> = Vec::new();
-    let mut visited: HashMap<u32, ()> = HashMap::with_capacity(next.len());
+    let mut visited = vec![false; n];
     for &(start, _) in &boundary_edges {
-        if visited.contains_key(&start) {
+        if visited[start as usize] {
             continue;
         }
         let mut lp = Vec::new();
         let mut cur = start;
         loop {
-            if visited.insert(cur, ()).is_some() {
+            if std::mem::replace(&mut visited[cur as usize], true) {
                 break;
             }
             lp.push(cur);
-            match next.get(&cur) {
-                Some(&nx) => cur = nx,
-                None => {
+            match next[cur as usize] {
+                u32::MAX => {
                     return Err(FlattenError::NonManifold {
                         reason: format!("boundary is not closed at vertex {cur}"),
                     })
                 }
+                nx => cur = nx,
             }
         }
         if cur != start {
@@ -108,7 +115,7 @@ pub fn check_disk_topology(mesh: &Mesh) -> Result<Vec<u32>, FlattenError> {
         }
         loops.push(lp);
     }
-    let euler = n as i64 - undirected.len() as i64 + mesh.faces.len() as i64;
+    let euler = n as i64 - edge_count as i64 + mesh.faces.len() as i64;
     if loops.len() != 1 || euler != 1 {
         return Err(FlattenError::NotDisk {
             boundary_loops: loops.len(),
