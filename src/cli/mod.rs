@@ -2,9 +2,11 @@
 //! clap builds the argument structs here, the modules do the work and turn
 //! library errors into one-line messages with context.
 
+mod common;
 mod distance;
 mod evaluate;
 mod inspect;
+mod library;
 mod matrix;
 mod synth;
 
@@ -26,6 +28,8 @@ struct Cli {
 enum Command {
     /// Load and clean a surface, print the cleaning report.
     Inspect(inspect::Args),
+    /// Prepare and cache the reference library, or list it.
+    Library(library::Args),
     /// The cP distance and correspondence of two surfaces.
     Distance(distance::Args),
     /// The all-pairs cP distance matrix of a folder of surfaces.
@@ -44,6 +48,7 @@ pub fn main() -> ExitCode {
         Command::Inspect(a) => inspect::run(a),
         Command::Synth(a) => synth::run(a),
         Command::Distance(a) => distance::run(a),
+        Command::Library(a) => library::run(a),
         Command::Matrix(a) => matrix::run(a),
         Command::Evaluate(a) => evaluate::run(a),
     };
