@@ -6,7 +6,8 @@
 //! - [`clean`]: turn a raw scan into a clean disk-type surface;
 //! - [`conformal`]: normalization and conformal flattening to the unit disk;
 //! - [`cp`]: prepared surfaces and the continuous Procrustes distance;
-//! - [`eval`]: distance matrices and leave-one-out classification.
+//! - [`eval`]: distance matrices and leave-one-out classification;
+//! - [`store`]: the SQLite record of references, scans, results and distances.
 //!
 //! See `ARCHITECTURE.md` at the repository root for the data flow.
 
@@ -18,3 +19,4 @@ pub mod eval;
 pub mod library;
 pub mod mesh;
 pub mod pipeline;
+pub mod store;
