@@ -11,6 +11,7 @@
 //!
 //! See `ARCHITECTURE.md` at the repository root for the data flow.
 
+pub mod classify;
 pub mod clean;
 pub mod config;
 pub mod conformal;

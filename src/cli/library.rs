@@ -2,7 +2,8 @@
 
 use super::common::{open_cache, open_library, progress_bar, ConfigArgs};
 use anyhow::Result;
-use morphoid::library::{self, content_hash, Cache};
+use morphoid::library::{self, Cache};
+use morphoid::store::content_hash;
 use std::process::ExitCode;
 use std::time::Instant;
 

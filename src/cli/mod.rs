@@ -2,12 +2,14 @@
 //! clap builds the argument structs here, the modules do the work and turn
 //! library errors into one-line messages with context.
 
+mod classify;
 mod common;
 mod distance;
 mod evaluate;
 mod inspect;
 mod library;
 mod matrix;
+mod results;
 mod synth;
 
 use clap::{Parser, Subcommand};
@@ -28,6 +30,10 @@ struct Cli {
 enum Command {
     /// Load and clean a surface, print the cleaning report.
     Inspect(inspect::Args),
+    /// Identify scans against the reference library; results go to the database.
+    Classify(classify::Args),
+    /// Show what has been identified, newest first.
+    Results(results::Args),
     /// Prepare and cache the reference library, or list it.
     Library(library::Args),
     /// The cP distance and correspondence of two surfaces.
@@ -49,6 +55,8 @@ pub fn main() -> ExitCode {
         Command::Synth(a) => synth::run(a),
         Command::Distance(a) => distance::run(a),
         Command::Library(a) => library::run(a),
+        Command::Classify(a) => classify::run(a),
+        Command::Results(a) => results::run(a),
         Command::Matrix(a) => matrix::run(a),
         Command::Evaluate(a) => evaluate::run(a),
     };
