@@ -4,6 +4,7 @@
 
 mod classify;
 mod common;
+mod demo;
 mod distance;
 mod evaluate;
 mod inspect;
@@ -30,6 +31,8 @@ struct Cli {
 enum Command {
     /// Load and clean a surface, print the cleaning report.
     Inspect(inspect::Args),
+    /// The whole loop on synthetic data in a temporary folder (no data or config needed).
+    Demo(demo::Args),
     /// Identify scans against the reference library; results go to the database.
     Classify(classify::Args),
     /// Show what has been identified, newest first.
@@ -56,6 +59,7 @@ pub fn main() -> ExitCode {
         Command::Distance(a) => distance::run(a),
         Command::Library(a) => library::run(a),
         Command::Classify(a) => classify::run(a),
+        Command::Demo(a) => demo::run(a),
         Command::Results(a) => results::run(a),
         Command::Matrix(a) => matrix::run(a),
         Command::Evaluate(a) => evaluate::run(a),

@@ -17,7 +17,6 @@
 //!
 //! The store does no numerical work: it takes results as plain data.
 
-mod claim;
 pub mod hash;
 pub mod schema;
 mod types;
