@@ -648,3 +648,67 @@ fn references_are_versioned_by_content() {
     ));
     store.check_integrity().expect("integrity");
 }
+
+#[test]
+fn claim_by_id_takes_only_that_pending_scan() {
+    let (_dir, path) = temp_db();
+    let mut store = Store::open(&path).expect("open");
+    register_references(&mut store, 2);
+    let queued = store.enqueue("queued.ply", "hq", 1).expect("q").scan_id();
+    let mine = store.enqueue("mine.ply", "hm", 1).expect("m").scan_id();
+    let job = store.claim(mine).expect("claim").expect("pending");
+    assert_eq!((job.scan_id, job.path.as_str()), (mine, "mine.ply"));
+    assert!(store.claim(mine).expect("claim running").is_none());
+    store.complete(mine, &outcome(4, 2)).expect("complete");
+    assert!(store.claim(mine).expect("claim ok").is_none());
+    assert!(store.claim(12345).expect("claim missing").is_none());
+    assert_eq!(
+        store.scan(queued, 1).expect("read").expect("q").status,
+        ScanStatus::Pending
+    );
+}
+
+#[test]
+fn concurrent_workers_never_claim_the_same_scan() {
+    const SCANS: usize = 60;
+    let (_dir, path) = temp_db();
+    {
+        let mut store = Store::open(&path).expect("open");
+        register_references(&mut store, 4);
+        for i in 0..SCANS {
+            store
+                .enqueue(&format!("s{i}.ply"), &format!("h{i}"), 1)
+                .expect("enqueue");
+        }
+    }
+    let workers: Vec<_> = (0..3)
+        .map(|_| {
+            let path = path.clone();
+            std::thread::spawn(move || {
+                let mut store = Store::open(&path).expect("worker open");
+                let mut mine = Vec::new();
+                while let Some(job) = store.claim_next().expect("claim") {
+                    store
+                        .complete(job.scan_id, &outcome(job.scan_id as u64, 4))
+                        .expect("complete");
+                    mine.push(job.scan_id);
+                }
+                mine
+            })
+        })
+        .collect();
+    let mut all: Vec<i64> = workers
+        .into_iter()
+        .flat_map(|w| w.join().expect("worker"))
+        .collect();
+    all.sort_unstable();
+    let n = all.len();
+    all.dedup();
+    assert_eq!(
+        (n, all.len()),
+        (SCANS, SCANS),
+        "a scan was claimed twice or not at all"
+    );
+    let store = Store::open(&path).expect("open");
+    assert_eq!(store.counts().expect("counts").ok, SCANS as u64);
+}

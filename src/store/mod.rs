@@ -401,27 +401,28 @@ impl Store {
                  WHERE id = (SELECT id FROM scan WHERE status = 'pending' ORDER BY id LIMIT 1)
                  RETURNING id, path, content_hash, size, attempts",
                 [now_ms()],
-                |r| {
-                    Ok((
-                        r.get::<_, i64>(0)?,
-                        r.get::<_, String>(1)?,
-                        r.get::<_, String>(2)?,
-                        r.get::<_, i64>(3)?,
-                        r.get::<_, i64>(4)?,
-                    ))
-                },
+                read_job_row,
             )
             .optional()?;
-        let Some((scan_id, path, content_hash, size, attempts)) = job else {
-            return Ok(None);
-        };
-        Ok(Some(Job {
-            scan_id,
-            path,
-            content_hash,
-            size: u64::try_from(size).map_err(|_| StoreError::OutOfRange("scan.size"))?,
-            attempts: u32::try_from(attempts).unwrap_or(u32::MAX),
-        }))
+        job.map(finish_job_row).transpose()
+    }
+
+    /// Take this particular scan if it is pending (what one-shot `classify`
+    /// does with the scan it has just enqueued, leaving the rest of the
+    /// queue alone). `None` when it is not pending: running elsewhere, or
+    /// already finished (read it with [`Store::scan`]).
+    pub fn claim(&mut self, scan_id: i64) -> Result<Option<Job>, StoreError> {
+        let job = self
+            .conn
+            .query_row(
+                "UPDATE scan SET status = 'running', started_at = ?1, attempts = attempts + 1
+                 WHERE id = ?2 AND status = 'pending'
+                 RETURNING id, path, content_hash, size, attempts",
+                params![now_ms(), scan_id],
+                read_job_row,
+            )
+            .optional()?;
+        job.map(finish_job_row).transpose()
     }
 
     /// Record the identification of a running scan: status `ok`, timings,
@@ -661,6 +662,23 @@ impl Store {
         load_result(&self.conn, &mut record, nearest_count)?;
         Ok(Some(record))
     }
+}
+
+type JobRow = (i64, String, String, i64, i64);
+
+fn read_job_row(r: &Row<'_>) -> rusqlite::Result<JobRow> {
+    Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?, r.get(4)?))
+}
+
+fn finish_job_row(row: JobRow) -> Result<Job, StoreError> {
+    let (scan_id, path, content_hash, size, attempts) = row;
+    Ok(Job {
+        scan_id,
+        path,
+        content_hash,
+        size: u64::try_from(size).map_err(|_| StoreError::OutOfRange("scan.size"))?,
+        attempts: u32::try_from(attempts).unwrap_or(u32::MAX),
+    })
 }
 
 const SCAN_COLUMNS: &str = "id, path, content_hash, size, status, error, attempts, \
