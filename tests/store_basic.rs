@@ -662,6 +662,20 @@ fn claim_by_id_takes_only_that_pending_scan() {
     store.complete(mine, &outcome(4, 2)).expect("complete");
     assert!(store.claim(mine).expect("claim ok").is_none());
     assert!(store.claim(12345).expect("claim missing").is_none());
+    // A clean shutdown gives a job back without counting an attempt.
+    let job = store.claim(queued).expect("claim").expect("pending");
+    assert_eq!(job.attempts, 1);
+    store.abandon(queued).expect("abandon");
+    assert!(matches!(
+        store.abandon(queued),
+        Err(StoreError::WrongStatus {
+            status: ScanStatus::Pending,
+            ..
+        })
+    ));
+    let job = store.claim_next().expect("claim").expect("queued again");
+    assert_eq!((job.scan_id, job.attempts), (queued, 1));
+    store.abandon(queued).expect("abandon");
     assert_eq!(
         store.scan(queued, 1).expect("read").expect("q").status,
         ScanStatus::Pending

@@ -516,6 +516,24 @@ impl Store {
         Ok(())
     }
 
+    /// Give a running scan back to the queue without a result (a clean
+    /// shutdown in the middle of a job): it becomes pending, and the claim
+    /// does not count as a failed attempt.
+    pub fn abandon(&mut self, scan_id: i64) -> Result<(), StoreError> {
+        let tx = self
+            .conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)?;
+        require_status(&tx, scan_id, ScanStatus::Running, "abandon", "running")?;
+        tx.execute(
+            "UPDATE scan SET status = 'pending', started_at = NULL,
+                    attempts = max(attempts - 1, 0)
+             WHERE id = ?1",
+            [scan_id],
+        )?;
+        tx.commit()?;
+        Ok(())
+    }
+
     /// At start-up: put every scan left `running` by a worker that died
     /// back to pending. Only one process may work a database's queue, so
     /// call this before claiming. A running scan never has results (they
