@@ -71,9 +71,12 @@ fn migrations_run_twice_change_nothing() {
     drop(Store::open(&path).expect("create"));
     let mut conn = Connection::open(&path).expect("raw open");
     let before = schema_sql(&conn);
-    assert_eq!(schema::migrate(&mut conn).expect("again"), SCHEMA_VERSION);
     assert_eq!(
-        schema::migrate(&mut conn).expect("and again"),
+        schema::migrate(&mut conn, &path).expect("again"),
+        SCHEMA_VERSION
+    );
+    assert_eq!(
+        schema::migrate(&mut conn, &path).expect("and again"),
         SCHEMA_VERSION
     );
     assert_eq!(schema_sql(&conn), before);
@@ -94,14 +97,15 @@ fn database_from_a_newer_version_is_refused() {
     }
     let err = Store::open(&path).expect_err("future schema must be refused");
     match &err {
-        StoreError::SchemaTooNew { found, supported } => {
+        StoreError::SchemaTooNew {
+            found, supported, ..
+        } => {
             assert_eq!((*found, *supported), (SCHEMA_VERSION + 1, SCHEMA_VERSION));
         }
         other => panic!("unexpected error {other:?}"),
     }
     assert!(
-        err.to_string()
-            .contains("newer than this morphoid supports"),
+        err.to_string().contains("morphoid.sqlite: schema version"),
         "{err}"
     );
     // And it was not touched.
@@ -122,6 +126,10 @@ fn other_applications_database_is_refused() {
     }
     let err = Store::open(&path).expect_err("foreign database must be refused");
     assert!(matches!(err, StoreError::NotMorphoid { .. }), "{err:?}");
+    assert!(
+        err.to_string().contains("is not a morphoid database"),
+        "{err}"
+    );
     let conn = Connection::open(&path).expect("raw open");
     assert_eq!(schema_sql(&conn).len(), 1, "the foreign file was altered");
 }
@@ -725,4 +733,14 @@ fn concurrent_workers_never_claim_the_same_scan() {
     );
     let store = Store::open(&path).expect("open");
     assert_eq!(store.counts().expect("counts").ok, SCANS as u64);
+}
+
+#[test]
+fn a_file_that_is_not_a_database_is_a_clear_error() {
+    let (_dir, path) = temp_db();
+    std::fs::write(&path, b"ply\nformat ascii 1.0\nend_header\n").expect("write");
+    let err = Store::open(&path).expect_err("not a database");
+    let text = err.to_string();
+    assert!(text.contains("morphoid.sqlite"), "{text}");
+    assert!(text.contains("not a database"), "{text}");
 }

@@ -55,18 +55,22 @@ pub enum StoreError {
     Sqlite(#[from] rusqlite::Error),
     /// The file was written by a newer morphoid.
     #[error(
-        "database schema version {found} is newer than this morphoid supports \
-         (version {supported}); use a newer morphoid or another database file"
+        "database {path}: schema version {found} is newer than this morphoid \
+         supports (version {supported}); use a newer morphoid or another database file"
     )]
     SchemaTooNew {
+        /// Database file.
+        path: PathBuf,
         /// Version in the file.
         found: u32,
         /// Newest version this build knows.
         supported: u32,
     },
     /// The file is an SQLite database of some other application.
-    #[error("not a morphoid database (SQLite application id {application_id:#010x})")]
+    #[error("{path} is not a morphoid database (SQLite application id {application_id:#010x})")]
     NotMorphoid {
+        /// Database file.
+        path: PathBuf,
         /// The file's `application_id`.
         application_id: i32,
     },
@@ -165,7 +169,7 @@ impl Store {
             .map_err(open_err)?;
         conn.pragma_update(None, "foreign_keys", true)
             .map_err(open_err)?;
-        schema::migrate(&mut conn)?;
+        schema::migrate(&mut conn, path)?;
         Ok(Store {
             conn,
             path: path.to_path_buf(),
