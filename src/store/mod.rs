@@ -16,6 +16,47 @@
 //! next to the seconds an identification takes.
 //!
 //! The store does no numerical work: it takes results as plain data.
+//!
+//! ```
+//! use morphoid::store::{content_hash, DistanceRow, Labels, RankResult, ScanOutcome, Store};
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! # let dir = tempfile::tempdir()?;
+//! let mut store = Store::open(&dir.path().join("morphoid.sqlite"))?;
+//! let mut labels = Labels::new();
+//! labels.insert("genus".into(), Some("Galago".into()));
+//! store.register_reference("x21", &content_hash(b"x21 mesh"), &labels)?;
+//! store.mark_reference_prepared("x21")?;
+//!
+//! store.requeue_running()?; // at start-up
+//! let bytes = b"scan bytes";
+//! store.enqueue("export/a.ply", &content_hash(bytes), bytes.len() as u64)?;
+//! while let Some(job) = store.claim_next()? {
+//!     let outcome = ScanOutcome {
+//!         ranks: vec![RankResult {
+//!             rank: "genus".into(),
+//!             taxon: "Galago".into(),
+//!             reference: "x21".into(),
+//!             distance: 0.031,
+//!             runner_up: None,
+//!             margin: None,
+//!         }],
+//!         distances: vec![DistanceRow {
+//!             reference: "x21".into(),
+//!             forward: 0.031,
+//!             backward: 0.034,
+//!             distance: 0.031,
+//!             reflected: false,
+//!         }],
+//!         ..ScanOutcome::default()
+//!     };
+//!     store.complete(job.scan_id, &outcome)?;
+//! }
+//! let last = store.recent(1)?;
+//! let json = serde_json::to_string(&last)?;
+//! assert!(json.contains(r#""taxon":"Galago""#));
+//! # Ok(())
+//! # }
+//! ```
 
 pub mod hash;
 pub mod schema;
