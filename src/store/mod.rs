@@ -16,6 +16,47 @@
 //! next to the seconds an identification takes.
 //!
 //! The store does no numerical work: it takes results as plain data.
+//!
+//! ```
+//! use morphoid::store::{content_hash, DistanceRow, Labels, RankResult, ScanOutcome, Store};
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! # let dir = tempfile::tempdir()?;
+//! let mut store = Store::open(&dir.path().join("morphoid.sqlite"))?;
+//! let mut labels = Labels::new();
+//! labels.insert("genus".into(), Some("Galago".into()));
+//! store.register_reference("x21", &content_hash(b"x21 mesh"), &labels)?;
+//! store.mark_reference_prepared("x21")?;
+//!
+//! store.requeue_running()?; // at start-up
+//! let bytes = b"scan bytes";
+//! store.enqueue("export/a.ply", &content_hash(bytes), bytes.len() as u64)?;
+//! while let Some(job) = store.claim_next()? {
+//!     let outcome = ScanOutcome {
+//!         ranks: vec![RankResult {
+//!             rank: "genus".into(),
+//!             taxon: "Galago".into(),
+//!             reference: "x21".into(),
+//!             distance: 0.031,
+//!             runner_up: None,
+//!             margin: None,
+//!         }],
+//!         distances: vec![DistanceRow {
+//!             reference: "x21".into(),
+//!             forward: 0.031,
+//!             backward: 0.034,
+//!             distance: 0.031,
+//!             reflected: false,
+//!         }],
+//!         ..ScanOutcome::default()
+//!     };
+//!     store.complete(job.scan_id, &outcome)?;
+//! }
+//! let last = store.recent(1)?;
+//! let json = serde_json::to_string(&last)?;
+//! assert!(json.contains(r#""taxon":"Galago""#));
+//! # Ok(())
+//! # }
+//! ```
 
 pub mod hash;
 pub mod schema;
@@ -55,18 +96,22 @@ pub enum StoreError {
     Sqlite(#[from] rusqlite::Error),
     /// The file was written by a newer morphoid.
     #[error(
-        "database schema version {found} is newer than this morphoid supports \
-         (version {supported}); use a newer morphoid or another database file"
+        "database {path}: schema version {found} is newer than this morphoid \
+         supports (version {supported}); use a newer morphoid or another database file"
     )]
     SchemaTooNew {
+        /// Database file.
+        path: PathBuf,
         /// Version in the file.
         found: u32,
         /// Newest version this build knows.
         supported: u32,
     },
     /// The file is an SQLite database of some other application.
-    #[error("not a morphoid database (SQLite application id {application_id:#010x})")]
+    #[error("{path} is not a morphoid database (SQLite application id {application_id:#010x})")]
     NotMorphoid {
+        /// Database file.
+        path: PathBuf,
         /// The file's `application_id`.
         application_id: i32,
     },
@@ -165,7 +210,7 @@ impl Store {
             .map_err(open_err)?;
         conn.pragma_update(None, "foreign_keys", true)
             .map_err(open_err)?;
-        schema::migrate(&mut conn)?;
+        schema::migrate(&mut conn, path)?;
         Ok(Store {
             conn,
             path: path.to_path_buf(),
@@ -401,27 +446,28 @@ impl Store {
                  WHERE id = (SELECT id FROM scan WHERE status = 'pending' ORDER BY id LIMIT 1)
                  RETURNING id, path, content_hash, size, attempts",
                 [now_ms()],
-                |r| {
-                    Ok((
-                        r.get::<_, i64>(0)?,
-                        r.get::<_, String>(1)?,
-                        r.get::<_, String>(2)?,
-                        r.get::<_, i64>(3)?,
-                        r.get::<_, i64>(4)?,
-                    ))
-                },
+                read_job_row,
             )
             .optional()?;
-        let Some((scan_id, path, content_hash, size, attempts)) = job else {
-            return Ok(None);
-        };
-        Ok(Some(Job {
-            scan_id,
-            path,
-            content_hash,
-            size: u64::try_from(size).map_err(|_| StoreError::OutOfRange("scan.size"))?,
-            attempts: u32::try_from(attempts).unwrap_or(u32::MAX),
-        }))
+        job.map(finish_job_row).transpose()
+    }
+
+    /// Take this particular scan if it is pending (what one-shot `classify`
+    /// does with the scan it has just enqueued, leaving the rest of the
+    /// queue alone). `None` when it is not pending: running elsewhere, or
+    /// already finished (read it with [`Store::scan`]).
+    pub fn claim(&mut self, scan_id: i64) -> Result<Option<Job>, StoreError> {
+        let job = self
+            .conn
+            .query_row(
+                "UPDATE scan SET status = 'running', started_at = ?1, attempts = attempts + 1
+                 WHERE id = ?2 AND status = 'pending'
+                 RETURNING id, path, content_hash, size, attempts",
+                params![now_ms(), scan_id],
+                read_job_row,
+            )
+            .optional()?;
+        job.map(finish_job_row).transpose()
     }
 
     /// Record the identification of a running scan: status `ok`, timings,
@@ -510,6 +556,24 @@ impl Store {
         tx.execute(
             "UPDATE scan SET status = 'error', error = ?2, finished_at = ?3 WHERE id = ?1",
             params![scan_id, message, now_ms()],
+        )?;
+        tx.commit()?;
+        Ok(())
+    }
+
+    /// Give a running scan back to the queue without a result (a clean
+    /// shutdown in the middle of a job): it becomes pending, and the claim
+    /// does not count as a failed attempt.
+    pub fn abandon(&mut self, scan_id: i64) -> Result<(), StoreError> {
+        let tx = self
+            .conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)?;
+        require_status(&tx, scan_id, ScanStatus::Running, "abandon", "running")?;
+        tx.execute(
+            "UPDATE scan SET status = 'pending', started_at = NULL,
+                    attempts = max(attempts - 1, 0)
+             WHERE id = ?1",
+            [scan_id],
         )?;
         tx.commit()?;
         Ok(())
@@ -661,6 +725,23 @@ impl Store {
         load_result(&self.conn, &mut record, nearest_count)?;
         Ok(Some(record))
     }
+}
+
+type JobRow = (i64, String, String, i64, i64);
+
+fn read_job_row(r: &Row<'_>) -> rusqlite::Result<JobRow> {
+    Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?, r.get(4)?))
+}
+
+fn finish_job_row(row: JobRow) -> Result<Job, StoreError> {
+    let (scan_id, path, content_hash, size, attempts) = row;
+    Ok(Job {
+        scan_id,
+        path,
+        content_hash,
+        size: u64::try_from(size).map_err(|_| StoreError::OutOfRange("scan.size"))?,
+        attempts: u32::try_from(attempts).unwrap_or(u32::MAX),
+    })
 }
 
 const SCAN_COLUMNS: &str = "id, path, content_hash, size, status, error, attempts, \

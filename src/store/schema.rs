@@ -7,6 +7,7 @@
 
 use super::StoreError;
 use rusqlite::{Connection, TransactionBehavior};
+use std::path::Path;
 
 /// `PRAGMA application_id` of a morphoid database ("MRPH"), so that a
 /// different SQLite file given by mistake is refused instead of altered.
@@ -87,8 +88,8 @@ CREATE INDEX distance_reference ON distance (reference_id);
 /// Bring the database on `conn` to [`SCHEMA_VERSION`]: refuse a file of
 /// another application or of a newer morphoid, then apply the missing
 /// migrations, each in its own immediate transaction. Running it on an
-/// up-to-date database changes nothing.
-pub fn migrate(conn: &mut Connection) -> Result<u32, StoreError> {
+/// up-to-date database changes nothing. `path` names the file in errors.
+pub fn migrate(conn: &mut Connection, path: &Path) -> Result<u32, StoreError> {
     loop {
         // IMMEDIATE: two processes opening a fresh file at once must not
         // both apply migration 1.
@@ -99,11 +100,13 @@ pub fn migrate(conn: &mut Connection) -> Result<u32, StoreError> {
             .map_err(|_| StoreError::Corrupt(format!("negative schema version {found}")))?;
         if app != APPLICATION_ID && !(app == 0 && is_empty(&tx)?) {
             return Err(StoreError::NotMorphoid {
+                path: path.to_path_buf(),
                 application_id: app,
             });
         }
         if found > SCHEMA_VERSION {
             return Err(StoreError::SchemaTooNew {
+                path: path.to_path_buf(),
                 found,
                 supported: SCHEMA_VERSION,
             });
