@@ -57,7 +57,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let mut expected = Vec::new();
     for (i, (genus, ext)) in CROWN_GENERA.iter().zip(formats).enumerate() {
         let crown = synth::crown(genus, 1000 + i as u64, 4000);
-        let posed = synth::scale(&RigidMotion::random(77 + i as u64, 50.0).apply(&crown), 1000.0);
+        let posed = synth::scale(
+            &RigidMotion::random(77 + i as u64, 50.0).apply(&crown),
+            1000.0,
+        );
         let path = export.join(format!("scan{:02}.{ext}", i + 1));
         io::save(&path, &posed)?;
         expected.push((path, genus.name));
@@ -84,7 +87,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
     files.push(broken.clone());
     for f in &files {
         let bytes = std::fs::read(f)?;
-        store.enqueue(&f.display().to_string(), &content_hash(&bytes), bytes.len() as u64)?;
+        store.enqueue(
+            &f.display().to_string(),
+            &content_hash(&bytes),
+            bytes.len() as u64,
+        )?;
     }
     while let Some(job) = store.claim_next()? {
         classify::run_job(&mut store, &classifier, &job)?;
@@ -106,7 +113,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
         if truth.is_some() && truth == called {
             correct += 1;
         }
-        let name = f.file_name().map(|n| n.to_string_lossy()).unwrap_or_default();
+        let name = f
+            .file_name()
+            .map(|n| n.to_string_lossy())
+            .unwrap_or_default();
         let line = summary(&record).replacen(&record.path, &name, 1);
         match truth {
             Some(t) => println!("{line}\n    (generated as {t})"),
