@@ -73,7 +73,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
 }
 
 /// Enqueue, claim and identify one file; an already identified content is
-/// not identified again (its recorded result is returned), a failed one is.
+/// not identified again (its recorded result is returned); a failed one,
+/// or one a killed process left running, is.
 fn identify_one(store: &mut Store, classifier: &Classifier, scan: &PathBuf) -> Result<ScanRecord> {
     let bytes = std::fs::read(scan).with_context(|| format!("{}", scan.display()))?;
     let hash = content_hash(&bytes);
@@ -82,6 +83,12 @@ fn identify_one(store: &mut Store, classifier: &Classifier, scan: &PathBuf) -> R
         Enqueued::New(id) => id,
         Enqueued::Existing(id, ScanStatus::Error) => {
             store.retry(id)?;
+            id
+        }
+        // Left running by a process that died (or being run by another):
+        // take it over; if both finish, the store keeps the first result.
+        Enqueued::Existing(id, ScanStatus::Running) => {
+            store.abandon(id)?;
             id
         }
         Enqueued::Existing(id, _) => id,
