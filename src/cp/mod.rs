@@ -13,6 +13,7 @@ pub mod mobius;
 pub mod prepare;
 pub mod procrustes;
 pub mod samples;
+pub mod warp;
 
 pub use distance::{compare, compare_directed, Comparison, Directed};
 pub use locate::{LocateGrid, Location};

@@ -33,6 +33,15 @@ pub struct CpParams {
     pub refine_candidates: usize,
     /// Objective evaluations of the local refinement of each candidate.
     pub refine_evaluations: usize,
+    /// Whether the best map is followed by a smooth deformation bringing
+    /// features onto their mutually nearest features (kept only when it
+    /// lowers the distance).
+    pub feature_warp: bool,
+    /// Width of that deformation's Gaussian kernel (disk units).
+    pub warp_width: f64,
+    /// Features farther apart than this (hyperbolic distance) are not
+    /// matched by the deformation.
+    pub warp_max_match: f64,
     /// Whether orientation-reversing maps (mirror images) are searched.
     pub reflections: bool,
 }
@@ -49,6 +58,9 @@ impl Default for CpParams {
             angles: 16,
             refine_candidates: 3,
             refine_evaluations: 120,
+            feature_warp: true,
+            warp_width: 0.25,
+            warp_max_match: 1.0,
             reflections: true,
         }
     }
