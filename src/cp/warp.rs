@@ -128,8 +128,8 @@ mod tests {
         let d = hyperbolic_distance([0.0, 0.0], [0.5, 0.0]);
         assert!((d - (1.5f64 / 0.5).ln()).abs() < 1e-12);
         let a = [[0.0, 0.0], [0.5, 0.0]];
-        let b = [[0.05, 0.0], [0.9, 0.0], [-0.5, 0.0]];
+        let b = [[0.05, 0.0], [0.6, 0.0], [-0.5, 0.0]];
         assert_eq!(mutually_nearest(&a, &b, 10.0), vec![(0, 0), (1, 1)]);
-        assert_eq!(mutually_nearest(&a, &b, 0.5), vec![(0, 0)]);
+        assert_eq!(mutually_nearest(&a, &b, 0.2), vec![(0, 0)]);
     }
 }
