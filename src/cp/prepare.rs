@@ -49,15 +49,15 @@ pub struct CpParams {
 impl Default for CpParams {
     fn default() -> Self {
         Self {
-            samples: 200,
-            coarse_samples: 50,
+            samples: 150,
+            coarse_samples: 40,
             max_features: 5,
             density_smoothing: 3,
             feature_separation: 0.1,
             feature_max_radius: 0.9,
-            angles: 16,
+            angles: 12,
             refine_candidates: 3,
-            refine_evaluations: 120,
+            refine_evaluations: 60,
             feature_warp: true,
             warp_width: 0.25,
             warp_max_match: 1.0,
