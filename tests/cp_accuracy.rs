@@ -7,7 +7,7 @@
 mod cp_support;
 
 use morphoid::cp::{self, CpParams};
-use morphoid::eval::{distance_matrix, leave_one_out, Labels};
+use morphoid::eval::{distance_matrix, leave_one_out, DistanceMatrix, Labels};
 use rayon::prelude::*;
 
 #[test]
@@ -36,8 +36,56 @@ fn leave_one_out_on_real_teeth() {
         .collect();
     println!("prepared {} in {:.1?}", prepared.len(), t0.elapsed());
     let t0 = std::time::Instant::now();
-    let m = distance_matrix(&prepared, &params, |_| {});
+    let n = prepared.len();
+    let pairs: Vec<(usize, usize)> = (0..n)
+        .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
+        .collect();
+    let directed: Vec<(f64, f64, f64, f64)> = pairs
+        .par_iter()
+        .map(|&(i, j)| {
+            let c = cp::compare(&prepared[i], &prepared[j], &params);
+            (
+                c.forward.distance,
+                c.backward.distance,
+                c.forward.mobius_distance,
+                c.backward.mobius_distance,
+            )
+        })
+        .collect();
     println!("matrix in {:.1?}", t0.elapsed());
+    let mut fwd = DistanceMatrix {
+        names: prepared.iter().map(|p| p.name.clone()).collect(),
+        values: vec![vec![0.0; n]; n],
+    };
+    let mut unwarped = fwd.clone();
+    for (&(i, j), &(f, b, fm, bm)) in pairs.iter().zip(&directed) {
+        fwd.values[i][j] = f;
+        fwd.values[j][i] = b;
+        unwarped.values[i][j] = fm;
+        unwarped.values[j][i] = bm;
+    }
+    if let Ok(out) = std::env::var("CP_DIRECTED_OUT") {
+        fwd.write_csv(std::path::Path::new(&out))
+            .expect("write matrix");
+        let out = format!("{out}.mobius.csv");
+        unwarped
+            .write_csv(std::path::Path::new(&out))
+            .expect("write matrix");
+    }
+    let mut m = fwd.clone();
+    for i in 0..n {
+        for j in 0..n {
+            m.values[i][j] = fwd.values[i][j].min(fwd.values[j][i]);
+        }
+    }
+    // The library's matrix function gives the same values.
+    let few = &prepared[..4];
+    let lib = distance_matrix(few, &params, |_| {});
+    for i in 0..4 {
+        for j in 0..4 {
+            assert_eq!(lib.values[i][j], m.values[i][j]);
+        }
+    }
     if let Ok(out) = std::env::var("CP_MATRIX_OUT") {
         m.write_csv(std::path::Path::new(&out))
             .expect("write matrix");

@@ -4,7 +4,12 @@ use super::locate::Location;
 use super::mobius::Mobius;
 use super::prepare::{CpParams, Prepared};
 use super::procrustes::{Handedness, Moments, RigidFit};
+use super::warp::{mutually_nearest, DiskWarp};
 use serde::{Deserialize, Serialize};
+
+/// For each vertex of a source surface: a face of the target and the
+/// barycentric coordinates of the vertex's image in it.
+pub type Correspondence = Vec<(u32, [f64; 3])>;
 
 /// The result of one directed comparison `S → S′`.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -17,6 +22,11 @@ pub struct Directed {
     pub reflected: bool,
     /// The disk map from S's disk to S′'s disk.
     pub mobius: Mobius,
+    /// The feature-aligning deformation applied after `mobius`, if it
+    /// lowered the distance.
+    pub warp: Option<DiskWarp>,
+    /// The distance of the Möbius map alone (before the deformation).
+    pub mobius_distance: f64,
     /// The optimal orthogonal matrix (row-major) applied to S.
     pub rotation: [[f64; 3]; 3],
     /// The optimal translation applied to S after the rotation.
@@ -79,21 +89,50 @@ pub fn sample_residual(s: &Prepared, t: &Prepared, m: &Mobius, count: usize) -> 
     mom.residual(handedness(m))
 }
 
-/// Evaluate a disk map on all vertices of `s` weighted by vertex area:
-/// the optimal rigid motion, its residual and the correspondence.
+/// Evaluate a disk map (`map`, of the given handedness) on all vertices of
+/// `s` weighted by vertex area: the optimal rigid motion, its residual and
+/// the correspondence.
 pub fn evaluate_map(
     s: &Prepared,
     t: &Prepared,
-    m: &Mobius,
-) -> Option<(RigidFit, Vec<(u32, [f64; 3])>)> {
+    map: impl Fn([f64; 2]) -> [f64; 2],
+    handedness: Handedness,
+) -> Option<(RigidFit, Correspondence)> {
     let mut mom = Moments::default();
     let mut corr = Vec::with_capacity(s.vertices.len());
     for ((&z, &x), &w) in s.uv.iter().zip(&s.vertices).zip(&s.vertex_areas) {
-        let (loc, y) = image(t, m.apply(z))?;
+        let (loc, y) = image(t, map(z))?;
         mom.add(x, y, w);
         corr.push((loc.face, loc.bary));
     }
-    Some((mom.fit(handedness(m)), corr))
+    Some((mom.fit(handedness), corr))
+}
+
+/// The deformation ϱ that moves the features of `s` (after `m`) onto their
+/// mutually nearest features of `t`.
+fn feature_warp(s: &Prepared, t: &Prepared, m: &Mobius, params: &CpParams) -> Option<DiskWarp> {
+    let zs: Vec<[f64; 2]> = s
+        .features
+        .iter()
+        .filter_map(|&v| s.uv.get(v as usize))
+        .map(|&z| m.apply(z))
+        .collect();
+    let zt: Vec<[f64; 2]> = t
+        .features
+        .iter()
+        .filter_map(|&v| t.uv.get(v as usize))
+        .copied()
+        .collect();
+    let (mut from, mut to) = (Vec::new(), Vec::new());
+    for (i, j) in mutually_nearest(&zs, &zt, params.warp_max_match) {
+        let (a, b) = (zs[i], zt[j]);
+        // Large moves would fold the disk; leave those features alone.
+        if (a[0] - b[0]).hypot(a[1] - b[1]) < 0.5 * params.warp_width {
+            from.push(a);
+            to.push(b);
+        }
+    }
+    DiskWarp::interpolating(&from, &to, params.warp_width)
 }
 
 /// Minimize `f` over R³ from `x0` with the Nelder–Mead simplex method,
@@ -200,7 +239,7 @@ pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Direct
         cands.push((0.0, 0, Mobius::identity()));
     }
     cands.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-    let mut best: Option<(f64, Mobius, RigidFit, Vec<(u32, [f64; 3])>)> = None;
+    let mut best: Option<(f64, Mobius, RigidFit, Correspondence)> = None;
     let step = std::f64::consts::TAU / angles as f64;
     for &(_, _, m0) in cands.iter().take(params.refine_candidates.max(1)) {
         let m = if params.refine_evaluations > 0 {
@@ -222,9 +261,28 @@ pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Direct
         } else {
             m0
         };
-        if let Some((fit, corr)) = evaluate_map(s, t, &m) {
+        if let Some((fit, corr)) = evaluate_map(s, t, |z| m.apply(z), handedness(&m)) {
             if best.as_ref().is_none_or(|b| fit.residual < b.0) {
                 best = Some((fit.residual, m, fit, corr));
+            }
+        }
+    }
+    // Deform the best map so that features land on features; keep the
+    // deformation only when it lowers the distance.
+    let mut warp = None;
+    let mobius_residual = best.as_ref().map_or(f64::MAX, |b| b.0);
+    if params.feature_warp {
+        if let Some((res, m, _, _)) = &best {
+            if let Some(w) = feature_warp(s, t, m, params) {
+                let m = *m;
+                if let Some((fit, corr)) =
+                    evaluate_map(s, t, |z| w.apply(m.apply(z)), handedness(&m))
+                {
+                    if fit.residual < *res {
+                        best = Some((fit.residual, m, fit, corr));
+                        warp = Some(w);
+                    }
+                }
             }
         }
     }
@@ -233,6 +291,8 @@ pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Direct
             distance: res.max(0.0).sqrt(),
             reflected: m.reverses_orientation(),
             mobius: m,
+            warp,
+            mobius_distance: mobius_residual.max(0.0).sqrt(),
             rotation: fit.rotation,
             translation: fit.translation,
             correspondence: corr,
@@ -243,6 +303,8 @@ pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Direct
             distance: f64::MAX,
             reflected: false,
             mobius: Mobius::identity(),
+            warp: None,
+            mobius_distance: f64::MAX,
             rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
             translation: [0.0; 3],
             correspondence: Vec::new(),

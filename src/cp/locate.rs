@@ -41,9 +41,9 @@ pub fn barycentric(p: [f64; 2], a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> Option
 
 impl LocateGrid {
     /// Bucket the triangles `faces` of the planar positions `uv`; the grid
-    /// has about one triangle per cell.
+    /// has about four cells per triangle (short lists where triangles are small).
     pub fn build(uv: &[[f64; 2]], faces: &[[u32; 3]]) -> Self {
-        let resolution = ((faces.len() as f64).sqrt().ceil() as u32).clamp(1, 1024);
+        let resolution = ((2.0 * (faces.len() as f64).sqrt()).ceil() as u32).clamp(1, 2048);
         let n = resolution as usize;
         let cell_range = |lo: f64, hi: f64| -> (usize, usize) {
             (

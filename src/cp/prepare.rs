@@ -33,6 +33,15 @@ pub struct CpParams {
     pub refine_candidates: usize,
     /// Objective evaluations of the local refinement of each candidate.
     pub refine_evaluations: usize,
+    /// Whether the best map is followed by a smooth deformation bringing
+    /// features onto their mutually nearest features (kept only when it
+    /// lowers the distance).
+    pub feature_warp: bool,
+    /// Width of that deformation's Gaussian kernel (disk units).
+    pub warp_width: f64,
+    /// Features farther apart than this (hyperbolic distance) are not
+    /// matched by the deformation.
+    pub warp_max_match: f64,
     /// Whether orientation-reversing maps (mirror images) are searched.
     pub reflections: bool,
 }
@@ -40,15 +49,18 @@ pub struct CpParams {
 impl Default for CpParams {
     fn default() -> Self {
         Self {
-            samples: 200,
-            coarse_samples: 50,
+            samples: 150,
+            coarse_samples: 40,
             max_features: 5,
             density_smoothing: 3,
             feature_separation: 0.1,
             feature_max_radius: 0.9,
-            angles: 16,
+            angles: 12,
             refine_candidates: 3,
-            refine_evaluations: 120,
+            refine_evaluations: 60,
+            feature_warp: true,
+            warp_width: 0.25,
+            warp_max_match: 1.0,
             reflections: true,
         }
     }

@@ -46,8 +46,8 @@ impl Moments {
             self.sy[i] += w * y[i];
             self.sxx += w * x[i] * x[i];
             self.syy += w * y[i] * y[i];
-            for j in 0..3 {
-                self.sxy[i][j] += w * x[i] * y[j];
+            for (sxy, yj) in self.sxy[i].iter_mut().zip(y) {
+                *sxy += w * x[i] * yj;
             }
         }
     }
