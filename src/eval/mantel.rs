@@ -331,13 +331,10 @@ mod tests {
     fn from_upper(names: &[&str], upper: &[f64]) -> DistanceMatrix {
         let n = names.len();
         let mut v = vec![vec![0.0; n]; n];
-        let mut k = 0;
-        for i in 0..n {
-            for j in i + 1..n {
-                v[i][j] = upper[k];
-                v[j][i] = upper[k];
-                k += 1;
-            }
+        let pairs = (0..n).flat_map(|i| (i + 1..n).map(move |j| (i, j)));
+        for ((i, j), &d) in pairs.zip(upper) {
+            v[i][j] = d;
+            v[j][i] = d;
         }
         matrix(names, v)
     }
