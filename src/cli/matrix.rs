@@ -1,8 +1,10 @@
-//! `morphoid matrix`: the all-pairs cP distance matrix of a folder.
+//! `morphoid matrix`: the all-pairs cP distance matrix of a folder, whole
+//! or in shards for cluster job arrays (`--shard K/N`, then `matrix merge`).
 
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use morphoid::eval;
+use morphoid::eval::shard::{self, Shard, ShardFile};
 use morphoid::library;
 use morphoid::pipeline::{self, Settings};
 use rayon::prelude::*;
@@ -12,22 +14,59 @@ use std::time::Instant;
 
 /// Arguments of `morphoid matrix`.
 #[derive(Debug, clap::Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
 pub struct Args {
     /// Folder of surfaces (OBJ, PLY, STL, OFF); names are the file stems.
     /// When it holds no surface but has a `meshes/` folder, that is used.
-    #[arg(long)]
-    library: PathBuf,
-    /// Output CSV: header `name,<name1>,…`, one row per specimen.
-    #[arg(long)]
-    out: PathBuf,
+    #[arg(long, required = true)]
+    library: Option<PathBuf>,
+    /// Output CSV: header `name,<name1>,…`, one row per specimen. With
+    /// `--shard`, the shard file (pairs with both directed distances).
+    #[arg(long, required = true)]
+    out: Option<PathBuf>,
+    /// Compute only part K of N (1-based) of the sorted pair list, for a
+    /// cluster job array; combine the parts with `morphoid matrix merge`.
+    #[arg(long, value_name = "K/N")]
+    shard: Option<Shard>,
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    #[command(subcommand)]
+    command: Option<MatrixCommand>,
+}
+
+/// Subcommands of `morphoid matrix`.
+#[derive(Debug, clap::Subcommand)]
+enum MatrixCommand {
+    /// Merge the shard files of `matrix --shard K/N` into the full matrix
+    /// CSV (checks that all N shards of one library are there, each once).
+    Merge(MergeArgs),
+}
+
+/// Arguments of `morphoid matrix merge`.
+#[derive(Debug, clap::Args)]
+struct MergeArgs {
+    /// The shard files (any order).
+    #[arg(required = true)]
+    shards: Vec<PathBuf>,
+    /// Output matrix CSV.
+    #[arg(long)]
+    out: PathBuf,
 }
 
 /// Run `morphoid matrix`.
 pub fn run(args: Args) -> Result<ExitCode> {
+    if let Some(MatrixCommand::Merge(m)) = args.command {
+        return merge(m);
+    }
+    let (Some(library), Some(out)) = (args.library, args.out) else {
+        bail!("`morphoid matrix` needs --library and --out (or the `merge` subcommand)");
+    };
     super::configure_threads(args.threads)?;
+    if let Some(shard) = args.shard {
+        return run_shard(&library, &out, shard);
+    }
+    let args = Whole { library, out };
     let settings = Settings::default();
     let files = surface_files(&args.library)?;
     let started = Instant::now();
@@ -57,6 +96,70 @@ pub fn run(args: Args) -> Result<ExitCode> {
         n * n.saturating_sub(1) / 2,
         prepare_s,
         started.elapsed().as_secs_f64() - prepare_s,
+        args.out.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The unsharded run's paths.
+struct Whole {
+    library: PathBuf,
+    out: PathBuf,
+}
+
+/// Compute one shard: prepare only the specimens its pairs involve.
+fn run_shard(library: &Path, out: &Path, which: Shard) -> Result<ExitCode> {
+    let settings = Settings::default();
+    let files = surface_files(library)?;
+    let names: Vec<String> = files
+        .iter()
+        .map(|f| {
+            f.file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        })
+        .collect();
+    let started = Instant::now();
+    let pairs = shard::shard_pairs(names.len(), which).len();
+    let needed = shard::pair_specimens(&shard::shard_pairs(names.len(), which)).len();
+    let bar = progress_bar(pairs as u64, "comparing");
+    let file = shard::compute_shard(
+        &names,
+        which,
+        |k| {
+            let path = files.get(k).map(PathBuf::as_path).unwrap_or(library);
+            pipeline::prepare_file(path, &settings).map(|p| p.prepared)
+        },
+        &settings.cp,
+        |_| bar.inc(1),
+    )?;
+    bar.finish_and_clear();
+    file.write(out)?;
+    eprintln!(
+        "shard {which}: {pairs} of {} pairs, {needed} of {} specimens prepared, {:.1} s; wrote {}",
+        shard::pair_count(names.len()),
+        names.len(),
+        started.elapsed().as_secs_f64(),
+        out.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `morphoid matrix merge`.
+fn merge(args: MergeArgs) -> Result<ExitCode> {
+    let shards = args
+        .shards
+        .iter()
+        .map(|p| ShardFile::read(p).map(|s| (p.clone(), s)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let matrix = shard::merge_shards(&shards)?;
+    matrix
+        .write_csv(&args.out)
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    eprintln!(
+        "merged {} shards: {} specimens; wrote {}",
+        shards.len(),
+        matrix.names.len(),
         args.out.display()
     );
     Ok(ExitCode::SUCCESS)
