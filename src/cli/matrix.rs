@@ -63,12 +63,16 @@ pub fn run(args: Args) -> Result<ExitCode> {
         bail!("`morphoid matrix` needs --library and --out (or the `merge` subcommand)");
     };
     super::configure_threads(args.threads)?;
-    if let Some(shard) = args.shard {
-        return run_shard(&library, &out, shard);
+    match args.shard {
+        Some(shard) => run_shard(&library, &out, shard),
+        None => run_whole(&library, &out),
     }
-    let args = Whole { library, out };
+}
+
+/// The whole matrix in one run.
+fn run_whole(library: &Path, out: &Path) -> Result<ExitCode> {
     let settings = Settings::default();
-    let files = surface_files(&args.library)?;
+    let files = surface_files(library)?;
     let started = Instant::now();
 
     let bar = progress_bar(files.len() as u64, "preparing");
@@ -88,23 +92,17 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let matrix = eval::distance_matrix(&prepared, &settings.cp, |_| bar.inc(1));
     bar.finish_and_clear();
     matrix
-        .write_csv(&args.out)
-        .with_context(|| format!("writing {}", args.out.display()))?;
+        .write_csv(out)
+        .with_context(|| format!("writing {}", out.display()))?;
     eprintln!(
         "{} specimens, {} pairs: prepared in {:.1} s, compared in {:.1} s; wrote {}",
         n,
         n * n.saturating_sub(1) / 2,
         prepare_s,
         started.elapsed().as_secs_f64() - prepare_s,
-        args.out.display()
+        out.display()
     );
     Ok(ExitCode::SUCCESS)
-}
-
-/// The unsharded run's paths.
-struct Whole {
-    library: PathBuf,
-    out: PathBuf,
 }
 
 /// Compute one shard: prepare only the specimens its pairs involve.
@@ -120,8 +118,8 @@ fn run_shard(library: &Path, out: &Path, which: Shard) -> Result<ExitCode> {
         })
         .collect();
     let started = Instant::now();
-    let pairs = shard::shard_pairs(names.len(), which).len();
-    let needed = shard::pair_specimens(&shard::shard_pairs(names.len(), which)).len();
+    let own_pairs = shard::shard_pairs(names.len(), which);
+    let (pairs, needed) = (own_pairs.len(), shard::pair_specimens(&own_pairs).len());
     let bar = progress_bar(pairs as u64, "comparing");
     let file = shard::compute_shard(
         &names,
