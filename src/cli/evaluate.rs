@@ -102,6 +102,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         }
         if let Some(m) = &mantel {
             obj["mantel"] = serde_json::to_value(m)?;
+            obj["mantel"]["seed"] = args.seed.into();
         }
         if let Some(h) = &args.heatmap {
             obj["heatmap"] = serde_json::Value::String(h.display().to_string());

@@ -45,7 +45,15 @@ pub enum MantelError {
     /// A name occurs twice in one matrix.
     #[error("specimen `{0}` occurs more than once in a matrix")]
     DuplicateName(String),
-    /// A matrix is not square (its rows do not match its names).
+    /// A matrix has a different number of rows than names.
+    #[error("a matrix has {rows} rows for {names} names")]
+    RowCount {
+        /// Number of names.
+        names: usize,
+        /// Number of rows.
+        rows: usize,
+    },
+    /// A row of a matrix has a different length than the name list.
     #[error("a matrix is not square: {names} names, row {row} has {len} values")]
     NotSquare {
         /// Number of names.
@@ -122,10 +130,9 @@ pub fn check_distance_matrix(m: &DistanceMatrix) -> Result<(), MantelError> {
         }
     }
     if m.values.len() != n {
-        return Err(MantelError::NotSquare {
+        return Err(MantelError::RowCount {
             names: n,
-            row: m.values.len(),
-            len: 0,
+            rows: m.values.len(),
         });
     }
     let mut largest: f64 = 0.0;
@@ -506,6 +513,21 @@ mod tests {
         assert_eq!(mantel_r(&flat, &flat), Err(MantelError::Constant));
         let two = from_upper(&["a", "b"], &[1.0]);
         assert_eq!(mantel_r(&two, &two), Err(MantelError::TooFew(2)));
+        let mut short = a.clone();
+        short.values.pop();
+        assert!(matches!(
+            mantel_r(&a, &short),
+            Err(MantelError::RowCount { names: 5, rows: 4 })
+        ));
+        let mut ragged = a.clone();
+        ragged.values[3].pop();
+        assert!(matches!(
+            mantel_r(&ragged, &a),
+            Err(MantelError::NotSquare { row: 3, len: 4, .. })
+        ));
+        let mut nan = a.clone();
+        nan.values[1][1] = f64::NAN;
+        assert!(matches!(mantel_r(&a, &nan), Err(MantelError::NotFinite(_))));
         let mut dup = a.clone();
         dup.names[2] = dup.names[0].clone();
         assert!(matches!(
