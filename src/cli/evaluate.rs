@@ -38,6 +38,10 @@ pub struct Args {
     /// average-linkage order of --matrix.
     #[arg(long, value_name = "OUT.png")]
     heatmap: Option<PathBuf>,
+    /// In the heatmap, keep the specimens of each taxon at this rank
+    /// together (from --labels) and separate the groups by white lines.
+    #[arg(long, value_name = "RANK", requires_all = ["labels", "heatmap"])]
+    group_rank: Option<String>,
     /// Ranks to evaluate, comma-separated (default: every column but `name`).
     #[arg(long, value_delimiter = ',')]
     ranks: Option<Vec<String>>,
@@ -79,11 +83,29 @@ pub fn run(args: Args) -> Result<ExitCode> {
     };
     if let Some(out) = &args.heatmap {
         let lower = compare.as_ref().unwrap_or(&matrix);
-        let order = heatmap::average_linkage_order(&matrix);
+        let mut order = heatmap::average_linkage_order(&matrix);
+        let mut boundaries = Vec::new();
+        if let (Some(rank), Some(path)) = (&args.group_rank, &args.labels) {
+            let labels = Labels::read(path, None)?;
+            if !labels.ranks.contains(rank) {
+                bail!(
+                    "{}: no rank column `{rank}` (ranks: {})",
+                    path.display(),
+                    labels.ranks.join(", ")
+                );
+            }
+            let group: Vec<Option<String>> = matrix
+                .names
+                .iter()
+                .map(|n| labels.get(n, rank).map(str::to_string))
+                .collect();
+            (order, boundaries) = heatmap::grouped_order(&order, &group);
+        }
         let image = heatmap::heatmap(
             &matrix,
             lower,
             &order,
+            &boundaries,
             heatmap::default_cell_size(matrix.names.len()),
         )?;
         let bytes = heatmap::encode_png(&image)?;

@@ -219,6 +219,35 @@ fn join_leaves(x: &[usize], y: &[usize], m: &DistanceMatrix) -> Vec<usize> {
     out
 }
 
+/// Regroup `order` by a label: groups follow each other in the order of
+/// their first member in `order`, members keep their relative order,
+/// specimens without a label (`None`) come last as one group. Returns the
+/// new order and the group boundaries (positions `k`, `0 < k < n`, where a
+/// new group starts), for [`heatmap`]'s separating lines.
+pub fn grouped_order(order: &[usize], group: &[Option<String>]) -> (Vec<usize>, Vec<usize>) {
+    let mut keys: Vec<Option<&str>> = Vec::new();
+    for &k in order {
+        let g = group.get(k).and_then(|g| g.as_deref());
+        if g.is_some() && !keys.contains(&g) {
+            keys.push(g);
+        }
+    }
+    keys.push(None);
+    let mut out = Vec::with_capacity(order.len());
+    let mut boundaries = Vec::new();
+    for key in keys {
+        let members = order
+            .iter()
+            .filter(|&&k| group.get(k).and_then(|g| g.as_deref()) == key);
+        let before = out.len();
+        out.extend(members);
+        if before > 0 && out.len() > before {
+            boundaries.push(before);
+        }
+    }
+    (out, boundaries)
+}
+
 /// Pixels per specimen so that the image is about 800 pixels wide (between
 /// 1 and 24).
 pub fn default_cell_size(specimens: usize) -> u32 {
@@ -228,11 +257,14 @@ pub fn default_cell_size(specimens: usize) -> u32 {
 /// Draw the heatmap: specimen `order[k]` at row and column `k`, each cell
 /// `cell × cell` pixels; `upper` (rows above the diagonal: right of it) and
 /// `lower` (matched to `upper` by name) each coloured with [`viridis`] over
-/// its own range; the diagonal cells in [`DIAGONAL_COLOUR`].
+/// its own range; the diagonal cells in [`DIAGONAL_COLOUR`]. At each
+/// position in `boundaries` (a group starts there) a one-pixel line in the
+/// diagonal colour separates the groups.
 pub fn heatmap(
     upper: &DistanceMatrix,
     lower: &DistanceMatrix,
     order: &[usize],
+    boundaries: &[usize],
     cell: u32,
 ) -> Result<RgbImage, HeatmapError> {
     check_distance_matrix(upper)?;
@@ -273,6 +305,15 @@ pub fn heatmap(
                 for px in pixels[start..start + 3 * c].chunks_exact_mut(3) {
                     px.copy_from_slice(&colour);
                 }
+            }
+        }
+    }
+    for &b in boundaries.iter().filter(|&&b| b > 0 && b < n) {
+        let at = b * c;
+        for t in 0..w {
+            for (x, y) in [(at, t), (t, at)] {
+                let k = 3 * (y * w + x);
+                pixels[k..k + 3].copy_from_slice(&DIAGONAL_COLOUR);
             }
         }
     }
@@ -376,7 +417,7 @@ mod tests {
         };
         let order = average_linkage_order(&a);
         let cell = 3;
-        let img = heatmap(&a, &b, &order, cell).unwrap();
+        let img = heatmap(&a, &b, &order, &[], cell).unwrap();
         assert_eq!((img.width, img.height), (n as u32 * 3, n as u32 * 3));
         assert_eq!(img.pixels.len(), 3 * 9 * n * n);
         let (na, nb) = (normalized(&a), normalized(&b0));
@@ -400,6 +441,32 @@ mod tests {
             img.pixel(c as u32 * cell, r as u32 * cell)
                 != img.pixel(r as u32 * cell, c as u32 * cell)
         }));
+    }
+
+    #[test]
+    fn groups_and_their_lines() {
+        let group: Vec<Option<String>> = ["b", "a", "b", "", "a", "c"]
+            .iter()
+            .map(|g| (!g.is_empty()).then(|| g.to_string()))
+            .collect();
+        let order = [5, 0, 1, 2, 3, 4];
+        let (grouped, bounds) = grouped_order(&order, &group);
+        // c (first seen), then b, then a, then the unlabelled one.
+        assert_eq!(grouped, vec![5, 0, 2, 1, 4, 3]);
+        assert_eq!(bounds, vec![1, 3, 5]);
+
+        let (m, _) = planted(4);
+        let n = m.names.len() as u32;
+        let order = average_linkage_order(&m);
+        let img = heatmap(&m, &m, &order, &[3], 4).unwrap();
+        let plain = heatmap(&m, &m, &order, &[], 4).unwrap();
+        for t in 0..4 * n {
+            assert_eq!(img.pixel(12, t), Some(DIAGONAL_COLOUR));
+            assert_eq!(img.pixel(t, 12), Some(DIAGONAL_COLOUR));
+        }
+        // Away from the lines nothing changes.
+        assert_eq!(img.pixel(13, 30), plain.pixel(13, 30));
+        assert_ne!(plain.pixel(12, 30), Some(DIAGONAL_COLOUR));
     }
 
     #[test]
@@ -428,7 +495,7 @@ mod tests {
     #[test]
     fn png_round_trip_and_errors() {
         let (a, _) = planted(3);
-        let img = heatmap(&a, &a, &average_linkage_order(&a), 2).unwrap();
+        let img = heatmap(&a, &a, &average_linkage_order(&a), &[], 2).unwrap();
         let bytes = encode_png(&img).unwrap();
         let decoder = png::Decoder::new(std::io::Cursor::new(bytes));
         let mut reader = decoder.read_info().unwrap();
@@ -439,12 +506,12 @@ mod tests {
         // With one matrix the picture is symmetric.
         assert_eq!(img.pixel(2, 10), img.pixel(10, 2));
         assert!(matches!(
-            heatmap(&a, &a, &[0, 1, 2], 2),
+            heatmap(&a, &a, &[0, 1, 2], &[], 2),
             Err(HeatmapError::BadOrder(15))
         ));
         let mut other = a.clone();
         other.names[0] = "nobody".into();
-        let e = heatmap(&a, &other, &average_linkage_order(&a), 2).unwrap_err();
+        let e = heatmap(&a, &other, &average_linkage_order(&a), &[], 2).unwrap_err();
         assert!(e.to_string().contains("nobody"), "{e}");
     }
 }
