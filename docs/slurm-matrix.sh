@@ -24,6 +24,8 @@ LIBRARY=${LIBRARY:-library}        # labels.csv + meshes
 OUTDIR=${OUTDIR:-shards}           # shard files and logs
 MATRIX=${MATRIX:-matrix.csv}       # the merged result
 MORPHOID=${MORPHOID:-morphoid}     # path to the binary
+CACHE=${CACHE:-}                   # optional: prepared-reference cache of
+                                   # `morphoid library build` (run it first)
 
 if [[ -z "${SLURM_ARRAY_TASK_ID:-}" ]]; then
     # Not inside the array: submit it, then the merge job that depends on it.
@@ -37,10 +39,15 @@ if [[ -z "${SLURM_ARRAY_TASK_ID:-}" ]]; then
     exit 0
 fi
 
-# One shard: prepares only the specimens its pairs involve, compares its
-# pairs on all the task's cores.
+# One shard: prepares only the specimens its pairs involve (or loads them
+# from the cache), compares its pairs on all the task's cores.
+cache_args=()
+if [[ -n "$CACHE" ]]; then
+    cache_args=(--cache "$CACHE")
+fi
 exec "$MORPHOID" matrix \
     --library "$LIBRARY" \
+    "${cache_args[@]}" \
     --shard "${SLURM_ARRAY_TASK_ID}/${SHARDS}" \
     --threads "${SLURM_CPUS_PER_TASK:-1}" \
     --out "${OUTDIR}/shard-${SLURM_ARRAY_TASK_ID}-of-${SHARDS}.csv"

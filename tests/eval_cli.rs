@@ -77,6 +77,34 @@ fn sharded_cli_run_equals_unsharded_and_evaluate_reports_mantel() {
         "{err}"
     );
 
+    // With the prepared surfaces from a library build's cache, a shard is
+    // the same, byte for byte.
+    let cache_dir = out.path().join("cache");
+    let cache = morphoid::library::Cache::open(&cache_dir).unwrap();
+    let library = morphoid::library::Library::open(lib.path(), None).unwrap();
+    let settings = morphoid::pipeline::Settings::default();
+    morphoid::library::build(&library, &cache, &settings, |_| {}).unwrap();
+    let cached = out.path().join("cached2.csv");
+    let o = morphoid(&[
+        "matrix",
+        "--library",
+        s(lib.path()),
+        "--out",
+        s(&cached),
+        "--shard",
+        "2/3",
+        "--cache",
+        s(&cache_dir),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    // Shard 2/3 of 5 specimens: pairs 3..6 of 10, (0,4) (1,2) (1,3), involve all five.
+    assert!(err.contains("(5 from the cache)"), "{err}");
+    assert_eq!(
+        std::fs::read_to_string(&cached).unwrap(),
+        std::fs::read_to_string(&shards[1]).unwrap()
+    );
+
     let png = out.path().join("h.png");
     let o = morphoid(&[
         "evaluate",

@@ -3,13 +3,15 @@
 
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
+use morphoid::cp::Prepared;
 use morphoid::eval;
 use morphoid::eval::shard::{self, Shard, ShardFile};
-use morphoid::library;
+use morphoid::library::{self, content_hash, Cache};
 use morphoid::pipeline::{self, Settings};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 /// Arguments of `morphoid matrix`.
@@ -28,6 +30,12 @@ pub struct Args {
     /// cluster job array; combine the parts with `morphoid matrix merge`.
     #[arg(long, value_name = "K/N")]
     shard: Option<Shard>,
+    /// Reuse the prepared surfaces of this cache folder (as `library build`
+    /// writes it) where the file and the settings are unchanged; the others
+    /// are prepared here and not written back. Saves every shard of a job
+    /// array from preparing the whole library again.
+    #[arg(long, value_name = "DIR")]
+    cache: Option<PathBuf>,
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
@@ -63,25 +71,57 @@ pub fn run(args: Args) -> Result<ExitCode> {
         bail!("`morphoid matrix` needs --library and --out (or the `merge` subcommand)");
     };
     super::configure_threads(args.threads)?;
+    let cache = match &args.cache {
+        Some(dir) if !dir.is_dir() => bail!("{}: no such cache folder", dir.display()),
+        Some(dir) => Some(Cache::open(dir)?),
+        None => None,
+    };
     match args.shard {
-        Some(shard) => run_shard(&library, &out, shard),
-        None => run_whole(&library, &out),
+        Some(shard) => run_shard(&library, &out, shard, cache.as_ref()),
+        None => run_whole(&library, &out, cache.as_ref()),
     }
 }
 
+/// The prepared form of the surface in `path`: from the cache when it
+/// holds an entry for this content and these settings, else prepared now.
+/// `hits` counts the surfaces taken from the cache.
+fn prepare(
+    path: &Path,
+    settings: &Settings,
+    cache: Option<&Cache>,
+    hits: &AtomicUsize,
+) -> Result<Prepared> {
+    let name = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    if let Some(cache) = cache {
+        let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+        let key = Cache::key(&content_hash(&bytes), settings);
+        if let Some(hit) = cache.get(&name, &key) {
+            let mut prepared = hit.prepared;
+            prepared.name = name;
+            hits.fetch_add(1, Ordering::Relaxed);
+            return Ok(prepared);
+        }
+    }
+    Ok(pipeline::prepare_file(path, settings)?.prepared)
+}
+
 /// The whole matrix in one run.
-fn run_whole(library: &Path, out: &Path) -> Result<ExitCode> {
+fn run_whole(library: &Path, out: &Path, cache: Option<&Cache>) -> Result<ExitCode> {
     let settings = Settings::default();
     let files = surface_files(library)?;
     let started = Instant::now();
+    let hits = AtomicUsize::new(0);
 
     let bar = progress_bar(files.len() as u64, "preparing");
     let prepared = files
         .par_iter()
         .map(|f| {
-            let p = pipeline::prepare_file(f, &settings);
+            let p = prepare(f, &settings, cache, &hits);
             bar.inc(1);
-            p.map(|s| s.prepared)
+            p
         })
         .collect::<Result<Vec<_>, _>>()?;
     bar.finish_and_clear();
@@ -95,8 +135,9 @@ fn run_whole(library: &Path, out: &Path) -> Result<ExitCode> {
         .write_csv(out)
         .with_context(|| format!("writing {}", out.display()))?;
     eprintln!(
-        "{} specimens, {} pairs: prepared in {:.1} s, compared in {:.1} s; wrote {}",
+        "{} specimens ({} from the cache), {} pairs: prepared in {:.1} s, compared in {:.1} s; wrote {}",
         n,
+        hits.load(Ordering::Relaxed),
         n * n.saturating_sub(1) / 2,
         prepare_s,
         started.elapsed().as_secs_f64() - prepare_s,
@@ -106,7 +147,7 @@ fn run_whole(library: &Path, out: &Path) -> Result<ExitCode> {
 }
 
 /// Compute one shard: prepare only the specimens its pairs involve.
-fn run_shard(library: &Path, out: &Path, which: Shard) -> Result<ExitCode> {
+fn run_shard(library: &Path, out: &Path, which: Shard, cache: Option<&Cache>) -> Result<ExitCode> {
     let settings = Settings::default();
     let files = surface_files(library)?;
     let names: Vec<String> = files
@@ -118,6 +159,7 @@ fn run_shard(library: &Path, out: &Path, which: Shard) -> Result<ExitCode> {
         })
         .collect();
     let started = Instant::now();
+    let hits = AtomicUsize::new(0);
     let own_pairs = shard::shard_pairs(names.len(), which);
     let (pairs, needed) = (own_pairs.len(), shard::pair_specimens(&own_pairs).len());
     let bar = progress_bar(pairs as u64, "comparing");
@@ -126,7 +168,7 @@ fn run_shard(library: &Path, out: &Path, which: Shard) -> Result<ExitCode> {
         which,
         |k| {
             let path = files.get(k).map(PathBuf::as_path).unwrap_or(library);
-            pipeline::prepare_file(path, &settings).map(|p| p.prepared)
+            prepare(path, &settings, cache, &hits)
         },
         &settings.cp,
         |_| bar.inc(1),
@@ -134,9 +176,10 @@ fn run_shard(library: &Path, out: &Path, which: Shard) -> Result<ExitCode> {
     bar.finish_and_clear();
     file.write(out)?;
     eprintln!(
-        "shard {which}: {pairs} of {} pairs, {needed} of {} specimens prepared, {:.1} s; wrote {}",
+        "shard {which}: {pairs} of {} pairs, {needed} of {} specimens prepared ({} from the cache), {:.1} s; wrote {}",
         shard::pair_count(names.len()),
         names.len(),
+        hits.load(Ordering::Relaxed),
         started.elapsed().as_secs_f64(),
         out.display()
     );
