@@ -47,7 +47,7 @@ if [[ -n "$CACHE" ]]; then
 fi
 exec "$MORPHOID" matrix \
     --library "$LIBRARY" \
-    "${cache_args[@]}" \
+    ${cache_args[@]+"${cache_args[@]}"} \
     --shard "${SLURM_ARRAY_TASK_ID}/${SHARDS}" \
     --threads "${SLURM_CPUS_PER_TASK:-1}" \
     --out "${OUTDIR}/shard-${SLURM_ARRAY_TASK_ID}-of-${SHARDS}.csv"
