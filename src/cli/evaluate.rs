@@ -1,20 +1,47 @@
-//! `morphoid evaluate`: leave-one-out nearest-neighbour classification.
+//! `morphoid evaluate`: leave-one-out nearest-neighbour classification,
+//! the Mantel test against a second matrix, the Figure 1 heatmap.
 
-use anyhow::{bail, Result};
-use morphoid::eval::{self, DistanceMatrix, Labels};
+use anyhow::{bail, Context, Result};
+use morphoid::eval::heatmap;
+use morphoid::eval::mantel::{DEFAULT_PERMUTATIONS, DEFAULT_SEED};
+use morphoid::eval::{self, DistanceMatrix, Labels, Mantel};
 use serde::Serialize;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-/// Arguments of `morphoid evaluate`.
+/// Arguments of `morphoid evaluate`. At least one of `--labels`,
+/// `--compare`, `--heatmap` says what to do.
 #[derive(Debug, clap::Args)]
+#[command(group(clap::ArgGroup::new("task").required(true).multiple(true).args(["labels", "compare", "heatmap"])))]
 pub struct Args {
     /// Distance matrix CSV (as written by `morphoid matrix`).
     #[arg(long)]
     matrix: PathBuf,
-    /// labels.csv: column `name`, then one column per rank.
+    /// labels.csv (column `name`, then one column per rank): leave-one-out
+    /// nearest-neighbour classification per rank. Optional when only the
+    /// Mantel test or the heatmap is wanted.
     #[arg(long)]
-    labels: PathBuf,
+    labels: Option<PathBuf>,
+    /// A second distance matrix over the same specimens (matched by name):
+    /// Mantel test of --matrix against it; in the heatmap it fills the
+    /// lower triangle.
+    #[arg(long, value_name = "G.csv")]
+    compare: Option<PathBuf>,
+    /// Random permutations of the Mantel test.
+    #[arg(long, default_value_t = DEFAULT_PERMUTATIONS)]
+    permutations: usize,
+    /// Seed of the Mantel permutations.
+    #[arg(long, default_value_t = DEFAULT_SEED)]
+    seed: u64,
+    /// Write the heatmap PNG (paper's Figure 1): --matrix in the upper
+    /// triangle, --compare (or --matrix again) in the lower, specimens in
+    /// average-linkage order of --matrix.
+    #[arg(long, value_name = "OUT.png")]
+    heatmap: Option<PathBuf>,
+    /// In the heatmap, keep the specimens of each taxon at this rank
+    /// together (from --labels) and separate the groups by white lines.
+    #[arg(long, value_name = "RANK", requires_all = ["labels", "heatmap"])]
+    group_rank: Option<String>,
     /// Ranks to evaluate, comma-separated (default: every column but `name`).
     #[arg(long, value_delimiter = ',')]
     ranks: Option<Vec<String>>,
@@ -34,7 +61,105 @@ struct RankJson {
 /// Run `morphoid evaluate`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let matrix = DistanceMatrix::read_csv(&args.matrix)?;
-    let labels = Labels::read(&args.labels, args.ranks.as_deref())?;
+    let rows = match &args.labels {
+        Some(path) => Some(leave_one_out(&matrix, path, &args)?),
+        None => None,
+    };
+    let compare = match &args.compare {
+        Some(path) => Some(DistanceMatrix::read_csv(path)?),
+        None => None,
+    };
+    let mantel: Option<Mantel> = match &compare {
+        Some(other) => Some(
+            eval::mantel_test(&matrix, other, args.permutations, args.seed).with_context(|| {
+                format!(
+                    "Mantel test of {} against {}",
+                    args.matrix.display(),
+                    args.compare.as_deref().unwrap_or(&args.matrix).display()
+                )
+            })?,
+        ),
+        None => None,
+    };
+    if let Some(out) = &args.heatmap {
+        let lower = compare.as_ref().unwrap_or(&matrix);
+        let mut order = heatmap::average_linkage_order(&matrix);
+        let mut boundaries = Vec::new();
+        if let (Some(rank), Some(path)) = (&args.group_rank, &args.labels) {
+            let labels = Labels::read(path, None)?;
+            if !labels.ranks.contains(rank) {
+                bail!(
+                    "{}: no rank column `{rank}` (ranks: {})",
+                    path.display(),
+                    labels.ranks.join(", ")
+                );
+            }
+            let group: Vec<Option<String>> = matrix
+                .names
+                .iter()
+                .map(|n| labels.get(n, rank).map(str::to_string))
+                .collect();
+            (order, boundaries) = heatmap::grouped_order(&order, &group);
+        }
+        let image = heatmap::heatmap(
+            &matrix,
+            lower,
+            &order,
+            &boundaries,
+            heatmap::default_cell_size(matrix.names.len()),
+        )?;
+        let bytes = heatmap::encode_png(&image)?;
+        std::fs::write(out, bytes).with_context(|| format!("writing {}", out.display()))?;
+        eprintln!(
+            "wrote {} ({} × {} pixels)",
+            out.display(),
+            image.width,
+            image.height
+        );
+    }
+    if args.json {
+        let mut obj = serde_json::json!({ "specimens": matrix.names.len() });
+        if let Some(rows) = &rows {
+            obj["ranks"] = serde_json::to_value(rows)?;
+        }
+        if let Some(m) = &mantel {
+            obj["mantel"] = serde_json::to_value(m)?;
+            obj["mantel"]["seed"] = args.seed.into();
+        }
+        if let Some(h) = &args.heatmap {
+            obj["heatmap"] = serde_json::Value::String(h.display().to_string());
+        }
+        println!("{}", serde_json::to_string_pretty(&obj)?);
+    } else {
+        if let Some(rows) = &rows {
+            println!(
+                "leave-one-out nearest neighbour, {} specimens",
+                matrix.names.len()
+            );
+            for r in rows {
+                println!(
+                    "  {:<16} {:>4}/{:<4} {:6.1} %",
+                    r.rank, r.correct, r.total, r.percent
+                );
+            }
+        }
+        if let Some(m) = &mantel {
+            println!(
+                "Mantel test, {} specimens: r = {:.4}, p = {:.4} ({} permutations, seed {})",
+                matrix.names.len(),
+                m.r,
+                m.p,
+                m.permutations,
+                args.seed
+            );
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Leave-one-out classification of `matrix` with the labels in `path`.
+fn leave_one_out(matrix: &DistanceMatrix, path: &Path, args: &Args) -> Result<Vec<RankJson>> {
+    let labels = Labels::read(path, args.ranks.as_deref())?;
     let missing: Vec<&str> = matrix
         .names
         .iter()
@@ -44,14 +169,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
     if !missing.is_empty() {
         bail!(
             "{}: no label row for {} specimen(s) of {}: {}",
-            args.labels.display(),
+            path.display(),
             missing.len(),
             args.matrix.display(),
             missing.join(", ")
         );
     }
-    let scores = eval::leave_one_out(&matrix, &labels, &labels.ranks);
-    let rows: Vec<RankJson> = scores
+    let scores = eval::leave_one_out(matrix, &labels, &labels.ranks);
+    Ok(scores
         .into_iter()
         .map(|s| RankJson {
             percent: if s.total == 0 {
@@ -63,26 +188,5 @@ pub fn run(args: Args) -> Result<ExitCode> {
             correct: s.correct,
             total: s.total,
         })
-        .collect();
-    if args.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&serde_json::json!({
-                "specimens": matrix.names.len(),
-                "ranks": rows,
-            }))?
-        );
-    } else {
-        println!(
-            "leave-one-out nearest neighbour, {} specimens",
-            matrix.names.len()
-        );
-        for r in &rows {
-            println!(
-                "  {:<16} {:>4}/{:<4} {:6.1} %",
-                r.rank, r.correct, r.total, r.percent
-            );
-        }
-    }
-    Ok(ExitCode::SUCCESS)
+        .collect())
 }

@@ -1,44 +1,128 @@
-//! `morphoid matrix`: the all-pairs cP distance matrix of a folder.
+//! `morphoid matrix`: the all-pairs cP distance matrix of a folder, whole
+//! or in shards for cluster job arrays (`--shard K/N`, then `matrix merge`).
 
 use super::common::progress_bar;
 use anyhow::{bail, Context, Result};
+use morphoid::cp::Prepared;
 use morphoid::eval;
-use morphoid::library;
+use morphoid::eval::shard::{self, Shard, ShardFile};
+use morphoid::library::{self, Cache};
+use morphoid::store::content_hash;
 use morphoid::pipeline::{self, Settings};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 /// Arguments of `morphoid matrix`.
 #[derive(Debug, clap::Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
 pub struct Args {
     /// Folder of surfaces (OBJ, PLY, STL, OFF); names are the file stems.
     /// When it holds no surface but has a `meshes/` folder, that is used.
-    #[arg(long)]
-    library: PathBuf,
-    /// Output CSV: header `name,<name1>,…`, one row per specimen.
-    #[arg(long)]
-    out: PathBuf,
+    #[arg(long, required = true)]
+    library: Option<PathBuf>,
+    /// Output CSV: header `name,<name1>,…`, one row per specimen. With
+    /// `--shard`, the shard file (pairs with both directed distances).
+    #[arg(long, required = true)]
+    out: Option<PathBuf>,
+    /// Compute only part K of N (1-based) of the sorted pair list, for a
+    /// cluster job array; combine the parts with `morphoid matrix merge`.
+    #[arg(long, value_name = "K/N")]
+    shard: Option<Shard>,
+    /// Reuse the prepared surfaces of this cache folder (as `library build`
+    /// writes it) where the file and the settings are unchanged; the others
+    /// are prepared here and not written back. Saves every shard of a job
+    /// array from preparing the whole library again.
+    #[arg(long, value_name = "DIR")]
+    cache: Option<PathBuf>,
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    #[command(subcommand)]
+    command: Option<MatrixCommand>,
+}
+
+/// Subcommands of `morphoid matrix`.
+#[derive(Debug, clap::Subcommand)]
+enum MatrixCommand {
+    /// Merge the shard files of `matrix --shard K/N` into the full matrix
+    /// CSV (checks that all N shards of one library are there, each once).
+    Merge(MergeArgs),
+}
+
+/// Arguments of `morphoid matrix merge`.
+#[derive(Debug, clap::Args)]
+struct MergeArgs {
+    /// The shard files (any order).
+    #[arg(required = true)]
+    shards: Vec<PathBuf>,
+    /// Output matrix CSV.
+    #[arg(long)]
+    out: PathBuf,
 }
 
 /// Run `morphoid matrix`.
 pub fn run(args: Args) -> Result<ExitCode> {
+    if let Some(MatrixCommand::Merge(m)) = args.command {
+        return merge(m);
+    }
+    let (Some(library), Some(out)) = (args.library, args.out) else {
+        bail!("`morphoid matrix` needs --library and --out (or the `merge` subcommand)");
+    };
     super::configure_threads(args.threads)?;
+    let cache = match &args.cache {
+        Some(dir) if !dir.is_dir() => bail!("{}: no such cache folder", dir.display()),
+        Some(dir) => Some(Cache::open(dir)?),
+        None => None,
+    };
+    match args.shard {
+        Some(shard) => run_shard(&library, &out, shard, cache.as_ref()),
+        None => run_whole(&library, &out, cache.as_ref()),
+    }
+}
+
+/// The prepared form of the surface in `path`: from the cache when it
+/// holds an entry for this content and these settings, else prepared now.
+/// `hits` counts the surfaces taken from the cache.
+fn prepare(
+    path: &Path,
+    settings: &Settings,
+    cache: Option<&Cache>,
+    hits: &AtomicUsize,
+) -> Result<Prepared> {
+    let name = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    if let Some(cache) = cache {
+        let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+        let key = Cache::key(&content_hash(&bytes), settings);
+        if let Some(hit) = cache.get(&name, &key) {
+            let mut prepared = hit.prepared;
+            prepared.name = name;
+            hits.fetch_add(1, Ordering::Relaxed);
+            return Ok(prepared);
+        }
+    }
+    Ok(pipeline::prepare_file(path, settings)?.prepared)
+}
+
+/// The whole matrix in one run.
+fn run_whole(library: &Path, out: &Path, cache: Option<&Cache>) -> Result<ExitCode> {
     let settings = Settings::default();
-    let files = surface_files(&args.library)?;
+    let files = surface_files(library)?;
     let started = Instant::now();
+    let hits = AtomicUsize::new(0);
 
     let bar = progress_bar(files.len() as u64, "preparing");
     let prepared = files
         .par_iter()
         .map(|f| {
-            let p = pipeline::prepare_file(f, &settings);
+            let p = prepare(f, &settings, cache, &hits);
             bar.inc(1);
-            p.map(|s| s.prepared)
+            p
         })
         .collect::<Result<Vec<_>, _>>()?;
     bar.finish_and_clear();
@@ -49,14 +133,75 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let matrix = eval::distance_matrix(&prepared, &settings.cp, |_| bar.inc(1));
     bar.finish_and_clear();
     matrix
-        .write_csv(&args.out)
-        .with_context(|| format!("writing {}", args.out.display()))?;
+        .write_csv(out)
+        .with_context(|| format!("writing {}", out.display()))?;
     eprintln!(
-        "{} specimens, {} pairs: prepared in {:.1} s, compared in {:.1} s; wrote {}",
+        "{} specimens ({} from the cache), {} pairs: prepared in {:.1} s, compared in {:.1} s; wrote {}",
         n,
+        hits.load(Ordering::Relaxed),
         n * n.saturating_sub(1) / 2,
         prepare_s,
         started.elapsed().as_secs_f64() - prepare_s,
+        out.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Compute one shard: prepare only the specimens its pairs involve.
+fn run_shard(library: &Path, out: &Path, which: Shard, cache: Option<&Cache>) -> Result<ExitCode> {
+    let settings = Settings::default();
+    let files = surface_files(library)?;
+    let names: Vec<String> = files
+        .iter()
+        .map(|f| {
+            f.file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        })
+        .collect();
+    let started = Instant::now();
+    let hits = AtomicUsize::new(0);
+    let own_pairs = shard::shard_pairs(names.len(), which);
+    let (pairs, needed) = (own_pairs.len(), shard::pair_specimens(&own_pairs).len());
+    let bar = progress_bar(pairs as u64, "comparing");
+    let file = shard::compute_shard(
+        &names,
+        which,
+        |k| {
+            let path = files.get(k).map(PathBuf::as_path).unwrap_or(library);
+            prepare(path, &settings, cache, &hits)
+        },
+        &settings.cp,
+        |_| bar.inc(1),
+    )?;
+    bar.finish_and_clear();
+    file.write(out)?;
+    eprintln!(
+        "shard {which}: {pairs} of {} pairs, {needed} of {} specimens prepared ({} from the cache), {:.1} s; wrote {}",
+        shard::pair_count(names.len()),
+        names.len(),
+        hits.load(Ordering::Relaxed),
+        started.elapsed().as_secs_f64(),
+        out.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `morphoid matrix merge`.
+fn merge(args: MergeArgs) -> Result<ExitCode> {
+    let shards = args
+        .shards
+        .iter()
+        .map(|p| ShardFile::read(p).map(|s| (p.clone(), s)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let matrix = shard::merge_shards(&shards)?;
+    matrix
+        .write_csv(&args.out)
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    eprintln!(
+        "merged {} shards: {} specimens; wrote {}",
+        shards.len(),
+        matrix.names.len(),
         args.out.display()
     );
     Ok(ExitCode::SUCCESS)

@@ -1,11 +1,15 @@
 //! Distance matrices, labels and leave-one-out classification.
 
+pub mod heatmap;
 pub mod labels;
 pub mod loo;
+pub mod mantel;
 pub mod matrix;
+pub mod shard;
 
 pub use labels::{Labels, LabelsError};
 pub use loo::{leave_one_out, RankScore};
+pub use mantel::{mantel_r, mantel_test, Mantel, MantelError};
 pub use matrix::{distance_matrix, DistanceMatrix, MatrixError};
 
 /// Split one CSV line into fields (RFC 4180 quoting: `"a, b"` and `""`).
