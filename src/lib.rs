@@ -6,7 +6,8 @@
 //! - [`clean`]: turn a raw scan into a clean disk-type surface;
 //! - [`conformal`]: normalization and conformal flattening to the unit disk;
 //! - [`cp`]: prepared surfaces and the continuous Procrustes distance;
-//! - [`eval`]: distance matrices and leave-one-out classification.
+//! - [`eval`]: distance matrices and leave-one-out classification;
+//! - [`landmarks`]: landmark files and their propagation between surfaces.
 //!
 //! See `ARCHITECTURE.md` at the repository root for the data flow.
 
@@ -15,6 +16,7 @@ pub mod config;
 pub mod conformal;
 pub mod cp;
 pub mod eval;
+pub mod landmarks;
 pub mod library;
 pub mod mesh;
 pub mod pipeline;
