@@ -6,6 +6,7 @@ mod distance;
 mod evaluate;
 mod inspect;
 mod matrix;
+mod propagate;
 mod synth;
 
 use clap::{Parser, Subcommand};
@@ -34,6 +35,8 @@ enum Command {
     Evaluate(evaluate::Args),
     /// Write a synthetic crown-like surface (to try morphoid without data).
     Synth(synth::Args),
+    /// Carry landmarks of a reference onto another surface through cP maps.
+    Propagate(propagate::Args),
 }
 
 /// Parse the command line, run the subcommand, map errors to an exit code.
@@ -46,6 +49,7 @@ pub fn main() -> ExitCode {
         Command::Distance(a) => distance::run(a),
         Command::Matrix(a) => matrix::run(a),
         Command::Evaluate(a) => evaluate::run(a),
+        Command::Propagate(a) => propagate::run(a),
     };
     match result {
         Ok(code) => code,
