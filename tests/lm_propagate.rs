@@ -243,3 +243,75 @@ fn command_line_propagates_to_a_moved_copy() {
     let err = String::from_utf8_lossy(&output.stderr);
     assert!(err.contains("bad.csv:2"), "{err}");
 }
+
+#[test]
+fn command_line_follows_the_spanning_tree_of_a_given_matrix() {
+    let settings = Settings::default();
+    let genus = synth::crown_genus("Lophodon").expect("genus");
+    let source = pipeline::prepare_mesh(&synth::crown(genus, 8, 5000), "ref", &settings).unwrap();
+    let lm = choose_landmarks(&source, 31);
+    let dir = tempfile::tempdir().unwrap();
+    let lib = dir.path().join("lib");
+    std::fs::create_dir(&lib).unwrap();
+    io::save(&lib.join("ref.ply"), &source.cleaned).unwrap();
+    // b, c and scan: moved remeshed copies; the matrix makes the tree the
+    // chain ref – c – b – scan.
+    let diag = bbox_diagonal(&source.cleaned);
+    let mut motions = Vec::new();
+    for (k, name) in ["b", "c"].iter().enumerate() {
+        let m = RigidMotion::random(40 + k as u64, 2.0 * SCALE * diag);
+        io::save(
+            &lib.join(format!("{name}.ply")),
+            &moved_copy(&source.cleaned, &m, false),
+        )
+        .unwrap();
+        motions.push(m);
+    }
+    let motion = RigidMotion::random(50, 2.0 * SCALE * diag);
+    let scan = dir.path().join("scan.ply");
+    io::save(&scan, &moved_copy(&source.cleaned, &motion, false)).unwrap();
+    let matrix = dir.path().join("m.csv");
+    std::fs::write(
+        &matrix,
+        "name,ref,b,c,scan\nref,0,0.9,0.1,0.9\nb,0.9,0,0.1,0.1\nc,0.1,0.1,0,0.9\nscan,0.9,0.1,0.9,0\n",
+    )
+    .unwrap();
+    let lm_path = dir.path().join("ref.pp");
+    landmarks::write(&lm_path, &lm).unwrap();
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_morphoid"))
+        .args(["propagate", "--from"])
+        .arg(lib.join("ref.ply"))
+        .arg("--to")
+        .arg(&scan)
+        .arg("--landmarks")
+        .arg(&lm_path)
+        .arg("--via-mst")
+        .arg(&lib)
+        .arg("--matrix")
+        .arg(&matrix)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{err}");
+    assert!(err.contains("ref → c → b → scan"), "{err}");
+    assert!(
+        !err.contains("computing"),
+        "no distance should be computed: {err}"
+    );
+    let got = landmarks::parse(
+        &String::from_utf8_lossy(&output.stdout),
+        landmarks::Format::Csv,
+        Path::new("stdout"),
+    )
+    .unwrap();
+    assert_eq!(got.labels, lm.labels);
+    let truth: Vec<[f64; 3]> = lm
+        .points
+        .iter()
+        .map(|&p| true_position(p, &motion, false))
+        .collect();
+    let target = pipeline::prepare_file(&scan, &settings).unwrap();
+    let (mean, max) = errors(&got, &truth, &target.cleaned);
+    println!("command line, spanning-tree path: mean {mean:.5}, max {max:.5}");
+    assert!(mean < 0.015, "mean error {mean}");
+}
