@@ -242,6 +242,20 @@ fn command_line_propagates_to_a_moved_copy() {
     assert!(!output.status.success());
     let err = String::from_utf8_lossy(&output.stderr);
     assert!(err.contains("bad.csv:2"), "{err}");
+
+    // So is one with another number of landmarks than asked for.
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_morphoid"))
+        .args(["propagate", "--count", "11", "--from"])
+        .arg(&ref_path)
+        .arg("--to")
+        .arg(&mesh_path)
+        .arg("--landmarks")
+        .arg(&lm_path)
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    let err = String::from_utf8_lossy(&output.stderr);
+    assert!(err.contains("ref.fcsv: 10 landmarks, expected 11"), "{err}");
 }
 
 #[test]

@@ -27,6 +27,9 @@ pub struct Args {
     /// .mrk.json or .pp).
     #[arg(long)]
     landmarks: PathBuf,
+    /// The number of landmarks the file must hold (an error otherwise).
+    #[arg(long, value_name = "N")]
+    count: Option<usize>,
     /// Output file, format by extension (.csv, .fcsv, .mrk.json, .pp);
     /// default: CSV on stdout.
     #[arg(long)]
@@ -52,7 +55,7 @@ pub struct Args {
 pub fn run(args: Args) -> Result<ExitCode> {
     super::configure_threads(args.threads)?;
     let settings = Settings::default();
-    let input = landmarks::read(&args.landmarks, None)?;
+    let input = landmarks::read(&args.landmarks, args.count)?;
     let (surfaces, path) = match &args.via_mst {
         None => {
             let mut files = vec![args.from.clone()];
@@ -123,7 +126,12 @@ fn mst_route(
     let index_of = |file: &Path, names: &mut Vec<String>, files: &mut Vec<PathBuf>| {
         let name = stem(file);
         match names.iter().position(|n| *n == name) {
-            Some(i) => i,
+            // The library's specimen of that name: use the given file, on
+            // which the landmarks were placed.
+            Some(i) => {
+                files[i] = file.to_path_buf();
+                i
+            }
             None => {
                 names.push(name);
                 files.push(file.to_path_buf());
