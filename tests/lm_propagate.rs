@@ -329,3 +329,82 @@ fn command_line_follows_the_spanning_tree_of_a_given_matrix() {
     println!("command line, spanning-tree path: mean {mean:.5}, max {max:.5}");
     assert!(mean < 0.015, "mean error {mean}");
 }
+
+/// Between different teeth of one genus there are no observer landmarks
+/// here. Asserted: landmarks carried A → B → A (forward, then backward
+/// correspondence) come back near where they started. Printed only: how
+/// far A's feature points (conformal-factor peaks, mostly cusps) land from
+/// the nearest feature point of B; the features themselves are not stable
+/// landmarks between specimens, so this is a loose indication.
+#[test]
+fn real_teeth_of_one_genus_cusps_and_round_trips() {
+    let dir = Path::new(DATA).join("meshes");
+    if !dir.is_dir() {
+        println!("skipped: data not found");
+        return;
+    }
+    let settings = Settings::default();
+    let (mut cusp_errors, mut trip_errors) = (Vec::new(), Vec::new());
+    for (a, b) in [
+        ("j01", "j06"),
+        ("i14", "i15"),
+        ("x07", "x09"),
+        ("V01", "V02"),
+        ("U13", "V08"),
+    ] {
+        let load = |n: &str| {
+            let m = io::load(&dir.join(format!("{n}.ply")))
+                .expect("tooth loads")
+                .mesh;
+            pipeline::prepare_mesh(&m, n, &settings).expect("tooth prepares")
+        };
+        let (sa, sb) = (load(a), load(b));
+        let c = cp::compare(&sa.prepared, &sb.prepared, &settings.cp);
+        let (ta, tb) = (
+            Surface::from_prepared(&sa).unwrap(),
+            Surface::from_prepared(&sb).unwrap(),
+        );
+        let lm = choose_landmarks(&sa, 77);
+        let there = landmarks::propagate(&lm, &ta, &tb, &c.forward.correspondence).unwrap();
+        let back =
+            landmarks::propagate(&there.landmarks, &tb, &ta, &c.backward.correspondence).unwrap();
+        let (da, db) = (bbox_diagonal(&sa.cleaned), bbox_diagonal(&sb.cleaned));
+        let trip: Vec<f64> = lm
+            .points
+            .iter()
+            .zip(&back.landmarks.points)
+            .map(|(p, q)| norm(sub(*p, *q)) / da)
+            .collect();
+        // The first landmarks are A's cusp tips (features).
+        let cusps = sa.prepared.features.len().min(5);
+        let cusp: Vec<f64> = there.landmarks.points[..cusps]
+            .iter()
+            .map(|p| {
+                sb.prepared
+                    .features
+                    .iter()
+                    .map(|&v| norm(sub(*p, sb.cleaned.vertices[v as usize])) / db)
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .collect();
+        println!(
+            "{a} → {b} (cP {:.4}): feature to nearest feature / diagonal {:?}; round trip mean {:.4}",
+            c.distance,
+            cusp.iter().map(|x| (x * 1e4).round() / 1e4).collect::<Vec<_>>(),
+            trip.iter().sum::<f64>() / trip.len() as f64
+        );
+        cusp_errors.extend(cusp);
+        trip_errors.extend(trip);
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let (mc, mt) = (median(&mut cusp_errors), median(&mut trip_errors));
+    println!("median feature error {mc:.4}, median round-trip error {mt:.4} (of the diagonal)");
+    assert!(mt < 0.01, "median round-trip error {mt}");
+    assert!(
+        trip_errors.iter().all(|&e| e < 0.1),
+        "a landmark came back far away"
+    );
+}
