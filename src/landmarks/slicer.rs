@@ -179,6 +179,11 @@ pub(super) fn parse_markups_json(text: &str, path: &Path) -> Result<Landmarks, L
         };
         for (c, point) in points.iter().enumerate() {
             let here = format!("{here}.controlPoints[{c}]");
+            // A point the user skipped while placing a template has no
+            // meaningful position.
+            if point.get("positionStatus").and_then(Value::as_str) == Some("missing") {
+                return Err(err(here, "the point is marked missing (positionStatus)"));
+            }
             let position = point
                 .get("position")
                 .and_then(Value::as_array)
@@ -294,6 +299,11 @@ mod tests {
             e.contains("m.mrk.json") && e.contains("markups[1].controlPoints[0]"),
             "{e}"
         );
+        let missing = text.replace("\"label\": \"a\",", "\"positionStatus\": \"missing\",");
+        let e = parse_markups_json(&missing, Path::new("m.mrk.json"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("missing"), "{e}");
         let e = parse_markups_json("{\n\"markups\": [,]}", Path::new("m.mrk.json"))
             .unwrap_err()
             .to_string();

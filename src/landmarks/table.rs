@@ -1,7 +1,9 @@
 //! Plain CSV landmark files: `x,y,z` per line, optional header, optional
 //! label column. Without a header, a fourth column is the label; with a
 //! header, the columns are found by name (`x`, `y`, `z`, and `label` or
-//! `name`). Blank lines and lines starting with `#` are skipped.
+//! `name`). Blank lines and lines starting with `#` are skipped; a line
+//! without commas is split at whitespace (`x y z`). Files are written with
+//! commas.
 
 use super::{parse_coordinate, LandmarkError, Landmarks};
 use crate::eval::{csv_field, split_csv_line};
@@ -44,7 +46,13 @@ pub(super) fn parse_csv(text: &str, path: &Path) -> Result<Landmarks, LandmarkEr
         if trimmed.is_empty() || trimmed.starts_with('#') {
             continue;
         }
-        let fields = split_csv_line(raw).map_err(|m| err(line, m.to_string()))?;
+        // Lines without a comma are split at whitespace (`x y z`, as many
+        // morphometrics programs write landmarks).
+        let fields = if raw.contains(',') {
+            split_csv_line(raw).map_err(|m| err(line, m.to_string()))?
+        } else {
+            raw.split_whitespace().map(str::to_string).collect()
+        };
         let lay = match &layout {
             Some(l) => l,
             None => {
@@ -142,6 +150,8 @@ mod tests {
         let b = parse("# comment\nlabel,X,Y,Z\ntip,1,2,3\n\n,4,5,6\r\n").unwrap();
         assert_eq!(b.points, vec![[1., 2., 3.], [4., 5., 6.]]);
         assert_eq!(b.labels, vec![Some("tip".into()), None]);
+        let w = parse("x y z\n1 2\t3\n  4 5 6 \n").unwrap();
+        assert_eq!(w.points, vec![[1., 2., 3.], [4., 5., 6.]]);
         let c = parse("1,2,3,a\n4,5,6,\"b, c\"\n").unwrap();
         assert_eq!(c.label(1), Some("b, c"));
     }
