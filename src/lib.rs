@@ -7,10 +7,12 @@
 //! - [`conformal`]: normalization and conformal flattening to the unit disk;
 //! - [`cp`]: prepared surfaces and the continuous Procrustes distance;
 //! - [`eval`]: distance matrices and leave-one-out classification;
-//! - [`landmarks`]: landmark files and their propagation between surfaces.
+//! - [`landmarks`]: landmark files and their propagation between surfaces;
+//! - [`store`]: the SQLite record of references, scans, results and distances.
 //!
 //! See `ARCHITECTURE.md` at the repository root for the data flow.
 
+pub mod classify;
 pub mod clean;
 pub mod config;
 pub mod conformal;
@@ -20,3 +22,4 @@ pub mod landmarks;
 pub mod library;
 pub mod mesh;
 pub mod pipeline;
+pub mod store;

@@ -1,7 +1,7 @@
 //! `morphoid matrix`: the all-pairs cP distance matrix of a folder.
 
+use super::common::progress_bar;
 use anyhow::{bail, Context, Result};
-use indicatif::{ProgressBar, ProgressStyle};
 use morphoid::eval;
 use morphoid::library;
 use morphoid::pipeline::{self, Settings};
@@ -72,16 +72,4 @@ fn surface_files(dir: &Path) -> Result<Vec<PathBuf>> {
         );
     }
     Ok(files)
-}
-
-/// A progress bar on stderr; indicatif draws nothing when stderr is not a
-/// terminal, so logs and CI output stay clean.
-fn progress_bar(len: u64, what: &str) -> ProgressBar {
-    let bar = ProgressBar::new(len);
-    if let Ok(style) = ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len} ({eta} left)")
-    {
-        bar.set_style(style.progress_chars("=> "));
-    }
-    bar.set_message(what.to_string());
-    bar
 }

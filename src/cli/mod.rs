@@ -2,11 +2,16 @@
 //! clap builds the argument structs here, the modules do the work and turn
 //! library errors into one-line messages with context.
 
+mod classify;
+mod common;
+mod demo;
 mod distance;
 mod evaluate;
 mod inspect;
+mod library;
 mod matrix;
 mod propagate;
+mod results;
 mod synth;
 
 use clap::{Parser, Subcommand};
@@ -27,6 +32,14 @@ struct Cli {
 enum Command {
     /// Load and clean a surface, print the cleaning report.
     Inspect(inspect::Args),
+    /// The whole loop on synthetic data in a temporary folder (no data or config needed).
+    Demo(demo::Args),
+    /// Identify scans against the reference library; results go to the database.
+    Classify(classify::Args),
+    /// Show what has been identified, newest first.
+    Results(results::Args),
+    /// Prepare and cache the reference library, or list it.
+    Library(library::Args),
     /// The cP distance and correspondence of two surfaces.
     Distance(distance::Args),
     /// The all-pairs cP distance matrix of a folder of surfaces.
@@ -47,6 +60,10 @@ pub fn main() -> ExitCode {
         Command::Inspect(a) => inspect::run(a),
         Command::Synth(a) => synth::run(a),
         Command::Distance(a) => distance::run(a),
+        Command::Library(a) => library::run(a),
+        Command::Classify(a) => classify::run(a),
+        Command::Demo(a) => demo::run(a),
+        Command::Results(a) => results::run(a),
         Command::Matrix(a) => matrix::run(a),
         Command::Evaluate(a) => evaluate::run(a),
         Command::Propagate(a) => propagate::run(a),

@@ -18,11 +18,6 @@ const CACHE_FORMAT: u32 = 1;
 /// Extension of cache entries.
 const EXTENSION: &str = "prep";
 
-/// Hex SHA-256 of a file's bytes: the identity of a surface.
-pub fn content_hash(bytes: &[u8]) -> String {
-    hex(&Sha256::digest(bytes))
-}
-
 fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }

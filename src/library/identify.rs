@@ -1,42 +1,15 @@
 //! Nearest-neighbour identification at each rank (DESIGN: Classification).
 
 use crate::eval::Labels;
-use serde::{Deserialize, Serialize};
-
-/// A reference and its distance to the scan.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Neighbour {
-    /// Reference name.
-    pub reference: String,
-    /// cP distance to the scan.
-    pub distance: f64,
-}
-
-/// The identification at one rank.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct RankResult {
-    /// The rank (e.g. `genus`).
-    pub rank: String,
-    /// Taxon of the nearest reference known at this rank.
-    pub taxon: String,
-    /// That reference.
-    pub reference: String,
-    /// Its distance.
-    pub distance: f64,
-    /// The nearest other taxon at this rank, if any.
-    pub runner_up: Option<String>,
-    /// Distance of the runner-up taxon's nearest reference minus `distance`:
-    /// how clear the call is.
-    pub margin: Option<f64>,
-}
+use crate::store::{DistanceRow, Nearest, RankResult};
 
 /// The identification of one scan.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Identification {
     /// One result per rank known for at least one reference, broadest first.
     pub ranks: Vec<RankResult>,
     /// The nearest references, nearest first.
-    pub nearest: Vec<Neighbour>,
+    pub nearest: Vec<Nearest>,
 }
 
 /// Identify a scan from its distances to the references: at each rank the
@@ -44,8 +17,12 @@ pub struct Identification {
 /// and the margin; plus the `nearest_count` nearest references. Ties go to
 /// the reference that comes first by name, so the answer never depends on
 /// input order.
-pub fn identify(distances: &[Neighbour], labels: &Labels, nearest_count: usize) -> Identification {
-    let mut sorted: Vec<&Neighbour> = distances
+pub fn identify(
+    distances: &[DistanceRow],
+    labels: &Labels,
+    nearest_count: usize,
+) -> Identification {
+    let mut sorted: Vec<&DistanceRow> = distances
         .iter()
         .filter(|n| n.distance.is_finite())
         .collect();
@@ -75,7 +52,14 @@ pub fn identify(distances: &[Neighbour], labels: &Labels, nearest_count: usize) 
         .collect();
     Identification {
         ranks,
-        nearest: sorted.into_iter().take(nearest_count).cloned().collect(),
+        nearest: sorted
+            .into_iter()
+            .take(nearest_count)
+            .map(|d| Nearest {
+                reference: d.reference.clone(),
+                distance: d.distance,
+            })
+            .collect(),
     }
 }
 
@@ -84,8 +68,18 @@ mod tests {
     use super::*;
     use std::path::Path;
 
-    fn n(r: &str, d: f64) -> Neighbour {
-        Neighbour {
+    fn n(r: &str, d: f64) -> DistanceRow {
+        DistanceRow {
+            reference: r.into(),
+            forward: d,
+            backward: d,
+            distance: d,
+            reflected: false,
+        }
+    }
+
+    fn near(r: &str, d: f64) -> Nearest {
+        Nearest {
             reference: r.into(),
             distance: d,
         }
@@ -101,7 +95,7 @@ mod tests {
         .unwrap();
         let d = [n("a", 0.05), n("b", 0.01), n("c", 0.04), n("d", 0.09)];
         let id = identify(&d, &labels, 2);
-        assert_eq!(id.nearest, vec![n("b", 0.01), n("c", 0.04)]);
+        assert_eq!(id.nearest, vec![near("b", 0.01), near("c", 0.04)]);
         let order = &id.ranks[0];
         assert_eq!((order.taxon.as_str(), order.reference.as_str()), ("P", "b"));
         assert_eq!(order.runner_up.as_deref(), Some("Q"));

@@ -8,12 +8,13 @@
 mod cache;
 mod identify;
 
-pub use cache::{content_hash, Cache, CacheError, CachedReference};
-pub use identify::{identify, Identification, Neighbour, RankResult};
+pub use cache::{Cache, CacheError, CachedReference};
+pub use identify::{identify, Identification};
 
 use crate::eval::{Labels, LabelsError};
 use crate::mesh::io::{self, Format};
 use crate::pipeline::{self, Settings};
+use crate::store::content_hash;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, HashSet};
 use std::path::{Path, PathBuf};

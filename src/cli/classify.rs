@@ -1,0 +1,131 @@
+//! `morphoid classify`: one-shot identification of scans, recorded in the
+//! database exactly as the daemon records them.
+
+use super::common::{open_cache, open_library, progress_bar, ConfigArgs};
+use anyhow::{Context, Result};
+use morphoid::classify::{self, Classifier, NEAREST};
+use morphoid::store::{content_hash, Enqueued, ScanRecord, ScanStatus, Store};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Arguments of `morphoid classify`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Surface files to identify.
+    #[arg(required = true)]
+    scans: Vec<PathBuf>,
+    #[command(flatten)]
+    config: ConfigArgs,
+    /// Print one JSON object per scan on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Run `morphoid classify`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let config = args.config.load()?;
+    let lib = open_library(&config)?;
+    let cache = open_cache(&config)?;
+    let bar = progress_bar(lib.members.len() as u64, "library");
+    let (classifier, built) = Classifier::build(&lib, &cache, &config.settings(), |_| bar.inc(1))?;
+    bar.finish_and_clear();
+    let db = &config.database.path;
+    let mut store = Store::open(db)?;
+    classifier
+        .register(&mut store, &built)
+        .with_context(|| format!("recording the references in {}", db.display()))?;
+
+    let mut all_ok = true;
+    for scan in &args.scans {
+        let record = identify_one(&mut store, &classifier, scan);
+        let record = match record {
+            Ok(r) => r,
+            Err(e) => {
+                all_ok = false;
+                let message = format!("{e:#}");
+                if args.json {
+                    println!(
+                        "{}",
+                        serde_json::json!({"scan": scan.display().to_string(), "status": "error", "error": message})
+                    );
+                }
+                eprintln!("morphoid: error: {message}");
+                continue;
+            }
+        };
+        if record.status != ScanStatus::Ok {
+            all_ok = false;
+            if let Some(e) = &record.error {
+                eprintln!("morphoid: error: {e}");
+            }
+        }
+        if args.json {
+            println!("{}", serde_json::to_string(&record)?);
+        } else {
+            println!("{}", summary(&record));
+        }
+    }
+    Ok(if all_ok {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    })
+}
+
+/// Enqueue, claim and identify one file; an already identified content is
+/// not identified again (its recorded result is returned); a failed one,
+/// or one a killed process left running, is.
+fn identify_one(store: &mut Store, classifier: &Classifier, scan: &PathBuf) -> Result<ScanRecord> {
+    let bytes = std::fs::read(scan).with_context(|| format!("{}", scan.display()))?;
+    let hash = content_hash(&bytes);
+    let path = scan.display().to_string();
+    let id = match store.enqueue(&path, &hash, bytes.len() as u64)? {
+        Enqueued::New(id) => id,
+        Enqueued::Existing(id, ScanStatus::Error) => {
+            store.retry(id)?;
+            id
+        }
+        // Left running by a process that died (or being run by another):
+        // take it over; if both finish, the store keeps the first result.
+        Enqueued::Existing(id, ScanStatus::Running) => {
+            store.abandon(id)?;
+            id
+        }
+        Enqueued::Existing(id, _) => id,
+    };
+    if let Some(job) = store.claim(id)? {
+        classify::run_job(store, classifier, &job)?;
+    }
+    store
+        .scan(id, NEAREST)?
+        .with_context(|| format!("{}: the scan vanished from the database", scan.display()))
+}
+
+/// One line per scan for people: the taxon at each rank.
+pub fn summary(r: &ScanRecord) -> String {
+    match r.status {
+        ScanStatus::Ok => {
+            let ranks: Vec<String> = r
+                .ranks
+                .iter()
+                .map(|k| {
+                    let runner = match (&k.runner_up, k.margin) {
+                        (Some(t), Some(m)) => format!("; next {t} +{m:.4}"),
+                        _ => String::new(),
+                    };
+                    format!(
+                        "{} {} ({} at {:.4}{runner})",
+                        k.rank, k.taxon, k.reference, k.distance
+                    )
+                })
+                .collect();
+            format!("{}: {}", r.path, ranks.join(", "))
+        }
+        ScanStatus::Error => format!(
+            "{}: error: {}",
+            r.path,
+            r.error.as_deref().unwrap_or("unknown")
+        ),
+        s => format!("{}: {}", r.path, s.as_str()),
+    }
+}

@@ -1,0 +1,128 @@
+//! The database schema and its migrations.
+//!
+//! The schema version is SQLite's `user_version`: version k means that
+//! migrations 1..=k have been applied. Each migration runs in the same
+//! transaction as the version bump, so a database is always at exactly one
+//! version. Append new migrations at the end; never edit a published one.
+
+use super::StoreError;
+use rusqlite::{Connection, TransactionBehavior};
+use std::path::Path;
+
+/// `PRAGMA application_id` of a morphoid database ("MRPH"), so that a
+/// different SQLite file given by mistake is refused instead of altered.
+pub const APPLICATION_ID: i32 = 0x4d52_5048;
+
+/// The migrations, in order; migration k (1-based) is `MIGRATIONS[k - 1]`.
+pub const MIGRATIONS: &[&str] = &[MIGRATION_1];
+
+/// The schema version this build writes and understands.
+pub const SCHEMA_VERSION: u32 = MIGRATIONS.len() as u32;
+
+/// Migration 1: references, scans (the job queue), results and distances.
+/// Landmarks and correspondences come in a later migration.
+const MIGRATION_1: &str = r#"
+CREATE TABLE reference (
+    id           INTEGER PRIMARY KEY,
+    name         TEXT NOT NULL,
+    content_hash TEXT NOT NULL,
+    -- {"rank": "taxon" | null, ...}
+    labels       TEXT NOT NULL DEFAULT '{}' CHECK (json_valid(labels)),
+    state        TEXT NOT NULL DEFAULT 'pending'
+                 CHECK (state IN ('pending', 'prepared', 'failed', 'superseded', 'removed')),
+    error        TEXT,
+    added_at     INTEGER NOT NULL,
+    prepared_at  INTEGER,
+    UNIQUE (name, content_hash)
+);
+-- At most one current (not superseded, not removed) version of each name.
+CREATE UNIQUE INDEX reference_current_name ON reference (name)
+    WHERE state NOT IN ('superseded', 'removed');
+
+CREATE TABLE scan (
+    id           INTEGER PRIMARY KEY AUTOINCREMENT,
+    path         TEXT NOT NULL,
+    -- One row per content: the same bytes are identified exactly once.
+    content_hash TEXT NOT NULL UNIQUE,
+    size         INTEGER NOT NULL CHECK (size >= 0),
+    status       TEXT NOT NULL DEFAULT 'pending'
+                 CHECK (status IN ('pending', 'running', 'ok', 'error')),
+    error        TEXT,
+    attempts     INTEGER NOT NULL DEFAULT 0,
+    created_at   INTEGER NOT NULL,
+    started_at   INTEGER,
+    finished_at  INTEGER,
+    timings      TEXT CHECK (timings IS NULL OR json_valid(timings)),
+    cleaning     TEXT CHECK (cleaning IS NULL OR json_valid(cleaning)),
+    CHECK ((status IN ('ok', 'error')) = (finished_at IS NOT NULL)),
+    CHECK ((status = 'error') = (error IS NOT NULL))
+);
+CREATE INDEX scan_status ON scan (status, id);
+CREATE INDEX scan_finished_at ON scan (finished_at);
+
+CREATE TABLE result (
+    scan_id      INTEGER NOT NULL REFERENCES scan (id) ON DELETE CASCADE,
+    ordinal      INTEGER NOT NULL,  -- rank order, broadest first
+    rank         TEXT NOT NULL,
+    taxon        TEXT NOT NULL,
+    reference_id INTEGER NOT NULL REFERENCES reference (id),
+    distance     REAL NOT NULL,
+    runner_up    TEXT,
+    margin       REAL,
+    PRIMARY KEY (scan_id, rank)
+) WITHOUT ROWID;
+CREATE INDEX result_reference ON result (reference_id);
+
+CREATE TABLE distance (
+    scan_id      INTEGER NOT NULL REFERENCES scan (id) ON DELETE CASCADE,
+    reference_id INTEGER NOT NULL REFERENCES reference (id),
+    forward      REAL NOT NULL,     -- d(scan, reference)
+    backward     REAL NOT NULL,     -- d(reference, scan)
+    distance     REAL NOT NULL,     -- the reported distance
+    reflected    INTEGER NOT NULL CHECK (reflected IN (0, 1)),
+    PRIMARY KEY (scan_id, reference_id)
+) WITHOUT ROWID;
+CREATE INDEX distance_reference ON distance (reference_id);
+"#;
+
+/// Bring the database on `conn` to [`SCHEMA_VERSION`]: refuse a file of
+/// another application or of a newer morphoid, then apply the missing
+/// migrations, each in its own immediate transaction. Running it on an
+/// up-to-date database changes nothing. `path` names the file in errors.
+pub fn migrate(conn: &mut Connection, path: &Path) -> Result<u32, StoreError> {
+    loop {
+        // IMMEDIATE: two processes opening a fresh file at once must not
+        // both apply migration 1.
+        let tx = conn.transaction_with_behavior(TransactionBehavior::Immediate)?;
+        let app: i32 = tx.query_row("PRAGMA application_id", [], |r| r.get(0))?;
+        let found: i64 = tx.query_row("PRAGMA user_version", [], |r| r.get(0))?;
+        let found = u32::try_from(found)
+            .map_err(|_| StoreError::Corrupt(format!("negative schema version {found}")))?;
+        if app != APPLICATION_ID && !(app == 0 && is_empty(&tx)?) {
+            return Err(StoreError::NotMorphoid {
+                path: path.to_path_buf(),
+                application_id: app,
+            });
+        }
+        if found > SCHEMA_VERSION {
+            return Err(StoreError::SchemaTooNew {
+                path: path.to_path_buf(),
+                found,
+                supported: SCHEMA_VERSION,
+            });
+        }
+        let Some(sql) = MIGRATIONS.get(found as usize) else {
+            return Ok(found);
+        };
+        tx.execute_batch(sql)?;
+        tx.pragma_update(None, "user_version", found + 1)?;
+        tx.pragma_update(None, "application_id", APPLICATION_ID)?;
+        tx.commit()?;
+    }
+}
+
+/// A file with no tables at all (new, or created empty by someone else).
+fn is_empty(conn: &Connection) -> Result<bool, StoreError> {
+    let n: i64 = conn.query_row("SELECT count(*) FROM sqlite_schema", [], |r| r.get(0))?;
+    Ok(n == 0)
+}

@@ -1,0 +1,317 @@
+//! Plain data that goes into and comes out of the store.
+
+use serde::ser::{SerializeMap, Serializer};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::fmt;
+
+/// Taxon per rank of a reference (`None`: unknown, `NA` in `labels.csv`).
+pub type Labels = BTreeMap<String, Option<String>>;
+
+/// Where a scan is in its life: `pending` → `running` → `ok` | `error`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ScanStatus {
+    /// Waiting to be identified.
+    Pending,
+    /// Claimed by a worker; back to pending if the worker dies.
+    Running,
+    /// Identified; the result and the distances are recorded.
+    Ok,
+    /// The scan could not be used; the message says why.
+    Error,
+}
+
+impl ScanStatus {
+    /// The name stored in the database and printed in JSON.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ScanStatus::Pending => "pending",
+            ScanStatus::Running => "running",
+            ScanStatus::Ok => "ok",
+            ScanStatus::Error => "error",
+        }
+    }
+
+    /// The status named `s`, if any.
+    pub fn parse(s: &str) -> Option<ScanStatus> {
+        match s {
+            "pending" => Some(ScanStatus::Pending),
+            "running" => Some(ScanStatus::Running),
+            "ok" => Some(ScanStatus::Ok),
+            "error" => Some(ScanStatus::Error),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for ScanStatus {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// State of a reference in the library.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ReferenceState {
+    /// Registered, not prepared yet.
+    Pending,
+    /// Prepared (flattened, features, samples) and usable.
+    Prepared,
+    /// Preparation failed; the error says why.
+    Failed,
+    /// An older content of a reference whose mesh has changed.
+    Superseded,
+    /// No longer in the library folder.
+    Removed,
+}
+
+impl ReferenceState {
+    /// The name stored in the database.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ReferenceState::Pending => "pending",
+            ReferenceState::Prepared => "prepared",
+            ReferenceState::Failed => "failed",
+            ReferenceState::Superseded => "superseded",
+            ReferenceState::Removed => "removed",
+        }
+    }
+
+    /// The state named `s`, if any.
+    pub fn parse(s: &str) -> Option<ReferenceState> {
+        match s {
+            "pending" => Some(ReferenceState::Pending),
+            "prepared" => Some(ReferenceState::Prepared),
+            "failed" => Some(ReferenceState::Failed),
+            "superseded" => Some(ReferenceState::Superseded),
+            "removed" => Some(ReferenceState::Removed),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for ReferenceState {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// One version (name + content) of a reference specimen.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ReferenceRecord {
+    /// Row id.
+    pub id: i64,
+    /// Mesh file stem, the `name` column of `labels.csv`.
+    pub name: String,
+    /// Content hash of the mesh file.
+    pub content_hash: String,
+    /// Taxon per rank.
+    pub labels: Labels,
+    /// Where it is in preparation.
+    pub state: ReferenceState,
+    /// Why preparation failed, if it did.
+    pub error: Option<String>,
+    /// When it was first registered (Unix milliseconds).
+    pub added_at_ms: i64,
+    /// When it was last prepared (Unix milliseconds).
+    pub prepared_at_ms: Option<i64>,
+}
+
+/// A claimed job: the scan a worker must identify now.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct Job {
+    /// Scan row id, to pass to `complete` or `fail`.
+    pub scan_id: i64,
+    /// File path as enqueued.
+    pub path: String,
+    /// Content hash as enqueued.
+    pub content_hash: String,
+    /// File size in bytes as enqueued.
+    pub size: u64,
+    /// How many times it has been claimed, this time included. More than
+    /// one means an earlier worker died on it (a scan that crashes the
+    /// worker can be failed instead of retried for ever).
+    pub attempts: u32,
+}
+
+/// What `enqueue` did.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub enum Enqueued {
+    /// A new pending scan with this id.
+    New(i64),
+    /// This content is already known (at this or another path): the
+    /// existing scan's id and status. Nothing was added.
+    Existing(i64, ScanStatus),
+}
+
+impl Enqueued {
+    /// The scan id, new or existing.
+    pub fn scan_id(&self) -> i64 {
+        match *self {
+            Enqueued::New(id) | Enqueued::Existing(id, _) => id,
+        }
+    }
+}
+
+/// Nearest taxon at one rank.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RankResult {
+    /// Rank name (`genus`, …).
+    pub rank: String,
+    /// The nearest reference's taxon at this rank.
+    pub taxon: String,
+    /// Name of the nearest reference with a known taxon at this rank.
+    pub reference: String,
+    /// Its distance.
+    pub distance: f64,
+    /// The nearest other taxon at this rank, if any.
+    pub runner_up: Option<String>,
+    /// Distance to the runner-up minus `distance`.
+    pub margin: Option<f64>,
+}
+
+/// Distance between the scan and one reference.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DistanceRow {
+    /// Reference name.
+    pub reference: String,
+    /// d(scan, reference).
+    pub forward: f64,
+    /// d(reference, scan).
+    pub backward: f64,
+    /// The reported distance (the smaller direction).
+    pub distance: f64,
+    /// Whether the best map reverses orientation (mirror image).
+    pub reflected: bool,
+}
+
+/// A reference and its distance, for the `nearest` list.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Nearest {
+    /// Reference name.
+    pub reference: String,
+    /// Reported distance.
+    pub distance: f64,
+}
+
+/// Everything an identification produced, written by `complete` in one
+/// transaction. The store does no arithmetic on it.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ScanOutcome {
+    /// Nearest taxon per rank, broadest rank first.
+    pub ranks: Vec<RankResult>,
+    /// Distances to every reference compared.
+    pub distances: Vec<DistanceRow>,
+    /// The cleaning report, as JSON.
+    pub cleaning: serde_json::Value,
+    /// Milliseconds per stage (`load`, `clean`, `flatten`, `compare`, …).
+    pub timings_ms: BTreeMap<String, f64>,
+}
+
+/// A scan as recorded, with its result if it has one. Serializes to the
+/// JSON of `classify --json` / `results --json` (see [`ScanRecord`]'s
+/// `Serialize` impl).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScanRecord {
+    /// Row id.
+    pub id: i64,
+    /// File path as enqueued.
+    pub path: String,
+    /// Content hash.
+    pub content_hash: String,
+    /// File size in bytes.
+    pub size: u64,
+    /// Status.
+    pub status: ScanStatus,
+    /// Error message when `status` is `Error`.
+    pub error: Option<String>,
+    /// Times claimed.
+    pub attempts: u32,
+    /// Enqueued at (Unix milliseconds).
+    pub created_at_ms: i64,
+    /// Last claimed at (Unix milliseconds).
+    pub started_at_ms: Option<i64>,
+    /// Finished at (Unix milliseconds), for `ok` and `error`.
+    pub finished_at_ms: Option<i64>,
+    /// Milliseconds per stage.
+    pub timings_ms: BTreeMap<String, f64>,
+    /// The cleaning report (`Null` when there is none).
+    pub cleaning: serde_json::Value,
+    /// Nearest taxon per rank, broadest first.
+    pub ranks: Vec<RankResult>,
+    /// The nearest references, nearest first (a few, not all).
+    pub nearest: Vec<Nearest>,
+}
+
+/// `{"taxon", "reference", "distance", "runner_up", "margin"}` of one rank.
+#[derive(Serialize)]
+struct RankJson<'a> {
+    taxon: &'a str,
+    reference: &'a str,
+    distance: f64,
+    runner_up: Option<&'a str>,
+    margin: Option<f64>,
+}
+
+/// The ranks as a JSON object in rank order (broadest first).
+struct RanksJson<'a>(&'a [RankResult]);
+
+impl Serialize for RanksJson<'_> {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let mut map = serializer.serialize_map(Some(self.0.len()))?;
+        for r in self.0 {
+            map.serialize_entry(
+                &r.rank,
+                &RankJson {
+                    taxon: &r.taxon,
+                    reference: &r.reference,
+                    distance: r.distance,
+                    runner_up: r.runner_up.as_deref(),
+                    margin: r.margin,
+                },
+            )?;
+        }
+        map.end()
+    }
+}
+
+/// The design's result form: `{"scan", "status", "ranks", "nearest",
+/// "cleaning", "timings_ms"}` for `ok`, `{"scan", "status": "error",
+/// "error"}` for an error, `{"scan", "status"}` while pending or running;
+/// each with the scan's `id` too.
+impl Serialize for ScanRecord {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let mut map = serializer.serialize_map(None)?;
+        map.serialize_entry("scan", &self.path)?;
+        map.serialize_entry("id", &self.id)?;
+        map.serialize_entry("status", &self.status)?;
+        match self.status {
+            ScanStatus::Ok => {
+                map.serialize_entry("ranks", &RanksJson(&self.ranks))?;
+                map.serialize_entry("nearest", &self.nearest)?;
+                map.serialize_entry("cleaning", &self.cleaning)?;
+                map.serialize_entry("timings_ms", &self.timings_ms)?;
+            }
+            ScanStatus::Error => {
+                map.serialize_entry("error", self.error.as_deref().unwrap_or(""))?;
+            }
+            ScanStatus::Pending | ScanStatus::Running => {}
+        }
+        map.end()
+    }
+}
+
+/// Number of scans in each status.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+pub struct StatusCounts {
+    /// Waiting.
+    pub pending: u64,
+    /// Being identified.
+    pub running: u64,
+    /// Identified.
+    pub ok: u64,
+    /// Failed.
+    pub error: u64,
+}
