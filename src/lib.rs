@@ -7,6 +7,7 @@
 //! - [`conformal`]: normalization and conformal flattening to the unit disk;
 //! - [`cp`]: prepared surfaces and the continuous Procrustes distance;
 //! - [`eval`]: distance matrices and leave-one-out classification;
+//! - [`landmarks`]: landmark files and their propagation between surfaces;
 //! - [`store`]: the SQLite record of references, scans, results and distances.
 //!
 //! See `ARCHITECTURE.md` at the repository root for the data flow.
@@ -17,6 +18,7 @@ pub mod config;
 pub mod conformal;
 pub mod cp;
 pub mod eval;
+pub mod landmarks;
 pub mod library;
 pub mod mesh;
 pub mod pipeline;

@@ -10,6 +10,7 @@ mod evaluate;
 mod inspect;
 mod library;
 mod matrix;
+mod propagate;
 mod results;
 mod synth;
 
@@ -47,6 +48,8 @@ enum Command {
     Evaluate(evaluate::Args),
     /// Write a synthetic crown-like surface (to try morphoid without data).
     Synth(synth::Args),
+    /// Carry landmarks of a reference onto another surface through cP maps.
+    Propagate(propagate::Args),
 }
 
 /// Parse the command line, run the subcommand, map errors to an exit code.
@@ -63,6 +66,7 @@ pub fn main() -> ExitCode {
         Command::Results(a) => results::run(a),
         Command::Matrix(a) => matrix::run(a),
         Command::Evaluate(a) => evaluate::run(a),
+        Command::Propagate(a) => propagate::run(a),
     };
     match result {
         Ok(code) => code,

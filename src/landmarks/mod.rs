@@ -1,0 +1,325 @@
+//! Landmarks: named points on a surface, their file formats, and their
+//! propagation from one surface to another through cP correspondences
+//! (the paper's Figures 2 and 3).
+//!
+//! Formats, chosen by file extension ([`Format::from_path`]):
+//! - `.csv`: `x,y,z` per line, optional header, optional `label` column;
+//! - `.fcsv`: 3D Slicer markups fiducial CSV;
+//! - `.mrk.json` (or `.json`): 3D Slicer markups JSON;
+//! - `.pp`: MeshLab picked points (XML).
+//!
+//! **Coordinate convention.** A [`Landmarks`] value holds points in the
+//! coordinates of the surface file they belong to. Slicer writes surface
+//! files (and, since version 4.11, markups) in LPS coordinates, so the
+//! in-memory coordinates are taken to be **LPS**: a Slicer file declared
+//! in RAS is converted on reading by `(x, y, z) → (−x, −y, z)`, and the
+//! Slicer writers always declare LPS. Plain CSV and MeshLab files carry no
+//! convention and are read and written unchanged.
+
+mod meshlab;
+pub mod mst;
+pub mod propagate;
+mod slicer;
+mod table;
+
+pub use mst::{minimum_spanning_tree, tree_path};
+pub use propagate::{
+    barycentric_coordinates, propagate, propagate_along, surface_point, PropagateError, Propagated,
+    Surface, SurfacePoint,
+};
+
+use std::path::{Path, PathBuf};
+
+/// Landmark points with optional labels (same length).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Landmarks {
+    /// Positions, in the units and coordinates of their surface file.
+    pub points: Vec<[f64; 3]>,
+    /// One optional label per point; an empty label is stored as `None`.
+    pub labels: Vec<Option<String>>,
+}
+
+impl Landmarks {
+    /// Unlabelled landmarks.
+    pub fn from_points(points: Vec<[f64; 3]>) -> Self {
+        let labels = vec![None; points.len()];
+        Self { points, labels }
+    }
+
+    /// Number of landmarks.
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// Whether there is no landmark.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// The label of landmark `i`, if any.
+    pub fn label(&self, i: usize) -> Option<&str> {
+        self.labels.get(i).and_then(|l| l.as_deref())
+    }
+
+    /// Whether any landmark has a label.
+    pub fn has_labels(&self) -> bool {
+        self.labels.iter().any(|l| l.is_some())
+    }
+
+    /// Add one landmark; an empty label counts as none.
+    pub fn push(&mut self, point: [f64; 3], label: Option<String>) {
+        self.points.push(point);
+        self.labels.push(label.filter(|l| !l.is_empty()));
+    }
+}
+
+/// Landmark file formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// Plain CSV, `x,y,z[,label]`.
+    Csv,
+    /// 3D Slicer markups fiducial CSV (`.fcsv`).
+    Fcsv,
+    /// 3D Slicer markups JSON (`.mrk.json`).
+    MarkupsJson,
+    /// MeshLab picked points (`.pp`).
+    PickedPoints,
+}
+
+impl Format {
+    /// The format named by the extension of `path` (case-insensitive).
+    pub fn from_path(path: &Path) -> Option<Format> {
+        let name = path.file_name()?.to_string_lossy().to_ascii_lowercase();
+        let ext = name.rsplit_once('.').map(|(_, e)| e)?;
+        match ext {
+            "csv" | "txt" => Some(Format::Csv),
+            "fcsv" => Some(Format::Fcsv),
+            "json" => Some(Format::MarkupsJson),
+            "pp" => Some(Format::PickedPoints),
+            _ => None,
+        }
+    }
+}
+
+/// Why a landmark file cannot be read or written; every message names the
+/// file and, for content errors, the line (or the JSON element).
+#[derive(Debug, thiserror::Error)]
+pub enum LandmarkError {
+    /// The file cannot be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The extension names no landmark format.
+    #[error("{0}: unknown landmark format (use .csv, .fcsv, .mrk.json or .pp)")]
+    UnknownFormat(PathBuf),
+    /// Malformed content at a line.
+    #[error("{path}:{line}: {message}")]
+    Syntax {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// Malformed content at an element of a JSON document.
+    #[error("{path}: {element}: {message}")]
+    Element {
+        /// The file.
+        path: PathBuf,
+        /// Where in the document, e.g. `markups[0].controlPoints[3]`.
+        element: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// The file holds no landmark.
+    #[error("{0}: no landmarks in the file")]
+    Empty(PathBuf),
+    /// The file holds another number of landmarks than expected.
+    #[error("{path}: {found} landmarks, expected {expected}")]
+    Count {
+        /// The file.
+        path: PathBuf,
+        /// The number asked for.
+        expected: usize,
+        /// The number in the file.
+        found: usize,
+    },
+}
+
+/// Parse landmark text in `format`; `path` only names the source in errors.
+/// A file without any landmark is an error.
+pub fn parse(text: &str, format: Format, path: &Path) -> Result<Landmarks, LandmarkError> {
+    let lm = match format {
+        Format::Csv => table::parse_csv(text, path)?,
+        Format::Fcsv => slicer::parse_fcsv(text, path)?,
+        Format::MarkupsJson => slicer::parse_markups_json(text, path)?,
+        Format::PickedPoints => meshlab::parse_picked_points(text, path)?,
+    };
+    if lm.is_empty() {
+        return Err(LandmarkError::Empty(path.to_path_buf()));
+    }
+    Ok(lm)
+}
+
+/// The text of `landmarks` in `format`.
+pub fn format(landmarks: &Landmarks, format: Format) -> String {
+    match format {
+        Format::Csv => table::format_csv(landmarks),
+        Format::Fcsv => slicer::format_fcsv(landmarks),
+        Format::MarkupsJson => slicer::format_markups_json(landmarks),
+        Format::PickedPoints => meshlab::format_picked_points(landmarks),
+    }
+}
+
+/// Read a landmark file, in the format its extension names; with
+/// `expected`, a file with another number of landmarks is an error.
+pub fn read(path: &Path, expected: Option<usize>) -> Result<Landmarks, LandmarkError> {
+    let fmt = Format::from_path(path).ok_or_else(|| LandmarkError::UnknownFormat(path.into()))?;
+    let text = std::fs::read_to_string(path).map_err(|source| LandmarkError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let lm = parse(&text, fmt, path)?;
+    check_count(&lm, expected, path)?;
+    Ok(lm)
+}
+
+/// Error unless `landmarks` has `expected` points (when given).
+pub fn check_count(
+    landmarks: &Landmarks,
+    expected: Option<usize>,
+    path: &Path,
+) -> Result<(), LandmarkError> {
+    match expected {
+        Some(n) if n != landmarks.len() => Err(LandmarkError::Count {
+            path: path.to_path_buf(),
+            expected: n,
+            found: landmarks.len(),
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// Write a landmark file in the format its extension names.
+pub fn write(path: &Path, landmarks: &Landmarks) -> Result<(), LandmarkError> {
+    let fmt = Format::from_path(path).ok_or_else(|| LandmarkError::UnknownFormat(path.into()))?;
+    std::fs::write(path, format(landmarks, fmt)).map_err(|source| LandmarkError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Parse one coordinate; non-finite values are rejected.
+fn parse_coordinate(field: &str) -> Result<f64, String> {
+    let t = field.trim();
+    match t.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        Ok(_) => Err(format!("coordinate `{t}` is not finite")),
+        Err(_) => Err(format!("`{t}` is not a number")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Landmarks with awkward labels and values that test exact round trips.
+    pub(super) fn sample() -> Landmarks {
+        let mut lm = Landmarks::default();
+        lm.push(
+            [0.1, -2.5e-7, 1234.5678901234567],
+            Some("protoconid".into()),
+        );
+        lm.push([-0.0, 3.0, 1.0 / 3.0], None);
+        lm.push([1e10, -7.25, 0.2], Some("cusp, \"distal\" <&> 'x'".into()));
+        lm
+    }
+
+    #[test]
+    fn every_format_round_trips() {
+        let dir = tempfile::tempdir().unwrap();
+        let lm = sample();
+        for name in ["a.csv", "a.fcsv", "a.mrk.json", "a.pp"] {
+            let path = dir.path().join(name);
+            write(&path, &lm).unwrap();
+            let back = read(&path, Some(3)).unwrap();
+            assert_eq!(back, lm, "{name}");
+        }
+        let unlabelled = Landmarks::from_points(vec![[1.0, 2.0, 3.0], [4.0, 5.5, 6.0]]);
+        for name in ["b.csv", "b.fcsv", "b.mrk.json", "b.pp"] {
+            let path = dir.path().join(name);
+            write(&path, &unlabelled).unwrap();
+            assert_eq!(read(&path, None).unwrap(), unlabelled, "{name}");
+        }
+    }
+
+    #[test]
+    fn wrong_count_is_an_error() {
+        let dir = tempfile::tempdir().unwrap();
+        for name in ["c.csv", "c.fcsv", "c.mrk.json", "c.pp"] {
+            let path = dir.path().join(name);
+            write(&path, &sample()).unwrap();
+            let e = read(&path, Some(4)).unwrap_err();
+            assert!(matches!(
+                e,
+                LandmarkError::Count {
+                    expected: 4,
+                    found: 3,
+                    ..
+                }
+            ));
+            let msg = e.to_string();
+            assert!(
+                msg.contains(name) && msg.contains("3 landmarks, expected 4"),
+                "{msg}"
+            );
+        }
+    }
+
+    #[test]
+    fn garbage_is_an_error_naming_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        for (name, text) in [
+            ("g.csv", "\u{0}\u{1}garbage\n"),
+            ("g.fcsv", "hello world\n"),
+            ("g.mrk.json", "{ not json"),
+            ("g.pp", "<PickedPoints><point x=\"1\" y=</PickedPoints>"),
+            ("e.csv", ""),
+            ("e.pp", "<PickedPoints></PickedPoints>"),
+        ] {
+            let path = dir.path().join(name);
+            std::fs::write(&path, text).unwrap();
+            let msg = read(&path, None).unwrap_err().to_string();
+            assert!(msg.contains(name), "{msg}");
+        }
+        assert!(matches!(
+            read(&dir.path().join("x.obj"), None),
+            Err(LandmarkError::UnknownFormat(_))
+        ));
+        assert!(matches!(
+            read(&dir.path().join("missing.csv"), None),
+            Err(LandmarkError::Io { .. })
+        ));
+    }
+
+    #[test]
+    fn formats_by_extension() {
+        assert_eq!(Format::from_path(Path::new("a/B.CSV")), Some(Format::Csv));
+        assert_eq!(Format::from_path(Path::new("x.fcsv")), Some(Format::Fcsv));
+        assert_eq!(
+            Format::from_path(Path::new("x.mrk.json")),
+            Some(Format::MarkupsJson)
+        );
+        assert_eq!(
+            Format::from_path(Path::new("x.pp")),
+            Some(Format::PickedPoints)
+        );
+        assert_eq!(Format::from_path(Path::new("x.ply")), None);
+        assert_eq!(Format::from_path(Path::new("noext")), None);
+    }
+}
