@@ -7,7 +7,8 @@
 //! - [`conformal`]: normalization and conformal flattening to the unit disk;
 //! - [`cp`]: prepared surfaces and the continuous Procrustes distance;
 //! - [`eval`]: distance matrices and leave-one-out classification;
-//! - [`store`]: the SQLite record of references, scans, results and distances.
+//! - [`store`]: the SQLite record of references, scans, results and distances;
+//! - [`daemon`]: the export-folder watcher and job loop behind `morphoid run`.
 //!
 //! See `ARCHITECTURE.md` at the repository root for the data flow.
 
@@ -16,6 +17,7 @@ pub mod clean;
 pub mod config;
 pub mod conformal;
 pub mod cp;
+pub mod daemon;
 pub mod eval;
 pub mod library;
 pub mod mesh;

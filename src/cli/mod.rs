@@ -2,6 +2,7 @@
 //! clap builds the argument structs here, the modules do the work and turn
 //! library errors into one-line messages with context.
 
+mod check_config;
 mod classify;
 mod common;
 mod demo;
@@ -11,6 +12,7 @@ mod inspect;
 mod library;
 mod matrix;
 mod results;
+mod run;
 mod synth;
 
 use clap::{Parser, Subcommand};
@@ -45,6 +47,10 @@ enum Command {
     Matrix(matrix::Args),
     /// Leave-one-out nearest-neighbour classification from a distance matrix.
     Evaluate(evaluate::Args),
+    /// Watch the export folder and identify every new scan (the daemon).
+    Run(run::Args),
+    /// Validate a configuration file; name any wrong key or value.
+    CheckConfig(check_config::Args),
     /// Write a synthetic crown-like surface (to try morphoid without data).
     Synth(synth::Args),
 }
@@ -52,7 +58,9 @@ enum Command {
 /// Parse the command line, run the subcommand, map errors to an exit code.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
-    init_tracing(cli.verbose);
+    // The daemon logs one info line per scan by default.
+    let daemon = matches!(cli.command, Command::Run(_));
+    init_tracing(cli.verbose + u8::from(daemon));
     let result = match cli.command {
         Command::Inspect(a) => inspect::run(a),
         Command::Synth(a) => synth::run(a),
@@ -63,6 +71,8 @@ pub fn main() -> ExitCode {
         Command::Results(a) => results::run(a),
         Command::Matrix(a) => matrix::run(a),
         Command::Evaluate(a) => evaluate::run(a),
+        Command::Run(a) => run::run(a),
+        Command::CheckConfig(a) => check_config::run(a),
     };
     match result {
         Ok(code) => code,
@@ -88,6 +98,8 @@ fn init_tracing(verbose: u8) {
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
         .with_target(false)
+        // journald and files get no colour codes.
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .try_init();
 }
 
