@@ -64,3 +64,81 @@ fn a_file_written_slowly_and_a_renamed_part_file_are_each_processed_once() {
         "colour codes in a non-terminal log"
     );
 }
+
+#[test]
+fn the_eight_bad_inputs_become_error_rows_and_the_next_scan_is_identified() {
+    let env = env(0.5, "quarantine = \"QUARANTINE\"", "");
+    let quarantine = env.root.join("quarantine");
+    let config = std::fs::read_to_string(&env.config)
+        .unwrap()
+        .replace("QUARANTINE", &quarantine.display().to_string());
+    std::fs::write(&env.config, config).unwrap();
+    let d = Daemon::start(&env);
+
+    let bad = morphoid::mesh::synth::write_bad_inputs(&env.export).unwrap();
+    assert_eq!(bad.len(), 8);
+    assert!(
+        wait_until(Duration::from_secs(120), || finished(&env.db) >= 8),
+        "{:?}\n{}",
+        rows(&env.db),
+        d.log_text()
+    );
+    std::fs::write(env.export.join("good.ply"), scan_bytes(2, 903)).unwrap();
+    assert!(
+        wait_until(Duration::from_secs(120), || finished(&env.db) >= 9),
+        "{:?}\n{}",
+        rows(&env.db),
+        d.log_text()
+    );
+    let r = rows(&env.db);
+    assert_eq!(r.len(), 9, "{r:?}");
+    let errors: Vec<_> = r.iter().filter(|s| s.status == ScanStatus::Error).collect();
+    assert_eq!(errors.len(), 8, "{r:?}");
+    for e in &errors {
+        let message = e.error.as_deref().unwrap_or("");
+        let name = std::path::Path::new(&e.path).file_name().unwrap();
+        // The message names the file and says something.
+        assert!(
+            message.contains(&*name.to_string_lossy()) && message.len() > name.len() + 5,
+            "unclear message for {}: {message:?}",
+            e.path
+        );
+        // Moved to the quarantine folder.
+        assert!(!std::path::Path::new(&e.path).exists(), "{} left", e.path);
+        assert!(quarantine.join(name).exists(), "{name:?} not quarantined");
+    }
+    let good = r.iter().find(|s| s.path.ends_with("good.ply")).unwrap();
+    assert_eq!(good.status, ScanStatus::Ok, "{good:?}");
+    assert_eq!(genus_of(good), Some(genus(2)));
+    // Quarantined files are not picked up again from the quarantine folder.
+    std::thread::sleep(Duration::from_secs(2));
+    assert_eq!(rows(&env.db).len(), 9);
+}
+
+#[test]
+fn files_that_arrived_while_down_are_processed_once_and_changed_content_again() {
+    let env = env(0.5, "", "");
+    let a = env.export.join("sub").join("a.ply");
+    std::fs::create_dir_all(a.parent().unwrap()).unwrap();
+    std::fs::write(&a, scan_bytes(0, 904)).unwrap();
+    {
+        let _d = Daemon::start(&env);
+        assert!(wait_until(Duration::from_secs(120), || finished(&env.db) >= 1));
+    }
+    // Down: a new file arrives, the old one is still there.
+    std::fs::write(env.export.join("b.ply"), scan_bytes(4, 905)).unwrap();
+    let d = Daemon::start(&env);
+    assert!(wait_until(Duration::from_secs(120), || finished(&env.db) >= 2));
+    // A changed file is new content.
+    std::fs::write(&a, scan_bytes(5, 906)).unwrap();
+    assert!(
+        wait_until(Duration::from_secs(120), || finished(&env.db) >= 3),
+        "{}",
+        d.log_text()
+    );
+    std::thread::sleep(Duration::from_secs(2));
+    let r = rows(&env.db);
+    assert_eq!(r.len(), 3, "{r:?}");
+    assert!(r.iter().all(|s| s.status == ScanStatus::Ok), "{r:?}");
+    assert_eq!(genus_of(&r[2]), Some(genus(5)));
+}

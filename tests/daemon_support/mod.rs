@@ -107,6 +107,17 @@ impl Daemon {
         d
     }
 
+    /// How many references the library loaded (from the log).
+    pub fn references(&self) -> i64 {
+        let log = self.log_text();
+        let at = log.find(" references; watching").unwrap();
+        log[..at]
+            .rsplit(' ')
+            .next()
+            .and_then(|n| n.parse().ok())
+            .unwrap()
+    }
+
     /// The log so far.
     pub fn log_text(&self) -> String {
         std::fs::read_to_string(&self.log).unwrap_or_default()
