@@ -84,6 +84,11 @@ pub struct Daemon {
 impl Daemon {
     /// Start the daemon on `env` and wait until it has loaded the library.
     pub fn start(env: &Env) -> Daemon {
+        Self::start_with(env, &[])
+    }
+
+    /// Start with extra environment variables.
+    pub fn start_with(env: &Env, vars: &[(&str, &str)]) -> Daemon {
         let n = std::fs::read_dir(&env.root).unwrap().count();
         let log = env.root.join(format!("daemon-{n}.log"));
         let child = Command::new(BIN)
@@ -91,6 +96,7 @@ impl Daemon {
             .arg(&env.config)
             .env("MORPHOID_LOG", "info")
             .env_remove("NOTIFY_SOCKET")
+            .envs(vars.iter().copied())
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(std::fs::File::create(&log).unwrap())
