@@ -41,7 +41,7 @@ fn ready_status_watchdog_and_stopping_reach_the_service_manager() {
         receive(
             &|g| {
                 g.iter().any(|m| m == "READY=1")
-                    && g.iter().any(|m| *m == idle)
+                    && g.contains(&idle)
                     && g.iter().filter(|m| *m == "WATCHDOG=1").count() >= 3
             },
             20
@@ -51,7 +51,7 @@ fn ready_status_watchdog_and_stopping_reach_the_service_manager() {
     std::fs::write(env.export.join("n.ply"), scan_bytes(0, 921)).unwrap();
     let done = format!("STATUS=idle, {refs} references, 1 scans today");
     assert!(
-        receive(&|g| g.iter().any(|m| *m == done), 60),
+        receive(&|g| g.contains(&done), 60),
         "{got:?}\n{}",
         d.log_text()
     );

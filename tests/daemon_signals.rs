@@ -117,3 +117,34 @@ fn sighup_reloads_the_configuration() {
     );
     assert!(rows(&env.db)[0].path.ends_with("other/h.ply"));
 }
+
+#[test]
+fn a_scan_that_killed_the_daemon_three_times_is_failed_not_retried_for_ever() {
+    let env = env(0.2, "", "");
+    std::fs::write(env.export.join("p.ply"), scan_bytes(3, 910)).unwrap();
+    {
+        let _d = Daemon::start(&env);
+        assert!(wait_until(Duration::from_secs(120), || finished(&env.db) >= 1));
+    }
+    // As a daemon dying on it three times would leave it.
+    let c = rusqlite::Connection::open(&env.db).unwrap();
+    c.execute_batch(
+        "DELETE FROM result; DELETE FROM distance;
+         UPDATE scan SET status = 'running', attempts = 3, finished_at = NULL;",
+    )
+    .unwrap();
+    drop(c);
+    let d = Daemon::start(&env);
+    assert!(
+        wait_until(Duration::from_secs(60), || finished(&env.db) >= 1),
+        "{}",
+        d.log_text()
+    );
+    let r = rows(&env.db);
+    assert_eq!(r[0].status, ScanStatus::Error, "{r:?}");
+    let message = r[0].error.as_deref().unwrap_or("");
+    assert!(
+        message.contains("p.ply") && message.contains("3 attempts"),
+        "{message}"
+    );
+}

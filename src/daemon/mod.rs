@@ -32,8 +32,15 @@ use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// How often the export folder is listed.
+/// How often the export folder is listed while a file is settling.
 pub const POLL_INTERVAL: Duration = Duration::from_millis(250);
+/// How often it is listed when nothing is settling (a large folder costs
+/// one `stat` per file per listing).
+pub const IDLE_POLL_INTERVAL: Duration = Duration::from_secs(1);
+/// A scan claimed this many times without finishing has crashed the
+/// daemon each time (or hung it until the watchdog fired): it is failed
+/// instead of being tried for ever.
+pub const MAX_ATTEMPTS: u32 = 3;
 /// How long a stop waits for the current job before abandoning it.
 pub const STOP_GRACE: Duration = Duration::from_secs(7);
 
@@ -282,7 +289,16 @@ pub fn run(loader: &dyn Loader) -> Result<(), DaemonError> {
             }
             last_status_at = Instant::now();
         }
-        std::thread::sleep(POLL_INTERVAL);
+        // Sleep in short steps so signals and triggers are handled fast.
+        let next = if settler.waiting() {
+            POLL_INTERVAL
+        } else {
+            IDLE_POLL_INTERVAL
+        };
+        let until = Instant::now() + next;
+        while Instant::now() < until && !signals::stop_requested() {
+            std::thread::sleep(Duration::from_millis(50));
+        }
     }
 
     tracing::info!("stopping");
@@ -440,6 +456,18 @@ fn worker_loop(
                     break;
                 }
             };
+            if job.attempts > MAX_ATTEMPTS {
+                let message = format!(
+                    "{}: given up after {} attempts that did not finish (the daemon died on it)",
+                    job.path,
+                    job.attempts - 1
+                );
+                tracing::error!("{message}");
+                if let Err(e) = store.fail(job.scan_id, &message) {
+                    tracing::error!("{}: cannot record the failure: {e}", job.path);
+                }
+                continue;
+            }
             current.store(job.scan_id, Ordering::SeqCst);
             let started = Instant::now();
             let status = classify::run_job(&mut store, &classifier, &job);

@@ -73,6 +73,12 @@ impl Settler {
         self.entries.retain(|p, _| listed.contains(p));
     }
 
+    /// Whether some listed file is still waiting to settle (the folder is
+    /// then listed often; otherwise less often).
+    pub fn waiting(&self) -> bool {
+        self.entries.values().any(|e| !e.taken)
+    }
+
     /// Allow `path` to be taken again at its next settled observation
     /// (after a transient failure to read it).
     pub fn release(&mut self, path: &Path) {
@@ -97,11 +103,14 @@ mod tests {
         let settle = Duration::from_secs(2);
         let p = Path::new("a.ply");
         let at = |secs: u64| t0 + Duration::from_secs(secs);
+        assert!(!s.waiting());
         assert!(!s.observe(p, stamp(10), at(0), settle));
+        assert!(s.waiting());
         assert!(!s.observe(p, stamp(20), at(1), settle));
         assert!(!s.observe(p, stamp(30), at(2), settle));
         assert!(!s.observe(p, stamp(30), at(3), settle));
         assert!(s.observe(p, stamp(30), at(4), settle));
+        assert!(!s.waiting());
         assert!(!s.observe(p, stamp(30), at(9), settle));
         // Changed again: a new content, taken again once settled.
         assert!(!s.observe(p, stamp(40), at(10), settle));
