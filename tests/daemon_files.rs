@@ -142,3 +142,34 @@ fn files_that_arrived_while_down_are_processed_once_and_changed_content_again() 
     assert!(r.iter().all(|s| s.status == ScanStatus::Ok), "{r:?}");
     assert_eq!(genus_of(&r[2]), Some(genus(5)));
 }
+
+#[test]
+fn run_needs_no_config_file_with_watch_library_and_db_given() {
+    let env = env(2.0, "", "");
+    let db = env.root.join("flags.sqlite");
+    let log = env.root.join("flags.log");
+    let mut child = std::process::Command::new(BIN)
+        .arg("run")
+        .arg("--watch")
+        .arg(&env.export)
+        .arg("--library")
+        .arg(env.root.join("library"))
+        .arg("--db")
+        .arg(&db)
+        .env("XDG_CACHE_HOME", env.root.join("xdg"))
+        .env_remove("CACHE_DIRECTORY")
+        .env_remove("NOTIFY_SOCKET")
+        .stderr(std::fs::File::create(&log).unwrap())
+        .spawn()
+        .unwrap();
+    std::fs::write(env.export.join("f.ply"), scan_bytes(4, 916)).unwrap();
+    let ok = wait_until(Duration::from_secs(120), || finished(&db) >= 1);
+    let _ = child.kill();
+    let _ = child.wait();
+    let text = std::fs::read_to_string(&log).unwrap_or_default();
+    assert!(ok, "{text}");
+    let r = rows(&db);
+    assert_eq!(r[0].status, ScanStatus::Ok, "{text}");
+    assert_eq!(genus_of(&r[0]), Some(genus(4)));
+    assert!(env.root.join("xdg/morphoid").is_dir());
+}

@@ -148,3 +148,31 @@ fn a_scan_that_killed_the_daemon_three_times_is_failed_not_retried_for_ever() {
         "{message}"
     );
 }
+
+#[test]
+fn sigterm_without_grace_abandons_the_job_which_the_next_start_identifies() {
+    let env = env(0.2, "", "");
+    // A large surface (400k vertices): its job lasts long enough to be cut.
+    let big = morphoid::mesh::synth::crown(&morphoid::mesh::synth::CROWN_GENERA[4], 915, 400_000);
+    let staging = env.root.join("big.ply");
+    morphoid::mesh::io::save(&staging, &big).unwrap();
+    let mut d = Daemon::start_with(&env, &[("MORPHOID_STOP_GRACE", "0")]);
+    let refs = d.references();
+    std::fs::rename(&staging, env.export.join("big.ply")).unwrap();
+    let id = wait_running(&env.db);
+    d.signal(libc::SIGTERM);
+    let status = d.wait_exit(Duration::from_secs(10));
+    assert!(status.is_some_and(|s| s.success()), "{}", d.log_text());
+    let r = rows(&env.db);
+    assert_eq!(r[0].status, ScanStatus::Pending, "{r:?}\n{}", d.log_text());
+    assert_eq!(r[0].attempts, 0);
+    assert!(d.log_text().contains("abandoned"), "{}", d.log_text());
+    let d = Daemon::start(&env);
+    assert!(
+        wait_until(Duration::from_secs(120), || finished(&env.db) >= 1),
+        "{}",
+        d.log_text()
+    );
+    assert_eq!(rows(&env.db)[0].status, ScanStatus::Ok);
+    assert_eq!(result_rows(&env.db, id), (3, 3, refs));
+}

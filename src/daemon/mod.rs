@@ -41,8 +41,20 @@ pub const IDLE_POLL_INTERVAL: Duration = Duration::from_secs(1);
 /// daemon each time (or hung it until the watchdog fired): it is failed
 /// instead of being tried for ever.
 pub const MAX_ATTEMPTS: u32 = 3;
-/// How long a stop waits for the current job before abandoning it.
+/// How long a stop waits for the current job before abandoning it, unless
+/// `$MORPHOID_STOP_GRACE` (seconds, at most 60) says otherwise. systemd's
+/// `TimeoutStopSec=` must be longer.
 pub const STOP_GRACE: Duration = Duration::from_secs(7);
+
+/// The stop grace period: `$MORPHOID_STOP_GRACE` or [`STOP_GRACE`].
+pub fn stop_grace() -> Duration {
+    std::env::var("MORPHOID_STOP_GRACE")
+        .ok()
+        .and_then(|v| v.trim().parse::<f64>().ok())
+        .filter(|s| s.is_finite() && *s >= 0.0)
+        .map(|s| Duration::from_secs_f64(s.min(60.0)))
+        .unwrap_or(STOP_GRACE)
+}
 
 /// Why the daemon could not start (or reload).
 #[derive(Debug, thiserror::Error)]
@@ -308,7 +320,7 @@ pub fn run(loader: &dyn Loader) -> Result<(), DaemonError> {
         s.store(true, Ordering::SeqCst);
     }
     drop(to_worker);
-    let deadline = Instant::now() + STOP_GRACE;
+    let deadline = Instant::now() + stop_grace();
     while !worker.is_finished() && Instant::now() < deadline {
         std::thread::sleep(Duration::from_millis(50));
     }
