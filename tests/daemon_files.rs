@@ -173,3 +173,22 @@ fn run_needs_no_config_file_with_watch_library_and_db_given() {
     assert_eq!(genus_of(&r[0]), Some(genus(4)));
     assert!(env.root.join("xdg/morphoid").is_dir());
 }
+
+#[test]
+fn files_of_other_kinds_are_left_alone() {
+    let env = env(0.3, "", "");
+    let d = Daemon::start(&env);
+    std::fs::write(env.export.join("scanner.log"), "scan 17 done\n").unwrap();
+    std::fs::write(env.export.join("notes.txt"), "x").unwrap();
+    std::fs::write(env.export.join("UPPER.PLY"), scan_bytes(1, 917)).unwrap();
+    assert!(
+        wait_until(Duration::from_secs(60), || finished(&env.db) >= 1),
+        "{}",
+        d.log_text()
+    );
+    std::thread::sleep(Duration::from_secs(2));
+    let r = rows(&env.db);
+    assert_eq!(r.len(), 1, "{r:?}");
+    assert!(r[0].path.ends_with("UPPER.PLY"));
+    assert_eq!(r[0].status, ScanStatus::Ok);
+}

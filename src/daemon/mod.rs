@@ -19,6 +19,7 @@ mod signals;
 use crate::classify::{self, Classifier, NEAREST};
 use crate::config::Config;
 use crate::library::BuildOutcome;
+use crate::mesh::io::Format;
 use crate::store::{
     content_hash_file, now_ms, utc_day_start_ms, Enqueued, ScanStatus, Store, StoreError,
 };
@@ -98,8 +99,10 @@ enum ToWorker {
     Reload(Box<Classifier>, Option<PathBuf>),
 }
 
-/// Every non-ignored regular file under `dir` (recursively if asked), with
-/// its stamp; `skip` (the quarantine folder) is not entered.
+/// Every non-ignored surface file (a format morphoid reads, by extension)
+/// under `dir`, recursively if asked, with its stamp; `skip` (the
+/// quarantine folder) is not entered. Other files (the scanner's logs,
+/// reports, images) are left alone rather than recorded as errors.
 pub fn list_candidates(
     dir: &Path,
     recursive: bool,
@@ -132,7 +135,7 @@ pub fn list_candidates(
                 if recursive && skip.is_none_or(|s| !same_dir(s, &path)) {
                     stack.push(path);
                 }
-            } else if meta.is_file() {
+            } else if meta.is_file() && Format::from_path(&path).is_some() {
                 let stamp = Stamp {
                     size: meta.len(),
                     mtime: meta.modified().ok(),
