@@ -42,6 +42,9 @@ pub const IDLE_POLL_INTERVAL: Duration = Duration::from_secs(1);
 /// daemon each time (or hung it until the watchdog fired): it is failed
 /// instead of being tried for ever.
 pub const MAX_ATTEMPTS: u32 = 3;
+/// A job running longer than this is taken as hung: watchdog pings stop,
+/// so systemd restarts the daemon (and [`MAX_ATTEMPTS`] ends the loop).
+pub const JOB_HANG_LIMIT: Duration = Duration::from_secs(30 * 60);
 /// How long a stop waits for the current job before abandoning it, unless
 /// `$MORPHOID_STOP_GRACE` (seconds, at most 60) says otherwise. systemd's
 /// `TimeoutStopSec=` must be longer.
@@ -182,15 +185,23 @@ pub fn run(loader: &dyn Loader) -> Result<(), DaemonError> {
 
     let stop = Arc::new(AtomicBool::new(false));
     let current = Arc::new(AtomicI64::new(0));
+    let job_started_ms = Arc::new(AtomicI64::new(0));
     let (to_worker, worker_rx) = mpsc::channel::<ToWorker>();
     let worker = {
         let stop = stop.clone();
         let current = current.clone();
+        let job_started_ms = job_started_ms.clone();
         let store = Store::open(&db)?;
         let quarantine = config.watch.quarantine.clone();
         std::thread::Builder::new()
             .name("morphoid-worker".into())
-            .spawn(move || worker_loop(store, classifier, quarantine, worker_rx, stop, current))
+            .spawn(move || {
+                let progress = Progress {
+                    current,
+                    started_ms: job_started_ms,
+                };
+                worker_loop(store, classifier, quarantine, worker_rx, stop, progress)
+            })
             .map_err(|e| DaemonError::Load(format!("cannot start the worker thread: {e}")))?
     };
 
@@ -204,6 +215,7 @@ pub fn run(loader: &dyn Loader) -> Result<(), DaemonError> {
     let mut last_status_at = Instant::now() - Duration::from_secs(60);
     let mut settler = Settler::new();
     let mut watch_error_logged = false;
+    let mut hang_logged = false;
     let _ = to_worker.send(ToWorker::Wake);
 
     loop {
@@ -291,7 +303,17 @@ pub fn run(loader: &dyn Loader) -> Result<(), DaemonError> {
         }
 
         if let Some(interval) = watchdog {
-            if last_ping.elapsed() >= interval {
+            let started = job_started_ms.load(Ordering::SeqCst);
+            let hung = current.load(Ordering::SeqCst) > 0
+                && started > 0
+                && now_ms() - started > JOB_HANG_LIMIT.as_millis() as i64;
+            if hung && !hang_logged {
+                tracing::error!(
+                    "the current job looks hung; letting the watchdog restart the daemon"
+                );
+                hang_logged = true;
+            }
+            if !hung && last_ping.elapsed() >= interval {
                 notifier.send("WATCHDOG=1");
                 last_ping = Instant::now();
             }
@@ -437,6 +459,13 @@ fn status_line(store: &Store, n_refs: usize, current: i64) -> String {
     format!("{state}, {n_refs} references, {today} scans today{queue}")
 }
 
+/// What the worker shares with the control loop: the scan it is
+/// identifying (0: none) and since when (Unix ms).
+struct Progress {
+    current: Arc<AtomicI64>,
+    started_ms: Arc<AtomicI64>,
+}
+
 /// The worker: claim pending jobs one at a time and identify them.
 fn worker_loop(
     mut store: Store,
@@ -444,7 +473,7 @@ fn worker_loop(
     mut quarantine: Option<PathBuf>,
     rx: Receiver<ToWorker>,
     stop: Arc<AtomicBool>,
-    current: Arc<AtomicI64>,
+    progress: Progress,
 ) {
     loop {
         // Drain messages; a periodic wake-up also catches jobs queued by
@@ -483,11 +512,12 @@ fn worker_loop(
                 }
                 continue;
             }
-            current.store(job.scan_id, Ordering::SeqCst);
+            progress.started_ms.store(now_ms(), Ordering::SeqCst);
+            progress.current.store(job.scan_id, Ordering::SeqCst);
             let started = Instant::now();
             let status = classify::run_job(&mut store, &classifier, &job);
             let secs = started.elapsed().as_secs_f64();
-            current.store(0, Ordering::SeqCst);
+            progress.current.store(0, Ordering::SeqCst);
             match status {
                 Ok(ScanStatus::Ok) => log_result(&store, job.scan_id, &job.path, secs),
                 Ok(_) => {
