@@ -45,7 +45,9 @@ pub fn speed_constant(baud: u32) -> Option<libc::speed_t> {
 fn open_port(port: &str, baud: u32) -> std::io::Result<File> {
     let file = std::fs::OpenOptions::new()
         .read(true)
-        .custom_flags(libc::O_NOCTTY)
+        // Non-blocking open: without CLOCAL (set below) opening a real
+        // port can wait for carrier detect for ever.
+        .custom_flags(libc::O_NOCTTY | libc::O_NONBLOCK)
         .open(port)?;
     let fd = file.as_raw_fd();
     let speed = speed_constant(baud).ok_or_else(|| {
@@ -64,6 +66,11 @@ fn open_port(port: &str, baud: u32) -> std::io::Result<File> {
         t.c_cc[libc::VMIN] = 1;
         t.c_cc[libc::VTIME] = 0;
         if libc::tcsetattr(fd, libc::TCSANOW, &t) != 0 {
+            return Err(std::io::Error::last_os_error());
+        }
+        // Reads happen after poll() says there is input: blocking is fine.
+        let flags = libc::fcntl(fd, libc::F_GETFL);
+        if flags < 0 || libc::fcntl(fd, libc::F_SETFL, flags & !libc::O_NONBLOCK) != 0 {
             return Err(std::io::Error::last_os_error());
         }
     }
