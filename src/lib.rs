@@ -8,7 +8,8 @@
 //! - [`cp`]: prepared surfaces and the continuous Procrustes distance;
 //! - [`eval`]: distance matrices and leave-one-out classification;
 //! - [`landmarks`]: landmark files and their propagation between surfaces;
-//! - [`store`]: the SQLite record of references, scans, results and distances.
+//! - [`store`]: the SQLite record of references, scans, results and distances;
+//! - [`daemon`]: the export-folder watcher and job loop behind `morphoid run`.
 //!
 //! See `ARCHITECTURE.md` at the repository root for the data flow.
 
@@ -17,6 +18,7 @@ pub mod clean;
 pub mod config;
 pub mod conformal;
 pub mod cp;
+pub mod daemon;
 pub mod eval;
 pub mod landmarks;
 pub mod library;

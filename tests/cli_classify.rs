@@ -121,9 +121,12 @@ fn classify_identifies_records_and_reports_each_scan() {
     assert_eq!(n, files.len());
 }
 
+/// Scan id with its numbers of result and distance rows.
+type RowCounts = (i64, i64, i64);
+
 /// Number of result and distance rows of every `ok` scan, and the number of
 /// scans in each status.
-fn audit(db: &Path) -> (Vec<(i64, i64, i64)>, Vec<(String, i64)>) {
+fn audit(db: &Path) -> (Vec<RowCounts>, Vec<(String, i64)>) {
     let conn = rusqlite::Connection::open(db).unwrap();
     let check: String = conn
         .query_row("PRAGMA integrity_check", [], |r| r.get(0))

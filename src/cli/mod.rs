@@ -2,6 +2,7 @@
 //! clap builds the argument structs here, the modules do the work and turn
 //! library errors into one-line messages with context.
 
+mod check_config;
 mod classify;
 mod common;
 mod demo;
@@ -12,6 +13,7 @@ mod library;
 mod matrix;
 mod propagate;
 mod results;
+mod run;
 mod synth;
 
 use clap::{Parser, Subcommand};
@@ -46,6 +48,10 @@ enum Command {
     Matrix(matrix::Args),
     /// Leave-one-out nearest-neighbour classification from a distance matrix.
     Evaluate(evaluate::Args),
+    /// Watch the export folder and identify every new scan (the daemon).
+    Run(run::Args),
+    /// Validate a configuration file; name any wrong key or value.
+    CheckConfig(check_config::Args),
     /// Write a synthetic crown-like surface (to try morphoid without data).
     Synth(synth::Args),
     /// Carry landmarks of a reference onto another surface through cP maps.
@@ -55,7 +61,9 @@ enum Command {
 /// Parse the command line, run the subcommand, map errors to an exit code.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
-    init_tracing(cli.verbose);
+    // The daemon logs one info line per scan by default.
+    let daemon = matches!(cli.command, Command::Run(_));
+    init_tracing(cli.verbose + u8::from(daemon));
     let result = match cli.command {
         Command::Inspect(a) => inspect::run(a),
         Command::Synth(a) => synth::run(a),
@@ -67,6 +75,8 @@ pub fn main() -> ExitCode {
         Command::Matrix(a) => matrix::run(a),
         Command::Evaluate(a) => evaluate::run(a),
         Command::Propagate(a) => propagate::run(a),
+        Command::Run(a) => run::run(a),
+        Command::CheckConfig(a) => check_config::run(a),
     };
     match result {
         Ok(code) => code,
@@ -88,11 +98,18 @@ fn init_tracing(verbose: u8) {
     };
     let filter = tracing_subscriber::EnvFilter::try_from_env("MORPHOID_LOG")
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default));
-    let _ = tracing_subscriber::fmt()
+    let builder = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
         .with_target(false)
-        .try_init();
+        // journald and files get no colour codes.
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()));
+    // Under systemd the journal stamps each line itself.
+    let _ = if std::env::var_os("JOURNAL_STREAM").is_some() {
+        builder.without_time().try_init()
+    } else {
+        builder.try_init()
+    };
 }
 
 /// Size rayon's global pool once, before any parallel work.

@@ -1,0 +1,75 @@
+//! `morphoid check-config`: validate a configuration file and name any
+//! wrong key or value.
+
+use anyhow::{bail, Context, Result};
+use morphoid::config::Config;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Arguments of `morphoid check-config`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Configuration file (without it, the built-in defaults are checked).
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Print the effective configuration as TOML.
+    #[arg(long)]
+    print: bool,
+}
+
+/// Check what the types cannot: the trigger regex and the baud rate.
+fn check_runtime(config: &Config) -> Result<()> {
+    if let Some(s) = &config.serial {
+        regex::Regex::new(&s.trigger)
+            .with_context(|| format!("serial.trigger {:?} is not a valid regex", s.trigger))?;
+        if morphoid::daemon::serial::speed_constant(s.baud).is_none() {
+            bail!("serial.baud {} is not a standard baud rate", s.baud);
+        }
+    }
+    for p in &config.watch.ignore {
+        if p.is_empty() {
+            bail!("watch.ignore contains an empty pattern");
+        }
+    }
+    Ok(())
+}
+
+/// Run `morphoid check-config`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let config = match &args.config {
+        Some(path) => Config::read(path)?,
+        None => Config::default(),
+    };
+    check_runtime(&config)?;
+    println!("ok");
+    println!(
+        "watch {} (recursive: {}, settle {} s, ignore {:?}{})",
+        config.watch.dir.display(),
+        config.watch.recursive,
+        config.watch.settle_seconds,
+        config.watch.ignore,
+        config
+            .watch
+            .quarantine
+            .as_ref()
+            .map(|q| format!(", quarantine {}", q.display()))
+            .unwrap_or_default()
+    );
+    println!(
+        "library {} (ranks {:?}), database {}",
+        config.library.dir.display(),
+        config.library.ranks,
+        config.database.path.display()
+    );
+    match &config.serial {
+        Some(s) => println!(
+            "serial {} at {} baud, trigger {:?}",
+            s.port, s.baud, s.trigger
+        ),
+        None => println!("no serial trigger"),
+    }
+    if args.print {
+        println!("{}", toml::to_string_pretty(&config)?);
+    }
+    Ok(ExitCode::SUCCESS)
+}

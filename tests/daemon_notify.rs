@@ -1,0 +1,64 @@
+//! The systemd notification protocol as a service manager sees it.
+
+mod daemon_support;
+
+use daemon_support::*;
+use std::os::unix::net::UnixDatagram;
+use std::time::{Duration, Instant};
+
+#[test]
+fn ready_status_watchdog_and_stopping_reach_the_service_manager() {
+    let env = env(0.2, "", "");
+    let socket_path = env.root.join("notify.sock");
+    let socket = UnixDatagram::bind(&socket_path).unwrap();
+    socket
+        .set_read_timeout(Some(Duration::from_millis(200)))
+        .unwrap();
+    let mut d = Daemon::start_with(
+        &env,
+        &[
+            ("NOTIFY_SOCKET", socket_path.to_str().unwrap()),
+            ("WATCHDOG_USEC", "1000000"),
+        ],
+    );
+    let mut got: Vec<String> = Vec::new();
+    let mut receive = |until: &dyn Fn(&[String]) -> bool, secs: u64| -> bool {
+        let end = Instant::now() + Duration::from_secs(secs);
+        let mut buf = [0u8; 1024];
+        while Instant::now() < end {
+            if let Ok(n) = socket.recv(&mut buf) {
+                got.push(String::from_utf8_lossy(&buf[..n]).into_owned());
+            }
+            if until(&got) {
+                return true;
+            }
+        }
+        false
+    };
+    let refs = d.references();
+    let idle = format!("STATUS=idle, {refs} references, 0 scans today");
+    assert!(
+        receive(
+            &|g| {
+                g.iter().any(|m| m == "READY=1")
+                    && g.contains(&idle)
+                    && g.iter().filter(|m| *m == "WATCHDOG=1").count() >= 3
+            },
+            20
+        ),
+        "{got:?}"
+    );
+    std::fs::write(env.export.join("n.ply"), scan_bytes(0, 921)).unwrap();
+    let done = format!("STATUS=idle, {refs} references, 1 scans today");
+    assert!(
+        receive(&|g| g.contains(&done), 60),
+        "{got:?}\n{}",
+        d.log_text()
+    );
+    d.signal(libc::SIGTERM);
+    assert!(d.wait_exit(Duration::from_secs(10)).is_some());
+    assert!(
+        receive(&|g| g.iter().any(|m| m == "STOPPING=1"), 2),
+        "{got:?}"
+    );
+}
