@@ -67,3 +67,37 @@ fn the_daemon_writes_the_carried_landmarks_next_to_the_json() {
     assert_eq!(lm.points.len(), 10);
     assert_eq!(lm.reference, names[5]);
 }
+
+/// `check-config` on `[results] dir`: an empty path and a path that is a
+/// file are errors naming the key; a folder (existing or not) is fine.
+#[test]
+fn check_config_validates_the_results_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("m.toml");
+    let file = dir.path().join("a-file");
+    std::fs::write(&file, "x").unwrap();
+    let check = |results: &str| {
+        std::fs::write(&config, format!("[results]\ndir = {results:?}\n")).unwrap();
+        let out = std::process::Command::new(BIN)
+            .args(["check-config", "--config"])
+            .arg(&config)
+            .output()
+            .unwrap();
+        let text = format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        (out.status.success(), text)
+    };
+    let (ok, text) = check("");
+    assert!(!ok && text.contains("results.dir"), "{text}");
+    let (ok, text) = check(&file.display().to_string());
+    assert!(
+        !ok && text.contains("results.dir") && text.contains("not a folder"),
+        "{text}"
+    );
+    let target = dir.path().join("results");
+    let (ok, text) = check(&target.display().to_string());
+    assert!(ok && text.contains("result files in"), "{text}");
+}
