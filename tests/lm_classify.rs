@@ -234,6 +234,22 @@ fn classify_carries_the_nearest_references_landmarks() {
     assert!(lines[1].get("landmarks").is_none(), "{}", lines[1]);
     assert!(out_dir.join("scan_b.json").is_file());
     assert!(!out_dir.join("scan_b.fcsv").exists());
+
+    // `library build` names each unusable landmark file and fails.
+    let o = morphoid(&["library", "build", "--config"], &[&s.config]);
+    assert!(!o.status.success());
+    let err = stderr(&o);
+    for name in [&third.name, &fourth.name] {
+        assert!(
+            err.contains(&format!("landmarks of reference {name}")),
+            "{err}"
+        );
+    }
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("7 references with landmarks (10 each), 2 landmark files not usable"),
+        "{out}"
+    );
 }
 
 /// The 10-specimen library's cP and landmark Procrustes matrices, and the
