@@ -1,15 +1,21 @@
 //! Identification of scans against a prepared reference library: the path
 //! every scan takes, whether it comes from `morphoid classify`, the demo or
-//! the daemon. [`Classifier`] holds the prepared references (loaded once);
-//! [`run_job`] identifies one queued scan and records the outcome in the
-//! store in one transaction.
+//! the daemon. [`Classifier`] holds the prepared references and their
+//! landmarks (loaded once); [`run_job`] identifies one queued scan, carries
+//! the nearest reference's landmarks onto it, records the outcome in the
+//! store in one transaction and, with a results folder, writes the result
+//! files ([`write_results`]).
 
 use crate::cp;
 use crate::eval::Labels;
+use crate::landmarks::{self, Landmarks, PropagateError, Surface};
 use crate::library::{self, BuildOutcome, Cache, CacheError, CachedReference, Library};
 use crate::mesh::io::{self, Format, LoadError};
-use crate::pipeline::{self, PipelineError, Settings};
-use crate::store::{self, DistanceRow, Job, ScanOutcome, ScanStatus, Store, StoreError};
+use crate::pipeline::{self, PipelineError, PreparedSurface, Settings};
+use crate::store::{
+    self, DistanceRow, Job, LandmarkPoint, ScanLandmarks, ScanOutcome, ScanRecord, ScanStatus,
+    Store, StoreError,
+};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -27,6 +33,33 @@ pub struct Classifier {
     pub labels: Labels,
     /// Preparation and engine settings (the same for scans and references).
     pub settings: Settings,
+    /// Landmarks of the references that have them, by reference name, in
+    /// each reference file's coordinates.
+    pub landmarks: BTreeMap<String, Landmarks>,
+    /// Where [`run_job`] writes `<stem>.json` and `<stem>.fcsv` for each
+    /// scan (`None`: no result files).
+    pub results_dir: Option<PathBuf>,
+}
+
+/// Why the result files of a scan could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ResultsError {
+    /// A file or the folder could not be written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The record could not be turned into JSON.
+    #[error("cannot encode the result of {scan} as JSON: {source}")]
+    Json {
+        /// The scan.
+        scan: String,
+        /// serde_json's error.
+        source: serde_json::Error,
+    },
 }
 
 /// Why a scan could not be identified; the message names the file.
@@ -62,8 +95,17 @@ impl Classifier {
             references: outcome.references.clone(),
             labels: library.labels.clone(),
             settings: settings.clone(),
+            landmarks: outcome.landmarks.by_name.clone(),
+            results_dir: None,
         };
         Ok((classifier, outcome))
+    }
+
+    /// The same classifier writing result files into `dir` (`None`: none);
+    /// see [`write_results`].
+    pub fn with_results_dir(mut self, dir: Option<PathBuf>) -> Self {
+        self.results_dir = dir;
+        self
     }
 
     /// Record the references in the store (names, content, labels, state),
@@ -88,6 +130,9 @@ impl Classifier {
         store.remove_references_except(&names)?;
         for (name, why) in &outcome.failures {
             tracing::warn!(reference = %name, "reference left out: {why}");
+        }
+        for (name, why) in &outcome.landmarks.problems {
+            tracing::warn!(reference = %name, "landmarks left out: {why}");
         }
         Ok(())
     }
@@ -151,25 +196,92 @@ impl Classifier {
         };
         let compare_ms = t.elapsed().as_secs_f64() * 1e3;
         let id = library::identify(&distances, &self.labels, NEAREST);
-        let timings_ms = BTreeMap::from([
+        let mut timings_ms = BTreeMap::from([
             ("load".to_string(), load_ms),
             ("clean".to_string(), surface.timings.clean),
             ("prepare".to_string(), surface.timings.prepare),
             ("compare".to_string(), compare_ms),
         ]);
+        let t = Instant::now();
+        let landmarks = self.nearest_landmarks(&distances, &surface);
+        if landmarks.is_some() {
+            timings_ms.insert("landmarks".into(), t.elapsed().as_secs_f64() * 1e3);
+        }
         Ok(ScanOutcome {
             ranks: id.ranks,
             distances,
             cleaning: serde_json::to_value(&surface.cleaning).unwrap_or_default(),
             timings_ms,
+            landmarks,
         })
+    }
+
+    /// The landmarks of the nearest reference (smallest distance, ties by
+    /// name) carried onto the scan, when that reference has landmarks.
+    /// A failure is logged and leaves the result without landmarks: the
+    /// identification stands on its own.
+    fn nearest_landmarks(
+        &self,
+        distances: &[DistanceRow],
+        scan: &PreparedSurface,
+    ) -> Option<ScanLandmarks> {
+        let nearest = distances.iter().min_by(|a, b| {
+            a.distance
+                .total_cmp(&b.distance)
+                .then_with(|| a.reference.cmp(&b.reference))
+        })?;
+        let lm = self.landmarks.get(&nearest.reference)?;
+        let reference = self
+            .references
+            .iter()
+            .find(|r| r.name == nearest.reference)?;
+        match self.carry(reference, lm, scan) {
+            Ok(points) => Some(ScanLandmarks {
+                reference: reference.name.clone(),
+                points,
+            }),
+            Err(e) => {
+                tracing::warn!(reference = %reference.name, "landmarks not carried over: {e}");
+                None
+            }
+        }
+    }
+
+    /// Carry `lm` (on `reference`, in its file's coordinates) onto the
+    /// scan through the cP correspondence reference → scan; the points lie
+    /// on the cleaned scan surface, in the scan file's coordinates.
+    fn carry(
+        &self,
+        reference: &CachedReference,
+        lm: &Landmarks,
+        scan: &PreparedSurface,
+    ) -> Result<Vec<LandmarkPoint>, PropagateError> {
+        let map = cp::compare_directed(&reference.prepared, &scan.prepared, &self.settings.cp);
+        let source = Surface::from_normalized(&reference.prepared)?;
+        let target = Surface::from_prepared(scan)?;
+        let out = landmarks::propagate(lm, &source, &target, &map.correspondence)?;
+        Ok(out
+            .landmarks
+            .points
+            .iter()
+            .enumerate()
+            .map(|(i, p)| LandmarkPoint {
+                label: out.landmarks.label(i).map(str::to_string),
+                x: p[0],
+                y: p[1],
+                z: p[2],
+            })
+            .collect())
     }
 }
 
 /// Identify a claimed job and record the outcome: `ok` with the whole
-/// result, or `error` with the message. Returns the final status; only a
-/// database failure is an error (the job then stays `running` and is
-/// requeued at the next start).
+/// result (landmarks included), or `error` with the message. Returns the
+/// final status; only a database failure is an error (the job then stays
+/// `running` and is requeued at the next start). With a results folder
+/// ([`Classifier::with_results_dir`]), the recorded result is then written
+/// there; a failure to write it is logged and does not change the status
+/// (the database holds the result).
 pub fn run_job(
     store: &mut Store,
     classifier: &Classifier,
@@ -177,17 +289,105 @@ pub fn run_job(
 ) -> Result<ScanStatus, StoreError> {
     let path = Path::new(&job.path);
     let started = Instant::now();
-    match classifier.classify_file(path) {
+    let status = match classifier.classify_file(path) {
         Ok(mut outcome) => {
             outcome
                 .timings_ms
                 .insert("total".into(), started.elapsed().as_secs_f64() * 1e3);
             store.complete(job.scan_id, &outcome)?;
-            Ok(ScanStatus::Ok)
+            ScanStatus::Ok
         }
         Err(e) => {
             store.fail(job.scan_id, &e.to_string())?;
-            Ok(ScanStatus::Error)
+            ScanStatus::Error
+        }
+    };
+    if let Some(dir) = &classifier.results_dir {
+        match store.scan(job.scan_id, NEAREST) {
+            Ok(Some(record)) => {
+                if let Err(e) = write_results(dir, &record) {
+                    tracing::error!(scan = %job.path, "result files not written: {e}");
+                }
+            }
+            Ok(None) => tracing::error!(scan = %job.path, "the scan vanished from the database"),
+            Err(e) => tracing::error!(scan = %job.path, "result files not written: {e}"),
         }
     }
+    Ok(status)
+}
+
+/// The file stem result files of `record` are named after.
+fn result_stem(record: &ScanRecord) -> String {
+    Path::new(&record.path)
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .filter(|s| !s.is_empty())
+        .unwrap_or_else(|| format!("scan-{}", record.id))
+}
+
+/// Write the result files of a recorded scan into `dir` (created if
+/// needed): `<stem>.json`, the `classify --json` line, and, when landmarks
+/// were carried onto the scan, `<stem>.fcsv` (3D Slicer markups, in the
+/// scan file's coordinates); a stale `<stem>.fcsv` of an earlier result
+/// without landmarks is removed. Each file is written to a temporary name,
+/// synced and renamed, so a reader never sees half a file. Returns the
+/// files written.
+pub fn write_results(dir: &Path, record: &ScanRecord) -> Result<Vec<PathBuf>, ResultsError> {
+    let io_err = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| ResultsError::Io { path, source }
+    };
+    std::fs::create_dir_all(dir).map_err(io_err(dir))?;
+    let stem = result_stem(record);
+    let mut json = serde_json::to_string(record).map_err(|source| ResultsError::Json {
+        scan: record.path.clone(),
+        source,
+    })?;
+    json.push('\n');
+    let json_path = dir.join(format!("{stem}.json"));
+    write_atomic(&json_path, json.as_bytes()).map_err(io_err(&json_path))?;
+    let mut written = vec![json_path];
+    let fcsv_path = dir.join(format!("{stem}.fcsv"));
+    match &record.landmarks {
+        Some(lm) if !lm.points.is_empty() => {
+            let mut points = Landmarks::default();
+            for p in &lm.points {
+                points.push([p.x, p.y, p.z], p.label.clone());
+            }
+            let text = landmarks::format(&points, landmarks::Format::Fcsv);
+            write_atomic(&fcsv_path, text.as_bytes()).map_err(io_err(&fcsv_path))?;
+            written.push(fcsv_path);
+        }
+        _ => match std::fs::remove_file(&fcsv_path) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                return Err(ResultsError::Io {
+                    path: fcsv_path,
+                    source: e,
+                })
+            }
+            _ => {}
+        },
+    }
+    Ok(written)
+}
+
+/// Write `bytes` to `path` through a temporary file in the same folder,
+/// synced before the rename.
+fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write as _;
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = path.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
 }

@@ -22,6 +22,18 @@ pub struct Config {
     pub clean: crate::clean::CleanOptions,
     /// cP engine parameters.
     pub cp: crate::cp::CpParams,
+    /// Optional result files (absent: the database only).
+    pub results: Results,
+}
+
+/// `[results]`: a folder that receives `<stem>.json` (the `classify --json`
+/// line) and, when landmarks were carried onto the scan, `<stem>.fcsv` for
+/// each identified scan.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Results {
+    /// The folder (created when missing; absent: no result files).
+    pub dir: Option<PathBuf>,
 }
 
 /// `[watch]`: the export folder.
@@ -169,6 +181,14 @@ impl Config {
                 self.clean.target_vertices
             ));
         }
+        if self
+            .results
+            .dir
+            .as_ref()
+            .is_some_and(|d| d.as_os_str().is_empty())
+        {
+            return Err("results.dir is empty (leave it out for no result files)".into());
+        }
         if let Some(s) = &self.serial {
             if s.port.is_empty() {
                 return Err("serial.port is empty".into());
@@ -225,6 +245,16 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("port"), "{e}");
+        let e = Config::parse("[results]\ndir = \"\"\n", p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("results.dir"), "{e}");
+        let e = Config::parse("[results]\nfolder = \"r\"\n", p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("folder"), "{e}");
+        let c = Config::parse("[results]\ndir = \"out\"\n", p).unwrap();
+        assert_eq!(c.results.dir, Some(PathBuf::from("out")));
         assert_eq!(Config::parse("", p).unwrap(), Config::default());
     }
 }

@@ -57,6 +57,8 @@ fn held_out_teeth_are_identified_to_genus() {
         references,
         labels: labels.clone(),
         settings: settings.clone(),
+        landmarks: Default::default(),
+        results_dir: None,
     };
 
     let tmp = tempfile::tempdir().unwrap();

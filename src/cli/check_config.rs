@@ -17,13 +17,19 @@ pub struct Args {
     print: bool,
 }
 
-/// Check what the types cannot: the trigger regex and the baud rate.
+/// Check what the types cannot: the trigger regex, the baud rate, the
+/// results folder.
 fn check_runtime(config: &Config) -> Result<()> {
     if let Some(s) = &config.serial {
         regex::Regex::new(&s.trigger)
             .with_context(|| format!("serial.trigger {:?} is not a valid regex", s.trigger))?;
         if morphoid::daemon::serial::speed_constant(s.baud).is_none() {
             bail!("serial.baud {} is not a standard baud rate", s.baud);
+        }
+    }
+    if let Some(dir) = &config.results.dir {
+        if dir.exists() && !dir.is_dir() {
+            bail!("results.dir {} exists and is not a folder", dir.display());
         }
     }
     for p in &config.watch.ignore {
@@ -61,6 +67,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
         config.library.ranks,
         config.database.path.display()
     );
+    match &config.results.dir {
+        Some(dir) => println!("result files in {}", dir.display()),
+        None => println!("no result files (database only)"),
+    }
     match &config.serial {
         Some(s) => println!(
             "serial {} at {} baud, trigger {:?}",

@@ -19,6 +19,12 @@ pub struct Args {
     /// Print one JSON object per scan on stdout.
     #[arg(long)]
     json: bool,
+    /// Write `<stem>.json` (the JSON line) for each scan into DIR and, when
+    /// the nearest reference has landmarks, `<stem>.fcsv` (the landmarks
+    /// carried onto the scan). Default: `[results] dir` of the
+    /// configuration, if any.
+    #[arg(long, value_name = "DIR")]
+    out_dir: Option<PathBuf>,
 }
 
 /// Run `morphoid classify`.
@@ -35,6 +41,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         .register(&mut store, &built)
         .with_context(|| format!("recording the references in {}", db.display()))?;
 
+    let out_dir = args.out_dir.clone().or_else(|| config.results.dir.clone());
     let mut all_ok = true;
     for scan in &args.scans {
         let record = identify_one(&mut store, &classifier, scan);
@@ -63,6 +70,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
             println!("{}", serde_json::to_string(&record)?);
         } else {
             println!("{}", summary(&record));
+        }
+        if let Some(dir) = &out_dir {
+            if let Err(e) = classify::write_results(dir, &record) {
+                all_ok = false;
+                eprintln!("morphoid: error: {}: result files: {e}", scan.display());
+            }
         }
     }
     Ok(if all_ok {
@@ -101,7 +114,8 @@ fn identify_one(store: &mut Store, classifier: &Classifier, scan: &PathBuf) -> R
         .with_context(|| format!("{}: the scan vanished from the database", scan.display()))
 }
 
-/// One line per scan for people: the taxon at each rank.
+/// One line per scan for people: the taxon at each rank (and how many
+/// landmarks were carried onto the scan).
 pub fn summary(r: &ScanRecord) -> String {
     match r.status {
         ScanStatus::Ok => {
@@ -119,7 +133,11 @@ pub fn summary(r: &ScanRecord) -> String {
                     )
                 })
                 .collect();
-            format!("{}: {}", r.path, ranks.join(", "))
+            let landmarks = match &r.landmarks {
+                Some(lm) => format!("; {} landmarks from {}", lm.points.len(), lm.reference),
+                None => String::new(),
+            };
+            format!("{}: {}{landmarks}", r.path, ranks.join(", "))
         }
         ScanStatus::Error => format!(
             "{}: error: {}",

@@ -42,6 +42,11 @@ fn build(args: &ConfigArgs) -> Result<ExitCode> {
     for (name, why) in &out.failures {
         eprintln!("morphoid: error: reference {name}: {why}");
     }
+    // A reference whose landmark file cannot be used still identifies
+    // scans, without landmarks; the file needs fixing all the same.
+    for (name, why) in &out.landmarks.problems {
+        eprintln!("morphoid: error: landmarks of reference {name}: {why}");
+    }
     println!(
         "{}: {} references ({} prepared, {} from the cache, {} failed; {} stale cache entries removed) in {:.1} s; cache {}",
         lib.dir.display(),
@@ -53,11 +58,20 @@ fn build(args: &ConfigArgs) -> Result<ExitCode> {
         started.elapsed().as_secs_f64(),
         cache.dir().display()
     );
-    Ok(if out.failures.is_empty() {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::FAILURE
-    })
+    if let Some(count) = out.landmarks.count {
+        println!(
+            "{} references with landmarks ({count} each), {} landmark files not usable",
+            out.landmarks.by_name.len(),
+            out.landmarks.problems.len()
+        );
+    }
+    Ok(
+        if out.failures.is_empty() && out.landmarks.problems.is_empty() {
+            ExitCode::SUCCESS
+        } else {
+            ExitCode::FAILURE
+        },
+    )
 }
 
 fn list(args: &ConfigArgs) -> Result<ExitCode> {

@@ -1,11 +1,15 @@
 //! `morphoid matrix`: the all-pairs cP distance matrix of a folder, whole
-//! or in shards for cluster job arrays (`--shard K/N`, then `matrix merge`).
+//! or in shards for cluster job arrays (`--shard K/N`, then `matrix merge`);
+//! with `--method landmarks`, the discrete Procrustes distance matrix of
+//! the folder's landmark files (the paper's ODLP).
 
 use super::common::progress_bar;
+use super::method::Method;
 use anyhow::{bail, Context, Result};
 use morphoid::cp::Prepared;
 use morphoid::eval;
 use morphoid::eval::shard::{self, Shard, ShardFile};
+use morphoid::landmarks;
 use morphoid::library::{self, Cache};
 use morphoid::pipeline::{self, Settings};
 use morphoid::store::content_hash;
@@ -40,6 +44,15 @@ pub struct Args {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    /// The distance: `cp` (the surfaces) or `landmarks` (the discrete
+    /// Procrustes distance of `landmarks/<name>.{csv,fcsv,mrk.json,pp}`,
+    /// every specimen with the same number of landmarks).
+    #[arg(long, value_enum, default_value_t = Method::Cp)]
+    method: Method,
+    /// With `--method landmarks`: allow reflections in the optimal
+    /// superimposition (default: rotations only).
+    #[arg(long)]
+    allow_reflection: bool,
     #[command(subcommand)]
     command: Option<MatrixCommand>,
 }
@@ -72,6 +85,15 @@ pub fn run(args: Args) -> Result<ExitCode> {
         bail!("`morphoid matrix` needs --library and --out (or the `merge` subcommand)");
     };
     super::configure_threads(args.threads)?;
+    match args.method {
+        Method::Cp => {}
+        Method::Landmarks => {
+            if args.shard.is_some() || args.cache.is_some() {
+                bail!("--shard and --cache apply to --method cp only");
+            }
+            return run_landmarks(&library, &out, args.allow_reflection);
+        }
+    }
     let cache = match &args.cache {
         Some(dir) if !dir.is_dir() => bail!("{}: no such cache folder", dir.display()),
         Some(dir) => Some(Cache::open(dir)?),
@@ -203,6 +225,60 @@ fn merge(args: MergeArgs) -> Result<ExitCode> {
         shards.len(),
         matrix.names.len(),
         args.out.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The landmark Procrustes matrix over the specimens of the folder (the
+/// surface files' names, so that it lines up with the cP matrix).
+fn run_landmarks(library: &Path, out: &Path, allow_reflection: bool) -> Result<ExitCode> {
+    let names: Vec<String> = surface_files(library)?
+        .iter()
+        .map(|f| {
+            f.file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        })
+        .collect();
+    let loaded = landmarks::load_library(library, &names);
+    if let Some((name, why)) = loaded.problems.first() {
+        bail!("landmarks of `{name}`: {why}");
+    }
+    let missing: Vec<&str> = names
+        .iter()
+        .filter(|n| !loaded.by_name.contains_key(*n))
+        .map(String::as_str)
+        .collect();
+    if !missing.is_empty() {
+        bail!(
+            "{}: no landmark file (landmarks/<name>.csv, .fcsv, .mrk.json or .pp) for {}",
+            library.display(),
+            missing.join(", ")
+        );
+    }
+    let sets: Vec<&[[f64; 3]]> = names
+        .iter()
+        .filter_map(|n| loaded.by_name.get(n).map(|l| l.points.as_slice()))
+        .collect();
+    let n = sets.len();
+    let mut values = vec![vec![0.0; n]; n];
+    for i in 0..n {
+        for j in i + 1..n {
+            let d = landmarks::procrustes_distance(sets[i], sets[j], allow_reflection)
+                .with_context(|| format!("landmarks of `{}` and `{}`", names[i], names[j]))?;
+            values[i][j] = d;
+            values[j][i] = d;
+        }
+    }
+    let matrix = eval::DistanceMatrix { names, values };
+    matrix
+        .write_csv(out)
+        .with_context(|| format!("writing {}", out.display()))?;
+    eprintln!(
+        "{n} specimens, {} landmarks each, {} pairs: wrote {}",
+        loaded.count.unwrap_or(0),
+        n * n.saturating_sub(1) / 2,
+        out.display()
     );
     Ok(ExitCode::SUCCESS)
 }

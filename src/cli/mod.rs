@@ -11,6 +11,7 @@ mod evaluate;
 mod inspect;
 mod library;
 mod matrix;
+mod method;
 mod propagate;
 mod results;
 mod run;

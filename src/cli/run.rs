@@ -31,7 +31,9 @@ impl Loader for Args {
     fn library(&self, config: &Config) -> Result<(Classifier, BuildOutcome), String> {
         let lib = open_library(config).map_err(|e| format!("{e:#}"))?;
         let cache = open_cache(config).map_err(|e| format!("{e:#}"))?;
-        Classifier::build(&lib, &cache, &config.settings(), |_| {}).map_err(|e| e.to_string())
+        Classifier::build(&lib, &cache, &config.settings(), |_| {})
+            .map(|(c, o)| (c.with_results_dir(config.results.dir.clone()), o))
+            .map_err(|e| e.to_string())
     }
 }
 

@@ -18,11 +18,13 @@
 
 mod meshlab;
 pub mod mst;
+pub mod procrustes;
 pub mod propagate;
 mod slicer;
 mod table;
 
 pub use mst::{minimum_spanning_tree, tree_path};
+pub use procrustes::{procrustes_distance, ProcrustesError};
 pub use propagate::{
     barycentric_coordinates, propagate, propagate_along, surface_point, PropagateError, Propagated,
     Surface, SurfacePoint,
@@ -214,6 +216,84 @@ pub fn write(path: &Path, landmarks: &Landmarks) -> Result<(), LandmarkError> {
     })
 }
 
+/// The extensions a library's landmark file may have, in the order they
+/// are looked for: `landmarks/<name>.{csv,fcsv,mrk.json,pp}`.
+pub const LIBRARY_EXTENSIONS: [&str; 4] = ["csv", "fcsv", "mrk.json", "pp"];
+
+/// The landmark files of specimen `name` in the library folder `dir`
+/// (`dir/landmarks/<name>.<ext>` for each of [`LIBRARY_EXTENSIONS`] that
+/// exists). More than one is ambiguous; the caller reports it.
+pub fn library_files(dir: &Path, name: &str) -> Vec<PathBuf> {
+    let folder = dir.join("landmarks");
+    LIBRARY_EXTENSIONS
+        .iter()
+        .map(|ext| folder.join(format!("{name}.{ext}")))
+        .filter(|p| p.is_file())
+        .collect()
+}
+
+/// The landmarks of a library's specimens, and why some could not be used.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LibraryLandmarks {
+    /// Usable landmarks, by specimen name.
+    pub by_name: std::collections::BTreeMap<String, Landmarks>,
+    /// Specimens whose landmark file could not be used: name and a
+    /// one-line reason naming the file(s).
+    pub problems: Vec<(String, String)>,
+    /// The number of landmarks per specimen (the most common count among
+    /// the readable files; on a tie, the larger).
+    pub count: Option<usize>,
+}
+
+/// Read the landmark files of the specimens `names` of the library folder
+/// `dir`. Each specimen is handled on its own: two files for one name, an
+/// unreadable file or one with another number of landmarks than the
+/// library's count is reported in `problems` and the others are kept.
+pub fn load_library(dir: &Path, names: &[String]) -> LibraryLandmarks {
+    let mut out = LibraryLandmarks::default();
+    let mut read_ok: Vec<(String, PathBuf, Landmarks)> = Vec::new();
+    for name in names {
+        let files = library_files(dir, name);
+        match files.as_slice() {
+            [] => {}
+            [path] => match read(path, None) {
+                Ok(lm) => read_ok.push((name.clone(), path.clone(), lm)),
+                Err(e) => out.problems.push((name.clone(), e.to_string())),
+            },
+            several => {
+                let list: Vec<String> = several.iter().map(|p| p.display().to_string()).collect();
+                out.problems.push((
+                    name.clone(),
+                    format!(
+                        "{}: more than one landmark file for `{name}`; keep one",
+                        list.join(" and ")
+                    ),
+                ));
+            }
+        }
+    }
+    let mut tally: std::collections::BTreeMap<usize, usize> = Default::default();
+    for (_, _, lm) in &read_ok {
+        *tally.entry(lm.len()).or_default() += 1;
+    }
+    out.count = tally
+        .iter()
+        .max_by_key(|&(&count, &n)| (n, count))
+        .map(|(&count, _)| count);
+    for (name, path, lm) in read_ok {
+        match check_count(&lm, out.count, &path) {
+            Ok(()) => {
+                out.by_name.insert(name, lm);
+            }
+            Err(e) => out
+                .problems
+                .push((name, format!("{e} (the library's other landmark files)"))),
+        }
+    }
+    out.problems.sort();
+    out
+}
+
 /// Parse one coordinate; non-finite values are rejected.
 fn parse_coordinate(field: &str) -> Result<f64, String> {
     let t = field.trim();
@@ -305,6 +385,36 @@ mod tests {
             read(&dir.path().join("missing.csv"), None),
             Err(LandmarkError::Io { .. })
         ));
+    }
+
+    #[test]
+    fn library_files_any_format_with_problems_per_specimen() {
+        let dir = tempfile::tempdir().unwrap();
+        let lm_dir = dir.path().join("landmarks");
+        std::fs::create_dir(&lm_dir).unwrap();
+        write(&lm_dir.join("a.fcsv"), &sample()).unwrap();
+        write(&lm_dir.join("b.mrk.json"), &sample()).unwrap();
+        write(&lm_dir.join("c.pp"), &sample()).unwrap();
+        write(&lm_dir.join("c.csv"), &sample()).unwrap();
+        std::fs::write(lm_dir.join("d.csv"), "1,2,3\nnot,a,number\n").unwrap();
+        let mut short = sample();
+        short.points.pop();
+        short.labels.pop();
+        write(&lm_dir.join("e.pp"), &short).unwrap();
+        let names: Vec<String> = ["a", "b", "c", "d", "e", "f"].map(String::from).to_vec();
+        let got = load_library(dir.path(), &names);
+        assert_eq!(got.count, Some(3));
+        assert_eq!(got.by_name.keys().collect::<Vec<_>>(), ["a", "b"]);
+        assert_eq!(got.by_name["b"], sample());
+        let problems: Vec<&str> = got.problems.iter().map(|(n, _)| n.as_str()).collect();
+        assert_eq!(problems, ["c", "d", "e"]);
+        assert!(got.problems[0].1.contains("more than one landmark file"));
+        assert!(
+            got.problems[1].1.contains("d.csv:2"),
+            "{}",
+            got.problems[1].1
+        );
+        assert!(got.problems[2].1.contains("2 landmarks, expected 3"));
     }
 
     #[test]

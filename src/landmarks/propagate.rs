@@ -11,6 +11,7 @@
 
 use super::Landmarks;
 use crate::clean::closest::TriangleGrid;
+use crate::cp::Prepared;
 use crate::mesh::{dot, norm, sub, Mesh};
 use crate::pipeline::PreparedSurface;
 
@@ -86,6 +87,19 @@ impl Surface {
             ps.cleaned.vertices.clone(),
             ps.prepared.faces.clone(),
         ))
+    }
+
+    /// The surface of a prepared form alone (e.g. a cached reference, whose
+    /// cleaned mesh is not kept), in the file's units: the normalized
+    /// vertices scaled and translated back (`v · scale + centroid`), with
+    /// the prepared triangles.
+    pub fn from_normalized(p: &Prepared) -> Result<Self, PropagateError> {
+        let vertices = p
+            .vertices
+            .iter()
+            .map(|v| [0, 1, 2].map(|d| v[d] * p.scale + p.centroid[d]))
+            .collect();
+        Self::new(Mesh::new(vertices, p.faces.clone()))
     }
 
     /// The mesh.

@@ -1,5 +1,7 @@
 //! A reference library: a folder with `labels.csv` and one surface per
-//! specimen (`<name>.{ply,obj,stl,off}`), optionally `landmarks/<name>.csv`.
+//! specimen (`<name>.{ply,obj,stl,off}`), optionally landmarks in
+//! `landmarks/<name>.{csv,fcsv,mrk.json,pp}` (one file per specimen, any
+//! supported format; see [`crate::landmarks::load_library`]).
 //!
 //! [`Library::open`] checks that labels and surfaces match one to one;
 //! [`identify`] turns the distances of a scan to the references into the
@@ -12,6 +14,7 @@ pub use cache::{Cache, CacheError, CachedReference};
 pub use identify::{identify, Identification};
 
 use crate::eval::{Labels, LabelsError};
+use crate::landmarks::LibraryLandmarks;
 use crate::mesh::io::{self, Format};
 use crate::pipeline::{self, Settings};
 use crate::store::content_hash;
@@ -78,7 +81,8 @@ pub struct Member {
     pub name: String,
     /// The surface file.
     pub path: PathBuf,
-    /// Landmark file, when `landmarks/<name>.csv` exists.
+    /// Landmark file, when `landmarks/<name>.{csv,fcsv,mrk.json,pp}`
+    /// exists (the first found; [`build`] reports a name with several).
     pub landmarks: Option<PathBuf>,
 }
 
@@ -130,13 +134,12 @@ impl Library {
         }
         let members = by_name
             .into_iter()
-            .map(|(name, path)| {
-                let lm = dir.join("landmarks").join(format!("{name}.csv"));
-                Member {
-                    landmarks: lm.is_file().then_some(lm),
-                    name,
-                    path,
-                }
+            .map(|(name, path)| Member {
+                landmarks: crate::landmarks::library_files(dir, &name)
+                    .into_iter()
+                    .next(),
+                name,
+                path,
             })
             .collect();
         Ok(Library {
@@ -160,6 +163,9 @@ pub struct BuildOutcome {
     pub reused: usize,
     /// Cache entries deleted (removed or changed references, old settings).
     pub removed: usize,
+    /// The references' landmarks (read at every build, not cached) and
+    /// the landmark files that could not be used, per reference.
+    pub landmarks: LibraryLandmarks,
 }
 
 /// Whether a reference came from the cache.
@@ -172,6 +178,8 @@ enum Source {
 /// and the settings are unchanged, and drop cache entries no reference
 /// uses any more. `progress` is called once per reference. A reference that
 /// cannot be prepared is reported in `failures`; the others still build.
+/// The landmark files are read too; one that cannot be used leaves its
+/// reference without landmarks and is reported in `landmarks.problems`.
 pub fn build(
     library: &Library,
     cache: &Cache,
@@ -206,6 +214,8 @@ pub fn build(
         }
     }
     out.removed = cache.retain(&keep)?;
+    let names: Vec<String> = library.members.iter().map(|m| m.name.clone()).collect();
+    out.landmarks = crate::landmarks::load_library(&library.dir, &names);
     Ok(out)
 }
 

@@ -65,8 +65,8 @@ mod types;
 pub use hash::{content_hash, content_hash_file, content_hash_reader};
 pub use schema::SCHEMA_VERSION;
 pub use types::{
-    DistanceRow, Enqueued, Job, Labels, Nearest, RankResult, ReferenceRecord, ReferenceState,
-    ScanOutcome, ScanRecord, ScanStatus, StatusCounts,
+    DistanceRow, Enqueued, Job, Labels, LandmarkPoint, Nearest, RankResult, ReferenceRecord,
+    ReferenceState, ScanLandmarks, ScanOutcome, ScanRecord, ScanStatus, StatusCounts,
 };
 
 use rusqlite::{params, Connection, OptionalExtension, Row, TransactionBehavior};
@@ -471,7 +471,8 @@ impl Store {
     }
 
     /// Record the identification of a running scan: status `ok`, timings,
-    /// cleaning report, the per-rank results and every distance, all in ONE
+    /// cleaning report, the per-rank results, every distance and the
+    /// carried landmarks, all in ONE
     /// transaction. If anything fails (an unknown reference, a bad number,
     /// the process dies) nothing of it is recorded and the scan stays
     /// running.
@@ -527,6 +528,19 @@ impl Store {
                     d.distance,
                     d.reflected
                 ])?;
+            }
+            if let Some(lm) = &outcome.landmarks {
+                let ref_id = lookup(&lm.reference)?;
+                let mut insert_landmark = tx.prepare_cached(
+                    "INSERT INTO landmark (scan_id, idx, label, x, y, z, reference_id)
+                     VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+                )?;
+                for (idx, p) in lm.points.iter().enumerate() {
+                    let idx =
+                        i64::try_from(idx).map_err(|_| StoreError::OutOfRange("landmark.idx"))?;
+                    insert_landmark
+                        .execute(params![scan_id, idx, p.label, p.x, p.y, p.z, ref_id])?;
+                }
             }
         }
         tx.execute(
@@ -589,13 +603,14 @@ impl Store {
             "UPDATE scan SET status = 'pending', started_at = NULL
              WHERE status = 'running'
                AND NOT EXISTS (SELECT 1 FROM result WHERE result.scan_id = scan.id)
-               AND NOT EXISTS (SELECT 1 FROM distance WHERE distance.scan_id = scan.id)",
+               AND NOT EXISTS (SELECT 1 FROM distance WHERE distance.scan_id = scan.id)
+               AND NOT EXISTS (SELECT 1 FROM landmark WHERE landmark.scan_id = scan.id)",
             [],
         )?)
     }
 
     /// Identify a finished scan again (after a library change, or an error
-    /// that has been fixed): drop its result and distances and make it
+    /// that has been fixed): drop its result, distances and landmarks and make it
     /// pending, in one transaction.
     pub fn retry(&mut self, scan_id: i64) -> Result<(), StoreError> {
         let tx = self
@@ -612,6 +627,7 @@ impl Store {
         }
         tx.execute("DELETE FROM result WHERE scan_id = ?1", [scan_id])?;
         tx.execute("DELETE FROM distance WHERE scan_id = ?1", [scan_id])?;
+        tx.execute("DELETE FROM landmark WHERE scan_id = ?1", [scan_id])?;
         tx.execute(
             "UPDATE scan SET status = 'pending', error = NULL, started_at = NULL,
                     finished_at = NULL, timings = NULL, cleaning = NULL
@@ -817,6 +833,7 @@ fn finish_scan_row(row: ScanRow) -> Result<ScanRecord, StoreError> {
         },
         ranks: Vec::new(),
         nearest: Vec::new(),
+        landmarks: None,
     })
 }
 
@@ -856,6 +873,34 @@ fn load_result(
         })
     })?;
     record.nearest = rows.collect::<Result<_, _>>()?;
+    let mut landmarks = conn.prepare_cached(
+        "SELECT reference.name, landmark.label, landmark.x, landmark.y, landmark.z
+         FROM landmark JOIN reference ON reference.id = landmark.reference_id
+         WHERE landmark.scan_id = ?1 ORDER BY landmark.idx",
+    )?;
+    let rows = landmarks.query_map([record.id], |r| {
+        Ok((
+            r.get::<_, String>(0)?,
+            LandmarkPoint {
+                label: r.get(1)?,
+                x: r.get(2)?,
+                y: r.get(3)?,
+                z: r.get(4)?,
+            },
+        ))
+    })?;
+    let mut carried: Option<ScanLandmarks> = None;
+    for row in rows {
+        let (reference, point) = row?;
+        carried
+            .get_or_insert_with(|| ScanLandmarks {
+                reference,
+                points: Vec::new(),
+            })
+            .points
+            .push(point);
+    }
+    record.landmarks = carried;
     Ok(())
 }
 
@@ -924,6 +969,13 @@ fn validate_outcome(outcome: &ScanOutcome) -> Result<(), StoreError> {
     }
     for (stage, &ms) in &outcome.timings_ms {
         check(format!("timing {stage}"), ms, true)?;
+    }
+    if let Some(lm) = &outcome.landmarks {
+        for (i, p) in lm.points.iter().enumerate() {
+            for (axis, v) in [("x", p.x), ("y", p.y), ("z", p.z)] {
+                check(format!("landmark {i} {axis}"), v, false)?;
+            }
+        }
     }
     Ok(())
 }

@@ -14,13 +14,13 @@ use std::path::Path;
 pub const APPLICATION_ID: i32 = 0x4d52_5048;
 
 /// The migrations, in order; migration k (1-based) is `MIGRATIONS[k - 1]`.
-pub const MIGRATIONS: &[&str] = &[MIGRATION_1];
+pub const MIGRATIONS: &[&str] = &[MIGRATION_1, MIGRATION_2];
 
 /// The schema version this build writes and understands.
 pub const SCHEMA_VERSION: u32 = MIGRATIONS.len() as u32;
 
 /// Migration 1: references, scans (the job queue), results and distances.
-/// Landmarks and correspondences come in a later migration.
+/// Landmarks come in migration 2.
 const MIGRATION_1: &str = r#"
 CREATE TABLE reference (
     id           INTEGER PRIMARY KEY,
@@ -83,6 +83,24 @@ CREATE TABLE distance (
     PRIMARY KEY (scan_id, reference_id)
 ) WITHOUT ROWID;
 CREATE INDEX distance_reference ON distance (reference_id);
+"#;
+
+/// Migration 2: the landmarks of the nearest reference carried onto a
+/// scan (one row per landmark, in the scan's file coordinates), written in
+/// the same transaction as the scan's result.
+const MIGRATION_2: &str = r#"
+CREATE TABLE landmark (
+    scan_id      INTEGER NOT NULL REFERENCES scan (id) ON DELETE CASCADE,
+    idx          INTEGER NOT NULL CHECK (idx >= 0),   -- order in the reference's file
+    label        TEXT,
+    x            REAL NOT NULL,
+    y            REAL NOT NULL,
+    z            REAL NOT NULL,
+    -- the reference whose landmarks were carried over
+    reference_id INTEGER NOT NULL REFERENCES reference (id),
+    PRIMARY KEY (scan_id, idx)
+) WITHOUT ROWID;
+CREATE INDEX landmark_reference ON landmark (reference_id);
 "#;
 
 /// Bring the database on `conn` to [`SCHEMA_VERSION`]: refuse a file of

@@ -196,6 +196,29 @@ pub struct Nearest {
     pub distance: f64,
 }
 
+/// One landmark carried onto a scan, in the scan file's coordinates.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LandmarkPoint {
+    /// The label of the reference's landmark, if it had one.
+    pub label: Option<String>,
+    /// x coordinate.
+    pub x: f64,
+    /// y coordinate.
+    pub y: f64,
+    /// z coordinate.
+    pub z: f64,
+}
+
+/// The landmarks of a reference carried onto a scan through the cP
+/// correspondence, in the order of the reference's landmark file.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ScanLandmarks {
+    /// The reference whose landmarks were carried over.
+    pub reference: String,
+    /// The landmarks on the scan.
+    pub points: Vec<LandmarkPoint>,
+}
+
 /// Everything an identification produced, written by `complete` in one
 /// transaction. The store does no arithmetic on it.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -208,6 +231,9 @@ pub struct ScanOutcome {
     pub cleaning: serde_json::Value,
     /// Milliseconds per stage (`load`, `clean`, `flatten`, `compare`, …).
     pub timings_ms: BTreeMap<String, f64>,
+    /// The nearest reference's landmarks carried onto the scan, when that
+    /// reference has landmarks.
+    pub landmarks: Option<ScanLandmarks>,
 }
 
 /// A scan as recorded, with its result if it has one. Serializes to the
@@ -243,6 +269,9 @@ pub struct ScanRecord {
     pub ranks: Vec<RankResult>,
     /// The nearest references, nearest first (a few, not all).
     pub nearest: Vec<Nearest>,
+    /// Landmarks carried onto the scan (`None`: the nearest reference has
+    /// none, or the scan has no result).
+    pub landmarks: Option<ScanLandmarks>,
 }
 
 /// `{"taxon", "reference", "distance", "runner_up", "margin"}` of one rank.
@@ -278,7 +307,9 @@ impl Serialize for RanksJson<'_> {
 }
 
 /// The design's result form: `{"scan", "status", "ranks", "nearest",
-/// "cleaning", "timings_ms"}` for `ok`, `{"scan", "status": "error",
+/// "cleaning", "timings_ms"}` for `ok` (plus `"landmarks": [{"label", "x",
+/// "y", "z"}, …]` and `"landmarks_reference"` when landmarks were carried
+/// onto the scan), `{"scan", "status": "error",
 /// "error"}` for an error, `{"scan", "status"}` while pending or running;
 /// each with the scan's `id` too.
 impl Serialize for ScanRecord {
@@ -293,6 +324,10 @@ impl Serialize for ScanRecord {
                 map.serialize_entry("nearest", &self.nearest)?;
                 map.serialize_entry("cleaning", &self.cleaning)?;
                 map.serialize_entry("timings_ms", &self.timings_ms)?;
+                if let Some(lm) = &self.landmarks {
+                    map.serialize_entry("landmarks", &lm.points)?;
+                    map.serialize_entry("landmarks_reference", &lm.reference)?;
+                }
             }
             ScanStatus::Error => {
                 map.serialize_entry("error", self.error.as_deref().unwrap_or(""))?;

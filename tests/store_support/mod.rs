@@ -74,5 +74,6 @@ pub fn outcome(seed: u64, n_refs: usize) -> ScanOutcome {
         distances,
         cleaning: serde_json::json!({"vertices_before": 5100 + seed, "vertices_after": 5000}),
         timings_ms,
+        landmarks: None,
     }
 }
