@@ -27,7 +27,10 @@ fn ready_status_watchdog_and_stopping_reach_the_service_manager() {
         let mut buf = [0u8; 1024];
         while Instant::now() < end {
             if let Ok(n) = socket.recv(&mut buf) {
-                got.push(String::from_utf8_lossy(&buf[..n]).into_owned());
+                // One state per line; a trailing newline is allowed.
+                for line in String::from_utf8_lossy(&buf[..n]).lines() {
+                    got.push(line.to_string());
+                }
             }
             if until(&got) {
                 return true;
