@@ -27,9 +27,12 @@ pub struct Filter {
 
 impl Filter {
     /// The filter of a configuration's `[watch]` section.
+    /// The folder is made absolute (against the working directory), as
+    /// the watcher reports absolute paths and a relative folder would
+    /// match none of them.
     pub fn from_config(watch: &crate::config::Watch) -> Self {
         Filter {
-            dir: watch.dir.clone(),
+            dir: std::path::absolute(&watch.dir).unwrap_or_else(|_| watch.dir.clone()),
             recursive: watch.recursive,
             ignore: watch.ignore.clone(),
             quarantine: watch.quarantine.clone(),
