@@ -58,6 +58,19 @@ fn ready_status_watchdog_and_stopping_reach_the_service_manager() {
         "{got:?}\n{}",
         d.log_text()
     );
+    // A reload says so, and is ready again after it.
+    d.signal(libc::SIGHUP);
+    assert!(
+        receive(
+            &|g| {
+                g.iter().any(|m| m == "RELOADING=1")
+                    && g.iter().filter(|m| *m == "READY=1").count() >= 2
+            },
+            30
+        ),
+        "{got:?}\n{}",
+        d.log_text()
+    );
     d.signal(libc::SIGTERM);
     assert!(d.wait_exit(Duration::from_secs(10)).is_some());
     assert!(

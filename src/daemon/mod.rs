@@ -151,6 +151,41 @@ async fn take(store: &mut Store, folder: &mut FolderWatch, ready: Vec<PathBuf>, 
     }
 }
 
+/// [`reload`], with watchdog pings from a helper thread meanwhile: the
+/// reload blocks the control loop, and preparing references that are not
+/// in the cache yet (new ones, or changed parameters) can take longer
+/// than `WatchdogSec=`; a reload is slow, not hung.
+fn reload_pinging(
+    loader: &dyn Loader,
+    store: &mut Store,
+    watchdog: Option<Duration>,
+) -> Result<(Config, Classifier, Option<Regex>), String> {
+    let Some(every) = watchdog else {
+        return reload(loader, store);
+    };
+    let done = std::sync::atomic::AtomicBool::new(false);
+    std::thread::scope(|scope| {
+        let pinger = std::thread::Builder::new()
+            .name("morphoid-reload-ping".into())
+            .spawn_scoped(scope, || {
+                let mut last = std::time::Instant::now();
+                while !done.load(std::sync::atomic::Ordering::SeqCst) {
+                    std::thread::sleep(Duration::from_millis(50));
+                    if last.elapsed() >= every {
+                        notify(&[NotifyState::Watchdog]);
+                        last = std::time::Instant::now();
+                    }
+                }
+            });
+        if let Err(e) = pinger {
+            tracing::warn!("cannot start the watchdog thread for the reload: {e}");
+        }
+        let result = reload(loader, store);
+        done.store(true, std::sync::atomic::Ordering::SeqCst);
+        result
+    })
+}
+
 fn start_serial(
     config: &Config,
     trigger: Option<&Regex>,
@@ -230,7 +265,7 @@ async fn control_loop(loader: &dyn Loader) -> Result<(), DaemonError> {
             _ = sighup.recv() => {
                 tracing::info!("reloading the configuration and the library");
                 notify(&[NotifyState::Reloading]);
-                match reload(loader, &mut store) {
+                match reload_pinging(loader, &mut store, watchdog) {
                     Ok((c, classifier, t)) => {
                         n_refs = classifier.references.len();
                         worker.reload(classifier, c.watch.quarantine.clone());
