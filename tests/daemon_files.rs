@@ -291,3 +291,26 @@ fn an_export_folder_missing_at_start_is_polled_until_it_appears() {
     assert_eq!(r[0].status, ScanStatus::Ok);
     assert_eq!(genus_of(&r[0]), Some(genus(5)));
 }
+
+#[test]
+fn an_export_folder_removed_and_created_again_is_still_watched() {
+    let env = env(0.5, "", "");
+    let d = Daemon::start(&env);
+    std::fs::remove_dir(&env.export).unwrap();
+    assert!(
+        wait_until(Duration::from_secs(10), || d
+            .log_text()
+            .contains("the export folder is gone")),
+        "{}",
+        d.log_text()
+    );
+    std::fs::create_dir_all(&env.export).unwrap();
+    std::fs::write(env.export.join("back.ply"), scan_bytes(0, 936)).unwrap();
+    // Well before the 30 s safety rescan.
+    assert!(
+        wait_until(Duration::from_secs(20), || finished(&env.db) >= 1),
+        "{}",
+        d.log_text()
+    );
+    assert_eq!(rows(&env.db)[0].status, ScanStatus::Ok);
+}

@@ -160,6 +160,18 @@ impl FolderWatch {
                 return;
             }
         }
+        // The export folder itself removed or renamed: its watch is gone
+        // with it. Poll (which also retries watching at each safety
+        // rescan) until a folder of that name can be watched again.
+        if event.paths.iter().any(|p| p == &self.filter.dir) && !self.filter.dir.is_dir() {
+            tracing::warn!(
+                "{}: the export folder is gone; polling until it can be watched again",
+                self.filter.dir.display()
+            );
+            self.mode = Mode::Polling { forced: false };
+            out.rescan = true;
+            return;
+        }
         for path in &event.paths {
             match std::fs::metadata(path) {
                 // A folder created or moved in: inotify reports its files
