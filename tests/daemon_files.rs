@@ -10,7 +10,9 @@ use std::time::Duration;
 
 #[test]
 fn a_file_written_slowly_and_a_renamed_part_file_are_each_processed_once() {
-    let env = env(2.0, "", "");
+    // Settle time above the 2 s pause between chunks, with a margin: a
+    // pause as long as the settle time is indistinguishable from the end.
+    let env = env(3.0, "", "");
     let d = Daemon::start(&env);
 
     // Written in 6 chunks over 10 s: never taken early.
@@ -31,7 +33,7 @@ fn a_file_written_slowly_and_a_renamed_part_file_are_each_processed_once() {
     // Written under a temporary name, renamed at the end.
     let part = env.export.join("x.part");
     std::fs::write(&part, scan_bytes(3, 902)).unwrap();
-    std::thread::sleep(Duration::from_secs(3));
+    std::thread::sleep(Duration::from_secs(4));
     std::fs::rename(&part, env.export.join("x.ply")).unwrap();
 
     assert!(
@@ -148,10 +150,12 @@ fn run_needs_no_config_file_with_watch_library_and_db_given() {
     let env = env(2.0, "", "");
     let db = env.root.join("flags.sqlite");
     let log = env.root.join("flags.log");
+    // A relative export folder: the watcher's events name absolute paths.
     let mut child = std::process::Command::new(BIN)
+        .current_dir(&env.root)
         .arg("run")
         .arg("--watch")
-        .arg(&env.export)
+        .arg("export")
         .arg("--library")
         .arg(env.root.join("library"))
         .arg("--db")
@@ -162,8 +166,16 @@ fn run_needs_no_config_file_with_watch_library_and_db_given() {
         .stderr(std::fs::File::create(&log).unwrap())
         .spawn()
         .unwrap();
+    let text = || std::fs::read_to_string(&log).unwrap_or_default();
+    assert!(
+        wait_until(Duration::from_secs(120), || text()
+            .contains("references; watching")),
+        "{}",
+        text()
+    );
+    // Well before the 30 s safety rescan: the watcher saw it.
     std::fs::write(env.export.join("f.ply"), scan_bytes(4, 916)).unwrap();
-    let ok = wait_until(Duration::from_secs(120), || finished(&db) >= 1);
+    let ok = wait_until(Duration::from_secs(20), || finished(&db) >= 1);
     let _ = child.kill();
     let _ = child.wait();
     let text = std::fs::read_to_string(&log).unwrap_or_default();
@@ -191,4 +203,114 @@ fn files_of_other_kinds_are_left_alone() {
     assert_eq!(r.len(), 1, "{r:?}");
     assert!(r[0].path.ends_with("UPPER.PLY"));
     assert_eq!(r[0].status, ScanStatus::Ok);
+}
+
+#[test]
+fn the_polling_fallback_takes_settled_files_once() {
+    let env = env(1.0, "", "");
+    let d = Daemon::start_with(&env, &[("MORPHOID_WATCH", "poll")]);
+    assert!(
+        d.log_text().contains("polling the folder"),
+        "{}",
+        d.log_text()
+    );
+    assert!(!d.log_text().contains("watching for changes"));
+
+    // A temporary name renamed at the end, and a file in a subfolder.
+    let part = env.export.join("p.part");
+    std::fs::write(&part, scan_bytes(1, 931)).unwrap();
+    std::fs::create_dir_all(env.export.join("day2")).unwrap();
+    std::fs::write(env.export.join("day2/q.ply"), scan_bytes(2, 932)).unwrap();
+    std::thread::sleep(Duration::from_secs(2));
+    std::fs::rename(&part, env.export.join("p.ply")).unwrap();
+    assert!(
+        wait_until(Duration::from_secs(120), || finished(&env.db) >= 2),
+        "{:?}\n{}",
+        rows(&env.db),
+        d.log_text()
+    );
+    std::thread::sleep(Duration::from_secs(3));
+    let r = rows(&env.db);
+    assert_eq!(r.len(), 2, "{r:?}");
+    let mut names: Vec<&str> = r
+        .iter()
+        .map(|s| s.path.rsplit('/').next().unwrap())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["p.ply", "q.ply"]);
+    assert!(r.iter().all(|s| s.status == ScanStatus::Ok), "{r:?}");
+}
+
+#[test]
+fn a_folder_moved_in_whole_is_picked_up_by_the_watcher() {
+    let env = env(0.5, "", "");
+    let d = Daemon::start(&env);
+    assert!(
+        d.log_text().contains("watching for changes"),
+        "{}",
+        d.log_text()
+    );
+    // Files inside a folder that is renamed into the export folder raise
+    // one event for the folder only.
+    let staged = env.root.join("batch");
+    std::fs::create_dir_all(staged.join("inner")).unwrap();
+    std::fs::write(staged.join("m1.ply"), scan_bytes(0, 933)).unwrap();
+    std::fs::write(staged.join("inner/m2.ply"), scan_bytes(3, 934)).unwrap();
+    std::fs::rename(&staged, env.export.join("batch")).unwrap();
+    assert!(
+        wait_until(Duration::from_secs(25), || finished(&env.db) >= 2),
+        "{:?}\n{}",
+        rows(&env.db),
+        d.log_text()
+    );
+    assert_eq!(rows(&env.db).len(), 2);
+}
+
+#[test]
+fn an_export_folder_missing_at_start_is_polled_until_it_appears() {
+    let env = env(0.5, "", "");
+    std::fs::remove_dir(&env.export).unwrap();
+    let d = Daemon::start(&env);
+    // No watcher can be set on a missing folder: logged, then polling.
+    assert!(
+        wait_until(Duration::from_secs(10), || d
+            .log_text()
+            .contains("polling the folder instead")),
+        "{}",
+        d.log_text()
+    );
+    std::fs::create_dir_all(&env.export).unwrap();
+    std::fs::write(env.export.join("late.ply"), scan_bytes(5, 935)).unwrap();
+    assert!(
+        wait_until(Duration::from_secs(60), || finished(&env.db) >= 1),
+        "{}",
+        d.log_text()
+    );
+    let r = rows(&env.db);
+    assert_eq!(r.len(), 1);
+    assert_eq!(r[0].status, ScanStatus::Ok);
+    assert_eq!(genus_of(&r[0]), Some(genus(5)));
+}
+
+#[test]
+fn an_export_folder_removed_and_created_again_is_still_watched() {
+    let env = env(0.5, "", "");
+    let d = Daemon::start(&env);
+    std::fs::remove_dir(&env.export).unwrap();
+    assert!(
+        wait_until(Duration::from_secs(10), || d
+            .log_text()
+            .contains("the export folder is gone")),
+        "{}",
+        d.log_text()
+    );
+    std::fs::create_dir_all(&env.export).unwrap();
+    std::fs::write(env.export.join("back.ply"), scan_bytes(0, 936)).unwrap();
+    // Well before the 30 s safety rescan.
+    assert!(
+        wait_until(Duration::from_secs(20), || finished(&env.db) >= 1),
+        "{}",
+        d.log_text()
+    );
+    assert_eq!(rows(&env.db)[0].status, ScanStatus::Ok);
 }

@@ -27,7 +27,10 @@ fn ready_status_watchdog_and_stopping_reach_the_service_manager() {
         let mut buf = [0u8; 1024];
         while Instant::now() < end {
             if let Ok(n) = socket.recv(&mut buf) {
-                got.push(String::from_utf8_lossy(&buf[..n]).into_owned());
+                // One state per line; a trailing newline is allowed.
+                for line in String::from_utf8_lossy(&buf[..n]).lines() {
+                    got.push(line.to_string());
+                }
             }
             if until(&got) {
                 return true;
@@ -52,6 +55,19 @@ fn ready_status_watchdog_and_stopping_reach_the_service_manager() {
     let done = format!("STATUS=idle, {refs} references, 1 scans today");
     assert!(
         receive(&|g| g.contains(&done), 60),
+        "{got:?}\n{}",
+        d.log_text()
+    );
+    // A reload says so, and is ready again after it.
+    d.signal(libc::SIGHUP);
+    assert!(
+        receive(
+            &|g| {
+                g.iter().any(|m| m == "RELOADING=1")
+                    && g.iter().filter(|m| *m == "READY=1").count() >= 2
+            },
+            30
+        ),
         "{got:?}\n{}",
         d.log_text()
     );

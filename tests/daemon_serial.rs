@@ -77,6 +77,24 @@ fn trigger_lines_rescan_the_folder_and_an_unplugged_port_is_survived() {
         d.log_text()
     );
 
+    // A trigger line naming a file outside the export folder: not taken.
+    let outside = tempfile::tempdir().unwrap();
+    let foreign = outside.path().join("o.ply");
+    std::fs::write(&foreign, scan_bytes(4, 919)).unwrap();
+    master
+        .write_all(format!("SCAN DONE {}\n", foreign.display()).as_bytes())
+        .unwrap();
+    assert!(wait_until(Duration::from_secs(20), || count(
+        &d.log_text(),
+        "serial trigger:"
+    ) == 2));
+    std::thread::sleep(Duration::from_secs(2));
+    assert_eq!(
+        rows(&env.db).len(),
+        1,
+        "a file outside the folder was taken"
+    );
+
     // A trigger line naming a file.
     std::fs::write(env.export.join("b.ply"), scan_bytes(1, 912)).unwrap();
     master.write_all(b"SCAN COMPLETE b.ply\n").unwrap();

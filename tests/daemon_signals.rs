@@ -160,9 +160,14 @@ fn sigterm_without_grace_abandons_the_job_which_the_next_start_identifies() {
     let refs = d.references();
     std::fs::rename(&staging, env.export.join("big.ply")).unwrap();
     let id = wait_running(&env.db);
+    let sent = Instant::now();
     d.signal(libc::SIGTERM);
     let status = d.wait_exit(Duration::from_secs(10));
     assert!(status.is_some_and(|s| s.success()), "{}", d.log_text());
+    eprintln!(
+        "exited {:.2} s after SIGTERM, job abandoned",
+        sent.elapsed().as_secs_f64()
+    );
     let r = rows(&env.db);
     assert_eq!(r[0].status, ScanStatus::Pending, "{r:?}\n{}", d.log_text());
     assert_eq!(r[0].attempts, 0);

@@ -1,47 +1,46 @@
 //! The daemon behind `morphoid run`: watches the export folder, queues each
-//! complete file as a job in the store, identifies jobs one at a time on a
-//! worker thread with the library loaded once, and reacts to the serial
-//! trigger, SIGTERM/SIGINT (stop), SIGHUP (reload) and the systemd watchdog.
+//! complete surface file as a job in the store, identifies jobs one at a
+//! time on a worker thread with the library loaded once, and reacts to the
+//! serial trigger, SIGTERM/SIGINT (stop), SIGHUP (reload) and the systemd
+//! watchdog.
 //!
-//! Threads: the control loop (this module's [`run`]) polls the folder every
-//! [`POLL_INTERVAL`] (a listing + `stat` per file; the settle rule needs
-//! periodic checks anyway, and polling sees renames, moves from other
-//! filesystems and network folders alike), a worker thread owns the
-//! classifier and does the numerical work, and an optional serial thread
-//! forwards trigger lines.
+//! The control loop runs on a current-thread tokio runtime: one `select!`
+//! over the signals, the folder watcher's events, serial trigger lines and
+//! a few timers (settle checks, the safety rescan, watchdog and status).
+//! Everything slow is elsewhere: hashing a settled file runs on the
+//! blocking pool, identification on the worker thread ([`worker`]), the
+//! serial port on its own thread ([`serial`]). Only SIGHUP's reload builds
+//! the library on the loop (prepared references come from the cache), as
+//! nothing else can usefully happen meanwhile.
+//!
+//! Modules: [`watch`] (notify watcher, rescans, polling fallback),
+//! [`settle`] (when a file is complete), [`intake`] (which files become
+//! jobs), [`glob`] (`watch.ignore`), [`worker`], [`serial`].
 
 pub mod glob;
-pub mod sd_notify;
+pub mod intake;
 pub mod serial;
 pub mod settle;
-mod signals;
+pub mod watch;
+pub mod worker;
 
-use crate::classify::{self, Classifier, NEAREST};
+use crate::classify::Classifier;
 use crate::config::Config;
 use crate::library::BuildOutcome;
-use crate::mesh::io::Format;
-use crate::store::{
-    content_hash_file, now_ms, utc_day_start_ms, Enqueued, ScanStatus, Store, StoreError,
-};
+use crate::store::{now_ms, utc_day_start_ms, Store, StoreError};
 use regex::Regex;
-use sd_notify::Notifier;
-use settle::{Settler, Stamp};
-use std::collections::HashSet;
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
-use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
-use std::sync::Arc;
-use std::time::{Duration, Instant};
+use sd_notify::NotifyState;
+use serial::SerialTrigger;
+use std::path::PathBuf;
+use std::time::Duration;
+use tokio::signal::unix::{signal, SignalKind};
+use tokio::sync::mpsc::{self, UnboundedSender};
+use tokio::time::{interval, interval_at, sleep, Instant, MissedTickBehavior};
+use watch::FolderWatch;
+use worker::Worker;
 
-/// How often the export folder is listed while a file is settling.
-pub const POLL_INTERVAL: Duration = Duration::from_millis(250);
-/// How often it is listed when nothing is settling (a large folder costs
-/// one `stat` per file per listing).
-pub const IDLE_POLL_INTERVAL: Duration = Duration::from_secs(1);
-/// A scan claimed this many times without finishing has crashed the
-/// daemon each time (or hung it until the watchdog fired): it is failed
-/// instead of being tried for ever.
-pub const MAX_ATTEMPTS: u32 = 3;
+pub use worker::MAX_ATTEMPTS;
+
 /// A job running longer than this is taken as hung: watchdog pings stop,
 /// so systemd restarts the daemon (and [`MAX_ATTEMPTS`] ends the loop).
 pub const JOB_HANG_LIMIT: Duration = Duration::from_secs(30 * 60);
@@ -49,6 +48,8 @@ pub const JOB_HANG_LIMIT: Duration = Duration::from_secs(30 * 60);
 /// `$MORPHOID_STOP_GRACE` (seconds, at most 60) says otherwise. systemd's
 /// `TimeoutStopSec=` must be longer.
 pub const STOP_GRACE: Duration = Duration::from_secs(7);
+/// How often the STATUS line is recomputed (sent only when it changes).
+const STATUS_INTERVAL: Duration = Duration::from_secs(2);
 
 /// The stop grace period: `$MORPHOID_STOP_GRACE` or [`STOP_GRACE`].
 pub fn stop_grace() -> Duration {
@@ -69,20 +70,20 @@ pub enum DaemonError {
     /// The database failed.
     #[error(transparent)]
     Store(#[from] StoreError),
-    /// The export folder cannot be listed.
-    #[error("{path}: cannot watch the export folder: {source}")]
-    Watch {
-        /// The folder.
-        path: PathBuf,
-        /// The I/O error.
-        source: std::io::Error,
-    },
     /// `serial.trigger` is not a valid regex.
     #[error("serial.trigger: {0}")]
     Trigger(#[from] regex::Error),
     /// Signal handlers could not be installed.
     #[error("cannot install signal handlers: {0}")]
     Signals(std::io::Error),
+    /// The async runtime or a thread could not be started.
+    #[error("cannot start the {what}: {source}")]
+    Start {
+        /// What could not be started.
+        what: &'static str,
+        /// The I/O error.
+        source: std::io::Error,
+    },
 }
 
 /// What the daemon needs from its caller: the configuration (re-read on
@@ -94,75 +95,118 @@ pub trait Loader {
     fn library(&self, config: &Config) -> Result<(Classifier, BuildOutcome), String>;
 }
 
-/// Messages to the worker thread.
-enum ToWorker {
-    /// New jobs may be pending.
-    Wake,
-    /// Use this classifier and quarantine folder from the next job on.
-    Reload(Box<Classifier>, Option<PathBuf>),
-}
-
-/// Every non-ignored surface file (a format morphoid reads, by extension)
-/// under `dir`, recursively if asked, with its stamp; `skip` (the
-/// quarantine folder) is not entered. Other files (the scanner's logs,
-/// reports, images) are left alone rather than recorded as errors.
-pub fn list_candidates(
-    dir: &Path,
-    recursive: bool,
-    ignore: &[String],
-    skip: Option<&Path>,
-) -> std::io::Result<Vec<(PathBuf, Stamp)>> {
-    let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    let mut top = true;
-    while let Some(d) = stack.pop() {
-        let entries = match std::fs::read_dir(&d) {
-            Ok(e) => e,
-            // Only the export folder itself must be readable; a subfolder
-            // may vanish between listing and reading.
-            Err(e) if top => return Err(e),
-            Err(_) => continue,
-        };
-        top = false;
-        for entry in entries.flatten() {
-            let name = entry.file_name();
-            let name = name.to_string_lossy();
-            if glob::is_ignored(ignore, &name) {
-                continue;
-            }
-            let path = entry.path();
-            let Ok(meta) = std::fs::metadata(&path) else {
-                continue;
-            };
-            if meta.is_dir() {
-                if recursive && skip.is_none_or(|s| !same_dir(s, &path)) {
-                    stack.push(path);
-                }
-            } else if meta.is_file() && Format::from_path(&path).is_some() {
-                let stamp = Stamp {
-                    size: meta.len(),
-                    mtime: meta.modified().ok(),
-                };
-                out.push((path, stamp));
-            }
-        }
-    }
-    out.sort_by(|a, b| a.0.cmp(&b.0));
-    Ok(out)
-}
-
-fn same_dir(a: &Path, b: &Path) -> bool {
-    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
-        (Ok(x), Ok(y)) => x == y,
-        _ => a == b,
+/// Send a state change to the service manager, if there is one (the
+/// crate does nothing without `$NOTIFY_SOCKET`). Failures are not fatal:
+/// the daemon works without systemd.
+fn notify(state: &[NotifyState]) {
+    if let Err(e) = sd_notify::notify(state) {
+        tracing::debug!("cannot notify the service manager: {e}");
     }
 }
 
 /// Run the daemon until SIGTERM/SIGINT. Returns an error only when it
 /// cannot start; afterwards every problem is logged and survived.
 pub fn run(loader: &dyn Loader) -> Result<(), DaemonError> {
-    signals::install().map_err(DaemonError::Signals)?;
-    let notifier = Notifier::from_env();
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .thread_name("morphoid-control")
+        .build()
+        .map_err(|source| DaemonError::Start {
+            what: "async runtime",
+            source,
+        })?;
+    let result = runtime.block_on(control_loop(loader));
+    // No blocking task should be left (hashes are awaited), but never let
+    // one delay the exit.
+    runtime.shutdown_timeout(Duration::from_secs(1));
+    result
+}
+
+/// Hash and queue settled files (hashing on the blocking pool: a large
+/// file takes a while to read); wakes the worker when something is new.
+async fn take(store: &mut Store, folder: &mut FolderWatch, ready: Vec<PathBuf>, worker: &Worker) {
+    let mut new = false;
+    for path in ready {
+        let p = path.clone();
+        let hashed = match tokio::task::spawn_blocking(move || intake::hash(&p)).await {
+            Ok(h) => h,
+            Err(e) => {
+                tracing::error!("{}: hashing failed: {e}", path.display());
+                folder.release(&path);
+                continue;
+            }
+        };
+        let queued = hashed.and_then(|(hash, size)| intake::enqueue(store, &path, &hash, size));
+        match queued {
+            Ok(Some(_)) => new = true,
+            Ok(None) => {}
+            Err(e) => {
+                tracing::warn!("{e}");
+                folder.release(&path);
+            }
+        }
+    }
+    if new {
+        worker.wake();
+    }
+}
+
+/// [`reload`], with watchdog pings from a helper thread meanwhile: the
+/// reload blocks the control loop, and preparing references that are not
+/// in the cache yet (new ones, or changed parameters) can take longer
+/// than `WatchdogSec=`; a reload is slow, not hung.
+fn reload_pinging(
+    loader: &dyn Loader,
+    store: &mut Store,
+    watchdog: Option<Duration>,
+) -> Result<(Config, Classifier, Option<Regex>), String> {
+    let Some(every) = watchdog else {
+        return reload(loader, store);
+    };
+    let done = std::sync::atomic::AtomicBool::new(false);
+    std::thread::scope(|scope| {
+        let pinger = std::thread::Builder::new()
+            .name("morphoid-reload-ping".into())
+            .spawn_scoped(scope, || {
+                let mut last = std::time::Instant::now();
+                while !done.load(std::sync::atomic::Ordering::SeqCst) {
+                    std::thread::sleep(Duration::from_millis(50));
+                    if last.elapsed() >= every {
+                        notify(&[NotifyState::Watchdog]);
+                        last = std::time::Instant::now();
+                    }
+                }
+            });
+        if let Err(e) = pinger {
+            tracing::warn!("cannot start the watchdog thread for the reload: {e}");
+        }
+        let result = reload(loader, store);
+        done.store(true, std::sync::atomic::Ordering::SeqCst);
+        result
+    })
+}
+
+fn start_serial(
+    config: &Config,
+    trigger: Option<&Regex>,
+    tx: &UnboundedSender<String>,
+) -> Option<SerialTrigger> {
+    let (s, re) = (config.serial.as_ref()?, trigger?);
+    match SerialTrigger::start(s.port.clone(), s.baud, re.clone(), tx.clone()) {
+        Ok(t) => Some(t),
+        Err(e) => {
+            tracing::error!("cannot start the serial thread: {e}");
+            None
+        }
+    }
+}
+
+async fn control_loop(loader: &dyn Loader) -> Result<(), DaemonError> {
+    // Installed first, so a signal during the library load is not lost.
+    let mut sigterm = signal(SignalKind::terminate()).map_err(DaemonError::Signals)?;
+    let mut sigint = signal(SignalKind::interrupt()).map_err(DaemonError::Signals)?;
+    let mut sighup = signal(SignalKind::hangup()).map_err(DaemonError::Signals)?;
+
     let mut config = loader.config().map_err(DaemonError::Load)?;
     let trigger = compile_trigger(&config)?;
     let db = config.database.path.clone();
@@ -173,185 +217,153 @@ pub fn run(loader: &dyn Loader) -> Result<(), DaemonError> {
     }
     let (classifier, outcome) = loader.library(&config).map_err(DaemonError::Load)?;
     classifier.register(&mut store, &outcome)?;
-    for (name, why) in &outcome.failures {
-        tracing::warn!("reference {name} left out: {why}");
-    }
     let mut n_refs = classifier.references.len();
     tracing::info!(
         "library {} loaded: {n_refs} references; watching {}",
         config.library.dir.display(),
         config.watch.dir.display()
     );
+    let worker_store = Store::open(&db)?;
+    let mut worker = Worker::spawn(worker_store, classifier, config.watch.quarantine.clone())
+        .map_err(|source| DaemonError::Start {
+            what: "worker thread",
+            source,
+        })?;
 
-    let stop = Arc::new(AtomicBool::new(false));
-    let current = Arc::new(AtomicI64::new(0));
-    let job_started_ms = Arc::new(AtomicI64::new(0));
-    let (to_worker, worker_rx) = mpsc::channel::<ToWorker>();
-    let worker = {
-        let stop = stop.clone();
-        let current = current.clone();
-        let job_started_ms = job_started_ms.clone();
-        let store = Store::open(&db)?;
-        let quarantine = config.watch.quarantine.clone();
-        std::thread::Builder::new()
-            .name("morphoid-worker".into())
-            .spawn(move || {
-                let progress = Progress {
-                    current,
-                    started_ms: job_started_ms,
-                };
-                worker_loop(store, classifier, quarantine, worker_rx, stop, progress)
-            })
-            .map_err(|e| DaemonError::Load(format!("cannot start the worker thread: {e}")))?
-    };
+    let (serial_tx, mut serial_rx) = mpsc::unbounded_channel::<String>();
+    let mut serial = start_serial(&config, trigger.as_ref(), &serial_tx);
 
-    let (serial_tx, serial_rx) = mpsc::channel::<String>();
-    let mut serial_stop = start_serial(&config, trigger.as_ref(), &serial_tx);
+    let mut folder = FolderWatch::start(&config.watch);
+    // Files that arrived while the daemon was down.
+    let ready = folder.rescan(false);
+    take(&mut store, &mut folder, ready, &worker).await;
+    worker.wake();
 
-    notifier.send("READY=1");
-    let watchdog = Notifier::watchdog_interval();
-    let mut last_ping = Instant::now();
+    notify(&[NotifyState::Ready]);
+    let watchdog = sd_notify::watchdog_enabled().map(|d| d / 2);
+    let house_period = watchdog.map_or(Duration::from_millis(500), |w| {
+        w.clamp(Duration::from_millis(10), Duration::from_millis(500))
+    });
+    let mut house = interval(house_period);
+    let mut settle_tick = interval(watch::POLL_INTERVAL);
+    let start = Instant::now();
+    let mut rescan_tick = interval_at(start + watch::RESCAN_INTERVAL, watch::RESCAN_INTERVAL);
+    for t in [&mut house, &mut settle_tick, &mut rescan_tick] {
+        t.set_missed_tick_behavior(MissedTickBehavior::Delay);
+    }
+    let mut last_ping = start;
     let mut last_status = String::new();
-    let mut last_status_at = Instant::now() - Duration::from_secs(60);
-    let mut settler = Settler::new();
-    let mut watch_error_logged = false;
+    let mut last_status_at: Option<Instant> = None;
     let mut hang_logged = false;
-    let _ = to_worker.send(ToWorker::Wake);
 
     loop {
-        if signals::stop_requested() {
-            break;
-        }
-        if signals::take_reload() {
-            tracing::info!("reloading the configuration and the library");
-            notifier.send("RELOADING=1");
-            match reload(loader, &mut store) {
-                Ok((c, classifier, t)) => {
-                    n_refs = classifier.references.len();
-                    let _ = to_worker.send(ToWorker::Reload(
-                        Box::new(classifier),
-                        c.watch.quarantine.clone(),
-                    ));
-                    if c.serial != config.serial {
-                        if let Some(s) = serial_stop.take() {
-                            s.store(true, Ordering::SeqCst);
+        tokio::select! {
+            // Signals first: a stop must not wait behind a busy folder.
+            biased;
+            _ = sigterm.recv() => break,
+            _ = sigint.recv() => break,
+            _ = sighup.recv() => {
+                tracing::info!("reloading the configuration and the library");
+                notify(&[NotifyState::Reloading]);
+                match reload_pinging(loader, &mut store, watchdog) {
+                    Ok((c, classifier, t)) => {
+                        n_refs = classifier.references.len();
+                        worker.reload(classifier, c.watch.quarantine.clone());
+                        if c.serial != config.serial {
+                            // Dropping the old trigger stops its thread.
+                            drop(serial.take());
+                            serial = start_serial(&c, t.as_ref(), &serial_tx);
                         }
-                        serial_stop = start_serial(&c, t.as_ref(), &serial_tx);
+                        if c.database.path != config.database.path {
+                            tracing::warn!("database.path changes only at restart");
+                        }
+                        if c.watch != config.watch {
+                            folder = FolderWatch::start(&c.watch);
+                        }
+                        config = c;
+                        tracing::info!("reloaded: {n_refs} references");
+                        let ready = folder.rescan(false);
+                        take(&mut store, &mut folder, ready, &worker).await;
                     }
-                    if c.database.path != config.database.path {
-                        tracing::warn!("database.path changes only at restart");
-                    }
-                    config = c;
-                    settler = Settler::new();
-                    tracing::info!("reloaded: {n_refs} references");
+                    Err(e) => tracing::error!("reload failed, keeping the previous setup: {e}"),
                 }
-                Err(e) => tracing::error!("reload failed, keeping the previous setup: {e}"),
+                notify(&[NotifyState::Ready]);
+                last_status_at = None;
             }
-            notifier.send("READY=1");
-        }
-
-        // Serial triggers: a named file first, then everything now.
-        let mut forced = false;
-        while let Ok(line) = serial_rx.try_recv() {
-            forced = true;
-            if let Some(file) = named_file(&line, &config.watch.dir) {
-                if let Ok(meta) = std::fs::metadata(&file) {
-                    let stamp = Stamp {
-                        size: meta.len(),
-                        mtime: meta.modified().ok(),
-                    };
-                    if settler.force(&file, stamp, Instant::now()) {
-                        take_file(&mut store, &mut settler, &file, &to_worker);
-                    }
+            Some(line) = serial_rx.recv() => {
+                // A trigger says the scanner has finished writing: a file
+                // the line names first, then everything in the folder.
+                let mut lines = vec![line];
+                while let Ok(more) = serial_rx.try_recv() {
+                    lines.push(more);
                 }
-            }
-        }
-
-        let skip = config.watch.quarantine.as_deref();
-        match list_candidates(
-            &config.watch.dir,
-            config.watch.recursive,
-            &config.watch.ignore,
-            skip,
-        ) {
-            Ok(files) => {
-                watch_error_logged = false;
-                let now = Instant::now();
-                let settle = Duration::from_secs_f64(config.watch.settle_seconds);
-                let listed: HashSet<PathBuf> = files.iter().map(|(p, _)| p.clone()).collect();
-                settler.retain_listed(&listed);
-                for (path, stamp) in files {
-                    let ready = if forced {
-                        settler.force(&path, stamp, now)
-                    } else {
-                        settler.observe(&path, stamp, now, settle)
-                    };
-                    if ready {
-                        take_file(&mut store, &mut settler, &path, &to_worker);
+                let mut ready = Vec::new();
+                for line in &lines {
+                    if let Some(file) = intake::named_file(line, folder.dir()) {
+                        if folder.force_file(&file) {
+                            ready.push(file);
+                        }
                     }
                 }
+                take(&mut store, &mut folder, ready, &worker).await;
+                let ready = folder.rescan(true);
+                take(&mut store, &mut folder, ready, &worker).await;
             }
-            Err(e) => {
-                if !watch_error_logged {
-                    tracing::error!(
-                        "{}: cannot list the export folder: {e}; retrying",
-                        config.watch.dir.display()
-                    );
-                    watch_error_logged = true;
+            Some(event) = folder.event() => {
+                let out = folder.handle(event);
+                let mut ready = out.ready;
+                if out.rescan {
+                    ready.extend(folder.rescan(false));
+                }
+                take(&mut store, &mut folder, ready, &worker).await;
+            }
+            _ = settle_tick.tick() => {
+                let ready = folder.tick();
+                take(&mut store, &mut folder, ready, &worker).await;
+            }
+            _ = rescan_tick.tick() => {
+                let ready = folder.safety_rescan();
+                take(&mut store, &mut folder, ready, &worker).await;
+            }
+            _ = house.tick() => {
+                if let Some(every) = watchdog {
+                    let hung = worker
+                        .progress()
+                        .running_for()
+                        .is_some_and(|d| d > JOB_HANG_LIMIT);
+                    if hung && !hang_logged {
+                        tracing::error!(
+                            "the current job looks hung; letting the watchdog restart the daemon"
+                        );
+                        hang_logged = true;
+                    }
+                    if !hung && last_ping.elapsed() >= every {
+                        notify(&[NotifyState::Watchdog]);
+                        last_ping = Instant::now();
+                    }
+                }
+                if last_status_at.is_none_or(|t| t.elapsed() >= STATUS_INTERVAL) {
+                    let status = status_line(&store, n_refs, worker.progress().current());
+                    if status != last_status {
+                        notify(&[NotifyState::Status(&status)]);
+                        last_status = status;
+                    }
+                    last_status_at = Some(Instant::now());
                 }
             }
-        }
-
-        if let Some(interval) = watchdog {
-            let started = job_started_ms.load(Ordering::SeqCst);
-            let hung = current.load(Ordering::SeqCst) > 0
-                && started > 0
-                && now_ms() - started > JOB_HANG_LIMIT.as_millis() as i64;
-            if hung && !hang_logged {
-                tracing::error!(
-                    "the current job looks hung; letting the watchdog restart the daemon"
-                );
-                hang_logged = true;
-            }
-            if !hung && last_ping.elapsed() >= interval {
-                notifier.send("WATCHDOG=1");
-                last_ping = Instant::now();
-            }
-        }
-        if last_status_at.elapsed() >= Duration::from_secs(2) {
-            let status = status_line(&store, n_refs, current.load(Ordering::SeqCst));
-            if status != last_status {
-                notifier.send(&format!("STATUS={status}"));
-                last_status = status;
-            }
-            last_status_at = Instant::now();
-        }
-        // Sleep in short steps so signals and triggers are handled fast.
-        let next = if settler.waiting() {
-            POLL_INTERVAL
-        } else {
-            IDLE_POLL_INTERVAL
-        };
-        let until = Instant::now() + next;
-        while Instant::now() < until && !signals::stop_requested() {
-            std::thread::sleep(Duration::from_millis(50));
         }
     }
 
     tracing::info!("stopping");
-    notifier.send("STOPPING=1");
-    stop.store(true, Ordering::SeqCst);
-    if let Some(s) = serial_stop.take() {
-        s.store(true, Ordering::SeqCst);
-    }
-    drop(to_worker);
+    notify(&[NotifyState::Stopping]);
+    worker.request_stop();
+    drop(serial);
     let deadline = Instant::now() + stop_grace();
     while !worker.is_finished() && Instant::now() < deadline {
-        std::thread::sleep(Duration::from_millis(50));
+        sleep(Duration::from_millis(50)).await;
     }
     if !worker.is_finished() {
-        let id = current.load(Ordering::SeqCst);
-        if id > 0 {
+        if let Some(id) = worker.progress().current() {
             match store.abandon(id) {
                 Ok(()) => tracing::info!("scan {id} abandoned; it is pending for the next start"),
                 Err(e) => tracing::warn!("scan {id} could not be abandoned: {e}"),
@@ -382,74 +394,15 @@ fn reload(
     Ok((config, classifier, trigger))
 }
 
-fn start_serial(
-    config: &Config,
-    trigger: Option<&Regex>,
-    tx: &Sender<String>,
-) -> Option<Arc<AtomicBool>> {
-    let (s, re) = (config.serial.as_ref()?, trigger?);
-    let stop = Arc::new(AtomicBool::new(false));
-    let (port, baud, re, tx, flag) = (s.port.clone(), s.baud, re.clone(), tx.clone(), stop.clone());
-    let spawned = std::thread::Builder::new()
-        .name("morphoid-serial".into())
-        .spawn(move || serial::run(port, baud, re, tx, flag));
-    match spawned {
-        Ok(_) => Some(stop),
-        Err(e) => {
-            tracing::error!("cannot start the serial thread: {e}");
-            None
-        }
-    }
-}
-
-/// A word of a trigger line that names an existing file, as given or
-/// relative to the export folder.
-pub fn named_file(line: &str, watch_dir: &Path) -> Option<PathBuf> {
-    line.split_whitespace().find_map(|word| {
-        let p = Path::new(word);
-        [p.to_path_buf(), watch_dir.join(p)]
-            .into_iter()
-            .find(|c| c.is_file())
-    })
-}
-
-/// Hash a settled file and queue it; known content is not queued again.
-fn take_file(store: &mut Store, settler: &mut Settler, path: &Path, to_worker: &Sender<ToWorker>) {
-    let (hash, size) = match content_hash_file(path) {
-        Ok(h) => h,
-        Err(e) => {
-            tracing::warn!("{}: cannot read: {e}", path.display());
-            settler.release(path);
-            return;
-        }
-    };
-    match store.enqueue(&path.display().to_string(), &hash, size) {
-        Ok(Enqueued::New(id)) => {
-            tracing::debug!("{}: queued as scan {id}", path.display());
-            let _ = to_worker.send(ToWorker::Wake);
-        }
-        Ok(Enqueued::Existing(id, status)) => tracing::debug!(
-            "{}: content already known as scan {id} ({})",
-            path.display(),
-            status.as_str()
-        ),
-        Err(e) => {
-            tracing::error!("{}: cannot queue: {e}", path.display());
-            settler.release(path);
-        }
-    }
-}
-
 /// "idle, 116 references, 42 scans today" (or "identifying …").
-fn status_line(store: &Store, n_refs: usize, current: i64) -> String {
+fn status_line(store: &Store, n_refs: usize, current: Option<i64>) -> String {
     let today = store
         .finished_since(utc_day_start_ms(now_ms()))
         .unwrap_or(0);
     let pending = store.counts().map(|c| c.pending).unwrap_or(0);
-    let state = if current > 0 {
-        format!("identifying scan {current}")
-    } else {
-        "idle".to_string()
+    let state = match current {
+        Some(id) => format!("identifying scan {id}"),
+        None => "idle".to_string(),
     };
     let queue = if pending > 0 {
         format!(", {pending} pending")
@@ -457,131 +410,4 @@ fn status_line(store: &Store, n_refs: usize, current: i64) -> String {
         String::new()
     };
     format!("{state}, {n_refs} references, {today} scans today{queue}")
-}
-
-/// What the worker shares with the control loop: the scan it is
-/// identifying (0: none) and since when (Unix ms).
-struct Progress {
-    current: Arc<AtomicI64>,
-    started_ms: Arc<AtomicI64>,
-}
-
-/// The worker: claim pending jobs one at a time and identify them.
-fn worker_loop(
-    mut store: Store,
-    mut classifier: Classifier,
-    mut quarantine: Option<PathBuf>,
-    rx: Receiver<ToWorker>,
-    stop: Arc<AtomicBool>,
-    progress: Progress,
-) {
-    loop {
-        // Drain messages; a periodic wake-up also catches jobs queued by
-        // another process (`classify` leaves none behind, but be safe).
-        match rx.recv_timeout(Duration::from_secs(5)) {
-            Ok(ToWorker::Reload(c, q)) => {
-                classifier = *c;
-                quarantine = q;
-            }
-            Ok(ToWorker::Wake) | Err(RecvTimeoutError::Timeout) => {}
-            Err(RecvTimeoutError::Disconnected) => return,
-        }
-        while !stop.load(Ordering::SeqCst) {
-            if let Ok(ToWorker::Reload(c, q)) = rx.try_recv() {
-                classifier = *c;
-                quarantine = q;
-            }
-            let job = match store.claim_next() {
-                Ok(Some(job)) => job,
-                Ok(None) => break,
-                Err(e) => {
-                    tracing::error!("cannot claim a job: {e}");
-                    std::thread::sleep(Duration::from_secs(1));
-                    break;
-                }
-            };
-            if job.attempts > MAX_ATTEMPTS {
-                let message = format!(
-                    "{}: given up after {} attempts that did not finish (the daemon died on it)",
-                    job.path,
-                    job.attempts - 1
-                );
-                tracing::error!("{message}");
-                if let Err(e) = store.fail(job.scan_id, &message) {
-                    tracing::error!("{}: cannot record the failure: {e}", job.path);
-                }
-                continue;
-            }
-            progress.started_ms.store(now_ms(), Ordering::SeqCst);
-            progress.current.store(job.scan_id, Ordering::SeqCst);
-            let started = Instant::now();
-            let status = classify::run_job(&mut store, &classifier, &job);
-            let secs = started.elapsed().as_secs_f64();
-            progress.current.store(0, Ordering::SeqCst);
-            match status {
-                Ok(ScanStatus::Ok) => log_result(&store, job.scan_id, &job.path, secs),
-                Ok(_) => {
-                    let message = store
-                        .scan(job.scan_id, 0)
-                        .ok()
-                        .flatten()
-                        .and_then(|r| r.error)
-                        .unwrap_or_default();
-                    tracing::warn!("{}: error after {secs:.1} s: {message}", job.path);
-                    if let Some(q) = &quarantine {
-                        move_to_quarantine(Path::new(&job.path), q);
-                    }
-                }
-                Err(e) => tracing::error!("{}: cannot record the result: {e}", job.path),
-            }
-        }
-        if stop.load(Ordering::SeqCst) {
-            return;
-        }
-    }
-}
-
-/// One info line per identified scan: file, nearest taxon per rank with
-/// its distance, time taken.
-fn log_result(store: &Store, id: i64, path: &str, secs: f64) {
-    let record = store.scan(id, NEAREST).ok().flatten();
-    let ranks = record
-        .map(|r| {
-            r.ranks
-                .iter()
-                .map(|k| {
-                    format!(
-                        "{}={} ({} at {:.4})",
-                        k.rank, k.taxon, k.reference, k.distance
-                    )
-                })
-                .collect::<Vec<_>>()
-                .join(", ")
-        })
-        .unwrap_or_default();
-    tracing::info!("{path}: {ranks}; {secs:.1} s");
-}
-
-/// Move an unusable file into the quarantine folder (keeping its name,
-/// numbered if taken). Failures are logged: the error row is what counts.
-fn move_to_quarantine(file: &Path, folder: &Path) {
-    let Some(name) = file.file_name() else {
-        return;
-    };
-    if let Err(e) = std::fs::create_dir_all(folder) {
-        tracing::warn!("{}: cannot create quarantine: {e}", folder.display());
-        return;
-    }
-    let mut target = folder.join(name);
-    let mut n = 1;
-    while target.exists() {
-        target = folder.join(format!("{}.{n}", name.to_string_lossy()));
-        n += 1;
-    }
-    let moved = std::fs::rename(file, &target)
-        .or_else(|_| std::fs::copy(file, &target).and_then(|_| std::fs::remove_file(file)));
-    match moved {
-        Ok(()) => tracing::info!("{} moved to {}", file.display(), target.display()),
-        Err(e) => tracing::warn!("{}: cannot quarantine: {e}", file.display()),
-    }
 }

@@ -79,6 +79,25 @@ impl Settler {
         self.entries.values().any(|e| !e.taken)
     }
 
+    /// The files still waiting to settle: they are looked at again on a
+    /// short tick, because a file that stops changing sends no more events.
+    pub fn waiting_paths(&self) -> Vec<PathBuf> {
+        let mut v: Vec<PathBuf> = self
+            .entries
+            .iter()
+            .filter(|(_, e)| !e.taken)
+            .map(|(p, _)| p.clone())
+            .collect();
+        v.sort();
+        v
+    }
+
+    /// Forget `path` (deleted or renamed away): if a file appears under
+    /// that name again it is observed afresh.
+    pub fn forget(&mut self, path: &Path) {
+        self.entries.remove(path);
+    }
+
     /// Allow `path` to be taken again at its next settled observation
     /// (after a transient failure to read it).
     pub fn release(&mut self, path: &Path) {
@@ -117,5 +136,9 @@ mod tests {
         assert!(s.observe(p, stamp(40), at(12), settle));
         assert!(!s.force(p, stamp(40), at(13)));
         assert!(s.force(Path::new("b.ply"), stamp(1), at(13)));
+        assert!(!s.observe(Path::new("c.ply"), stamp(1), at(13), settle));
+        assert_eq!(s.waiting_paths(), vec![PathBuf::from("c.ply")]);
+        s.forget(Path::new("c.ply"));
+        assert!(!s.waiting());
     }
 }
