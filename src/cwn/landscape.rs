@@ -107,6 +107,15 @@ pub struct Landscape {
     /// As `turned`, for the reflected landscape `u ↦ ū` (angle index
     /// `j ↦ −j`).
     pub mirrored: Vec<f32>,
+    /// Per sample, the angular profile: the weighted values summed over
+    /// the rings (`angles` numbers). By the triangle inequality the L1
+    /// distance of two rotated profiles is a lower bound of the full one,
+    /// which lets most rotations be skipped exactly.
+    pub profile: Vec<f32>,
+    /// The profiles, each written twice in a row (see `turned`).
+    pub profile_turned: Vec<f32>,
+    /// The reflected profiles, each written twice in a row.
+    pub profile_mirrored: Vec<f32>,
 }
 
 impl Landscape {
@@ -133,6 +142,21 @@ impl Landscape {
             &self.turned
         };
         &v[i * q..(i + 1) * q]
+    }
+
+    fn profile_of(&self, i: usize) -> &[f32] {
+        let a = self.quadrature.angles;
+        &self.profile[i * a..(i + 1) * a]
+    }
+
+    fn profile_turned_of(&self, i: usize, mirrored: bool) -> &[f32] {
+        let a = 2 * self.quadrature.angles;
+        let v = if mirrored {
+            &self.profile_mirrored
+        } else {
+            &self.profile_turned
+        };
+        &v[i * a..(i + 1) * a]
     }
 }
 
@@ -188,14 +212,16 @@ pub fn landscape(p: &Prepared, params: &CwnParams) -> Result<Landscape, CwnError
     for v in per_sample {
         values.extend(v.ok_or(CwnError::Locate)?);
     }
-    let mut turned = Vec::with_capacity(2 * values.len());
-    let mut mirrored = Vec::with_capacity(2 * values.len());
-    for ring in values.chunks_exact(angles) {
-        for t in 0..2 * angles {
-            turned.push(ring[t % angles]);
-            mirrored.push(ring[(2 * angles - t) % angles]);
+    let (turned, mirrored) = doubled(&values, angles);
+    let mut profile = vec![0.0f32; points.len() * angles];
+    for (i, sample) in values.chunks_exact(quad.len()).enumerate() {
+        for ring in sample.chunks_exact(angles) {
+            for (p, v) in profile[i * angles..(i + 1) * angles].iter_mut().zip(ring) {
+                *p += v;
+            }
         }
     }
+    let (profile_turned, profile_mirrored) = doubled(&profile, angles);
     Ok(Landscape {
         name: p.name.clone(),
         quadrature: quad,
@@ -204,7 +230,24 @@ pub fn landscape(p: &Prepared, params: &CwnParams) -> Result<Landscape, CwnError
         values,
         turned,
         mirrored,
+        profile,
+        profile_turned,
+        profile_mirrored,
     })
+}
+
+/// Each run of `angles` values written twice in a row, as is and with the
+/// angle index reversed (`j ↦ −j mod angles`).
+fn doubled(values: &[f32], angles: usize) -> (Vec<f32>, Vec<f32>) {
+    let mut turned = Vec::with_capacity(2 * values.len());
+    let mut mirrored = Vec::with_capacity(2 * values.len());
+    for ring in values.chunks_exact(angles) {
+        for t in 0..2 * angles {
+            turned.push(ring[t % angles]);
+            mirrored.push(ring[(2 * angles - t) % angles]);
+        }
+    }
+    (turned, mirrored)
 }
 
 /// `Σ |a_k − b_k|` with eight independent partial sums, so that the loop
@@ -231,8 +274,11 @@ fn l1(a: &[f32], b: &[f32]) -> f32 {
 /// rotations) of `∫_{N(0,R)} |𝐟(T_{z_i}⁻¹ u) − 𝐟′(T_{z′_j}⁻¹ ρ u)| dη(u)`.
 /// Returns the value and whether the minimum is orientation-reversing.
 ///
-/// Rotations are tried in order and a sum is abandoned ring by ring once
-/// it exceeds the best so far (exact: the terms are non-negative).
+/// Exact pruning, for speed: the L1 distance of the angular profiles
+/// (values summed over rings) bounds each rotation's sum from below, so the
+/// rotation with the smallest bound is evaluated first and any rotation
+/// whose bound reaches the best sum so far is skipped; a full sum is also
+/// abandoned ring by ring once it reaches the best.
 pub fn neighbourhood_dissimilarity(
     a: &Landscape,
     i: usize,
@@ -242,26 +288,43 @@ pub fn neighbourhood_dissimilarity(
 ) -> (f32, bool) {
     let angles = a.quadrature.angles;
     let x = a.values_of(i);
-    let mut best = (f32::INFINITY, false);
+    let px = a.profile_of(i);
     let orientations: &[bool] = if reflections {
         &[false, true]
     } else {
         &[false]
     };
+    // Lower bounds of every (orientation, shift), at most 2 × 720.
+    let mut bounds: Vec<(f32, bool, usize)> = Vec::with_capacity(2 * angles);
     for &mirrored in orientations {
-        let y = b.turned_of(j, mirrored);
+        let py = b.profile_turned_of(j, mirrored);
         for s in 0..angles {
-            let mut sum = 0.0f32;
-            for (k, ring) in x.chunks_exact(angles).enumerate() {
-                let w = &y[2 * angles * k + s..2 * angles * k + s + angles];
-                sum += l1(ring, w);
-                if sum >= best.0 {
-                    break;
-                }
+            bounds.push((l1(px, &py[s..s + angles]), mirrored, s));
+        }
+    }
+    let full = |mirrored: bool, s: usize, best: f32| -> f32 {
+        let y = b.turned_of(j, mirrored);
+        let mut sum = 0.0f32;
+        for (k, ring) in x.chunks_exact(angles).enumerate() {
+            let w = &y[2 * angles * k + s..2 * angles * k + s + angles];
+            sum += l1(ring, w);
+            if sum >= best {
+                break;
             }
-            if sum < best.0 {
-                best = (sum, mirrored);
-            }
+        }
+        sum
+    };
+    let Some(&(_, m0, s0)) = bounds.iter().min_by(|p, q| p.0.total_cmp(&q.0)) else {
+        return (f32::INFINITY, false);
+    };
+    let mut best = (full(m0, s0, f32::INFINITY), m0);
+    for &(bound, mirrored, s) in &bounds {
+        if bound >= best.0 || (mirrored, s) == (m0, s0) {
+            continue;
+        }
+        let sum = full(mirrored, s, best.0);
+        if sum < best.0 {
+            best = (sum, mirrored);
         }
     }
     best
@@ -322,6 +385,50 @@ mod tests {
             assert!((back[0] - u[0]).abs() < 1e-12 && (back[1] - u[1]).abs() < 1e-12);
         }
         assert_eq!(from_origin(z, [0.0, 0.0]), z);
+    }
+
+    #[test]
+    fn pruned_search_equals_trying_every_rotation() {
+        use crate::cp::{self, CpParams};
+        use crate::mesh::synth::{crown, CROWN_GENERA};
+        let params = CwnParams::default();
+        let land = |g: usize| {
+            let p = cp::prepare(&crown(&CROWN_GENERA[g], 5, 1500), &CpParams::default()).unwrap();
+            landscape(&p, &params).unwrap()
+        };
+        let (a, b) = (land(0), land(4));
+        let angles = a.quadrature.angles;
+        let q = a.quadrature.len();
+        for i in (0..a.len()).step_by(7) {
+            for j in (0..b.len()).step_by(5) {
+                let x = &a.values[i * q..(i + 1) * q];
+                let mut want = (f32::INFINITY, false);
+                for mirrored in [false, true] {
+                    for s in 0..angles {
+                        let mut sum = 0.0f64;
+                        for k in 0..a.quadrature.rings {
+                            for t in 0..angles {
+                                let u = if mirrored {
+                                    (2 * angles - (t + s)) % angles
+                                } else {
+                                    (t + s) % angles
+                                };
+                                sum += (x[k * angles + t] - b.values[j * q + k * angles + u]).abs()
+                                    as f64;
+                            }
+                        }
+                        if (sum as f32) < want.0 {
+                            want = (sum as f32, mirrored);
+                        }
+                    }
+                }
+                let got = neighbourhood_dissimilarity(&a, i, &b, j, true);
+                assert!(
+                    (got.0 - want.0).abs() <= 1e-5 * want.0.max(1e-6),
+                    "{got:?} {want:?}"
+                );
+            }
+        }
     }
 
     #[test]
