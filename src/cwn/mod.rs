@@ -42,8 +42,9 @@ use std::time::Instant;
 #[serde(default, deny_unknown_fields)]
 pub struct CwnParams {
     /// Euclidean radius `R` of the neighbourhood `N(0, R)` in the disk
-    /// (hyperbolic radius `ln((1 + R)/(1 − R))`). 0.5 was chosen on the
-    /// PNAS teeth (see README).
+    /// (hyperbolic radius `ln((1 + R)/(1 − R))`). The default 0.5 comes
+    /// from an earlier attempt on the PNAS teeth and was not tuned again
+    /// (see README).
     pub radius: f64,
     /// Rings of the polar quadrature of the neighbourhood.
     pub rings: usize,
