@@ -6,6 +6,7 @@
 //! - [`clean`]: turn a raw scan into a clean disk-type surface;
 //! - [`conformal`]: normalization and conformal flattening to the unit disk;
 //! - [`cp`]: prepared surfaces and the continuous Procrustes distance;
+//! - [`cwn`]: the conformal Wasserstein neighbourhood dissimilarity distance;
 //! - [`eval`]: distance matrices and leave-one-out classification;
 //! - [`landmarks`]: landmark files and their propagation between surfaces;
 //! - [`store`]: the SQLite record of references, scans, results and distances;
@@ -18,6 +19,7 @@ pub mod clean;
 pub mod config;
 pub mod conformal;
 pub mod cp;
+pub mod cwn;
 pub mod daemon;
 pub mod eval;
 pub mod landmarks;

@@ -1,7 +1,10 @@
-//! `morphoid distance`: the cP distance and correspondence of two surfaces.
+//! `morphoid distance`: the cP distance and correspondence of two surfaces,
+//! or their cWn distance (`--method cwn`).
 
-use anyhow::{Context, Result};
+use super::method::{CwnArgs, Method};
+use anyhow::{bail, Context, Result};
 use morphoid::cp::{self, Directed};
+use morphoid::cwn;
 use morphoid::pipeline::{self, PreparedSurface, Settings, StageTimings};
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -27,6 +30,12 @@ pub struct Args {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    /// Which distance: cp (continuous Procrustes) or cwn (conformal
+    /// Wasserstein neighbourhood dissimilarity).
+    #[arg(long, value_enum, default_value_t = Method::Cp)]
+    method: Method,
+    #[command(flatten)]
+    cwn: CwnArgs,
 }
 
 #[derive(Debug, Serialize)]
@@ -39,6 +48,7 @@ struct DirectedJson {
 struct Output {
     a: String,
     b: String,
+    method: &'static str,
     distance: f64,
     forward: DirectedJson,
     backward: DirectedJson,
@@ -56,9 +66,108 @@ struct Timings {
     compare: f64,
 }
 
+/// The cWn result as JSON.
+#[derive(Debug, Serialize)]
+struct CwnOutput {
+    a: String,
+    b: String,
+    method: &'static str,
+    distance: f64,
+    radius: f64,
+    reflections: bool,
+    /// Share of the transported mass matched to mirror-image neighbourhoods.
+    reflected_share: f64,
+    pivots: usize,
+    area_a: f64,
+    area_b: f64,
+    timings_ms: CwnTimings,
+}
+
+#[derive(Debug, Serialize)]
+struct CwnTimings {
+    a: StageTimings,
+    b: StageTimings,
+    landscapes: f64,
+    cost: f64,
+    transport: f64,
+    compare: f64,
+}
+
 /// Run `morphoid distance`.
 pub fn run(args: Args) -> Result<ExitCode> {
     super::configure_threads(args.threads)?;
+    match args.method {
+        Method::Cp => run_cp(args),
+        Method::Cwn => run_cwn(args),
+        Method::Landmarks => bail!(
+            "--method landmarks compares the landmark files of a library: use `morphoid matrix --method landmarks`"
+        ),
+    }
+}
+
+/// The cWn distance: landscapes of both surfaces, then one transport.
+fn run_cwn(args: Args) -> Result<ExitCode> {
+    if args.map.is_some() {
+        bail!("--map writes the cP correspondence; it is not available with --method cwn");
+    }
+    let params = args.cwn.params();
+    params.validate()?;
+    let settings = Settings::default();
+    let (a, b) = rayon::join(
+        || pipeline::prepare_file(&args.a, &settings),
+        || pipeline::prepare_file(&args.b, &settings),
+    );
+    let (a, b) = (a?, b?);
+    let t = Instant::now();
+    let (la, lb) = rayon::join(
+        || cwn::prepare(&a.prepared, &params),
+        || cwn::prepare(&b.prepared, &params),
+    );
+    let la = la.with_context(|| format!("{}", args.a.display()))?;
+    let lb = lb.with_context(|| format!("{}", args.b.display()))?;
+    let landscapes_ms = t.elapsed().as_secs_f64() * 1e3;
+    let t = Instant::now();
+    let r = {
+        let _s = tracing::info_span!("cwn", a = %a.prepared.name, b = %b.prepared.name).entered();
+        cwn::distance(&la, &lb, &params)?
+    };
+    let compare_ms = t.elapsed().as_secs_f64() * 1e3;
+    let out = CwnOutput {
+        a: args.a.display().to_string(),
+        b: args.b.display().to_string(),
+        method: Method::Cwn.name(),
+        distance: r.distance,
+        radius: params.radius,
+        reflections: params.reflections,
+        reflected_share: r.reflected_share,
+        pivots: r.pivots,
+        area_a: a.cleaning.area,
+        area_b: b.cleaning.area,
+        timings_ms: CwnTimings {
+            a: a.timings,
+            b: b.timings,
+            landscapes: landscapes_ms,
+            cost: r.cost_ms,
+            transport: r.transport_ms,
+            compare: compare_ms,
+        },
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&out)?);
+    } else {
+        println!(
+            "cWn distance {:.6} (R = {}, {:.0} % of the mass matched to mirror images); compared in {:.1} ms",
+            out.distance,
+            out.radius,
+            100.0 * out.reflected_share,
+            compare_ms
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The cP distance and, with `--map`, the correspondence.
+fn run_cp(args: Args) -> Result<ExitCode> {
     let settings = Settings::default();
     let (a, b) = rayon::join(
         || pipeline::prepare_file(&args.a, &settings),
@@ -79,6 +188,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let out = Output {
         a: args.a.display().to_string(),
         b: args.b.display().to_string(),
+        method: Method::Cp.name(),
         distance: c.distance,
         forward: DirectedJson {
             distance: c.forward.distance,

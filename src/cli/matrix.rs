@@ -1,12 +1,14 @@
 //! `morphoid matrix`: the all-pairs cP distance matrix of a folder, whole
 //! or in shards for cluster job arrays (`--shard K/N`, then `matrix merge`);
-//! with `--method landmarks`, the discrete Procrustes distance matrix of
-//! the folder's landmark files (the paper's ODLP).
+//! with `--method cwn` the cWn matrix (whole only); with `--method
+//! landmarks`, the discrete Procrustes distance matrix of the folder's
+//! landmark files (the paper's ODLP).
 
 use super::common::progress_bar;
-use super::method::Method;
+use super::method::{CwnArgs, Method};
 use anyhow::{bail, Context, Result};
 use morphoid::cp::Prepared;
+use morphoid::cwn;
 use morphoid::eval;
 use morphoid::eval::shard::{self, Shard, ShardFile};
 use morphoid::landmarks;
@@ -44,11 +46,15 @@ pub struct Args {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
-    /// The distance: `cp` (the surfaces) or `landmarks` (the discrete
-    /// Procrustes distance of `landmarks/<name>.{csv,fcsv,mrk.json,pp}`,
-    /// every specimen with the same number of landmarks).
+    /// Which distance: cp (continuous Procrustes), cwn (conformal
+    /// Wasserstein neighbourhood dissimilarity; no --shard) or landmarks
+    /// (the discrete Procrustes distance of
+    /// `landmarks/<name>.{csv,fcsv,mrk.json,pp}`, every specimen with the
+    /// same number of landmarks).
     #[arg(long, value_enum, default_value_t = Method::Cp)]
     method: Method,
+    #[command(flatten)]
+    cwn: CwnArgs,
     /// With `--method landmarks`: allow reflections in the optimal
     /// superimposition (default: rotations only).
     #[arg(long)]
@@ -86,7 +92,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     };
     super::configure_threads(args.threads)?;
     match args.method {
-        Method::Cp => {}
+        Method::Cp | Method::Cwn => {}
         Method::Landmarks => {
             if args.shard.is_some() || args.cache.is_some() {
                 bail!("--shard and --cache apply to --method cp only");
@@ -100,8 +106,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
         None => None,
     };
     match args.shard {
+        Some(_) if args.method != Method::Cp => bail!(
+            "--shard computes cP shards only; run --method {} without --shard",
+            args.method.name()
+        ),
         Some(shard) => run_shard(&library, &out, shard, cache.as_ref()),
-        None => run_whole(&library, &out, cache.as_ref()),
+        None => run_whole(&library, &out, cache.as_ref(), args.method, &args.cwn),
     }
 }
 
@@ -132,8 +142,19 @@ fn prepare(
 }
 
 /// The whole matrix in one run.
-fn run_whole(library: &Path, out: &Path, cache: Option<&Cache>) -> Result<ExitCode> {
+fn run_whole(
+    library: &Path,
+    out: &Path,
+    cache: Option<&Cache>,
+    method: Method,
+    cwn_args: &CwnArgs,
+) -> Result<ExitCode> {
     let settings = Settings::default();
+    let cwn_params = cwn_args.params();
+    if method == Method::Cwn {
+        // Fail on bad options before hours of preparation.
+        cwn_params.validate()?;
+    }
     let files = surface_files(library)?;
     let started = Instant::now();
     let hits = AtomicUsize::new(0);
@@ -152,16 +173,28 @@ fn run_whole(library: &Path, out: &Path, cache: Option<&Cache>) -> Result<ExitCo
 
     let n = prepared.len();
     let bar = progress_bar((n * n.saturating_sub(1) / 2) as u64, "comparing");
-    let matrix = eval::distance_matrix(&prepared, &settings.cp, |_| bar.inc(1));
+    let matrix = match method {
+        Method::Cp => eval::distance_matrix(&prepared, &settings.cp, |_| bar.inc(1)),
+        Method::Cwn => {
+            let landscapes = prepared
+                .par_iter()
+                .map(|p| cwn::prepare(p, &cwn_params).with_context(|| p.name.clone()))
+                .collect::<Result<Vec<_>>>()?;
+            cwn::distance_matrix(&landscapes, &cwn_params, |_| bar.inc(1))?
+        }
+        // Dispatched to `run_landmarks` before any surface is prepared.
+        Method::Landmarks => bail!("--method landmarks does not compare surfaces"),
+    };
     bar.finish_and_clear();
     matrix
         .write_csv(out)
         .with_context(|| format!("writing {}", out.display()))?;
     eprintln!(
-        "{} specimens ({} from the cache), {} pairs: prepared in {:.1} s, compared in {:.1} s; wrote {}",
+        "{} specimens ({} from the cache), {} pairs, {}: prepared in {:.1} s, compared in {:.1} s; wrote {}",
         n,
         hits.load(Ordering::Relaxed),
         n * n.saturating_sub(1) / 2,
+        method.name(),
         prepare_s,
         started.elapsed().as_secs_f64() - prepare_s,
         out.display()

@@ -1,12 +1,52 @@
-//! `--method`: which distance a command computes.
+//! `--method`: which distance `distance` and `matrix` compute, and the
+//! options of the cWn distance.
 
-/// The distance of `morphoid matrix` (and the commands that take a method).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
+use morphoid::cwn::CwnParams;
+
+/// The distance between two surfaces.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum Method {
-    /// The continuous Procrustes distance between the surfaces.
+    /// Continuous Procrustes distance (extrinsic; the default).
     #[default]
     Cp,
+    /// Conformal Wasserstein neighbourhood dissimilarity distance
+    /// (intrinsic, research use).
+    Cwn,
     /// The discrete Procrustes distance between the landmark files of the
-    /// library (`landmarks/<name>.{csv,fcsv,mrk.json,pp}`): the paper's ODLP.
+    /// library (`landmarks/<name>.{csv,fcsv,mrk.json,pp}`): the paper's ODLP
+    /// (`matrix` only).
     Landmarks,
+}
+
+impl Method {
+    /// The name used in outputs (`cp`, `cwn`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Cp => "cp",
+            Method::Cwn => "cwn",
+            Method::Landmarks => "landmarks",
+        }
+    }
+}
+
+/// Options of the cWn distance (ignored by the other methods).
+#[derive(Debug, Clone, clap::Args)]
+pub struct CwnArgs {
+    /// cWn: Euclidean radius R of the neighbourhoods in the disk (0 < R < 1).
+    #[arg(long, value_name = "R", default_value_t = CwnParams::default().radius)]
+    cwn_radius: f64,
+    /// cWn: compare neighbourhoods by rotations only, not mirror images.
+    #[arg(long)]
+    cwn_no_reflections: bool,
+}
+
+impl CwnArgs {
+    /// The cWn parameters these options select (checked when used).
+    pub fn params(&self) -> CwnParams {
+        CwnParams {
+            radius: self.cwn_radius,
+            reflections: !self.cwn_no_reflections,
+            ..CwnParams::default()
+        }
+    }
 }

@@ -43,9 +43,9 @@ enum Command {
     Results(results::Args),
     /// Prepare and cache the reference library, or list it.
     Library(library::Args),
-    /// The cP distance and correspondence of two surfaces.
+    /// The cP (or cWn) distance of two surfaces, and the cP correspondence.
     Distance(distance::Args),
-    /// The all-pairs cP distance matrix of a folder of surfaces.
+    /// The all-pairs cP (or cWn) distance matrix of a folder of surfaces.
     Matrix(matrix::Args),
     /// Leave-one-out nearest-neighbour classification from a distance matrix.
     Evaluate(evaluate::Args),

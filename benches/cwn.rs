@@ -1,0 +1,78 @@
+//! Benchmarks of the cWn distance on one core: building a landscape and
+//! one pair (cost matrix + transport). Uses the PNAS teeth H10 and H16
+//! when present, else two synthetic crowns.
+//!
+//! `cargo bench --bench cwn`
+
+#[path = "../tests/cp_support/mod.rs"]
+mod cp_support;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use morphoid::cp::{self, CpParams};
+use morphoid::cwn::{self, CwnParams};
+use morphoid::mesh::synth::{crown, CROWN_GENERA};
+use morphoid::mesh::Mesh;
+use std::hint::black_box;
+
+fn meshes() -> (Mesh, Mesh, &'static str) {
+    let dir = std::path::PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared/data/pnas-teeth"
+    ));
+    if dir.join("meshes/H10.ply").exists() && dir.join("meshes/H16.ply").exists() {
+        (
+            cp_support::load_tooth(&dir, "H10"),
+            cp_support::load_tooth(&dir, "H16"),
+            "real teeth H10, H16",
+        )
+    } else {
+        (
+            crown(&CROWN_GENERA[0], 1, 5000),
+            crown(&CROWN_GENERA[1], 2, 5000),
+            "synthetic crowns (data not found)",
+        )
+    }
+}
+
+fn bench(c: &mut Criterion) {
+    let (a, b, what) = meshes();
+    eprintln!("benchmarking cWn on {what}, one thread");
+    let cp_params = CpParams::default();
+    let params = CwnParams::default();
+    let (Ok(pa), Ok(pb)) = (cp::prepare(&a, &cp_params), cp::prepare(&b, &cp_params)) else {
+        eprintln!("preparation failed; nothing benchmarked");
+        return;
+    };
+    // One worker: the figure is the time per pair on one core (matrices
+    // run pairs in parallel, one per core).
+    let Ok(pool) = rayon::ThreadPoolBuilder::new().num_threads(1).build() else {
+        eprintln!("cannot start a thread pool");
+        return;
+    };
+    c.bench_function("cwn landscape", |bch| {
+        bch.iter(|| pool.install(|| cwn::prepare(black_box(&pa), &params).map(|l| l.len())))
+    });
+    let (Ok(la), Ok(lb)) = (cwn::prepare(&pa, &params), cwn::prepare(&pb, &params)) else {
+        eprintln!("landscape failed; distance not benchmarked");
+        return;
+    };
+    if let Ok(r) = pool.install(|| cwn::distance(&la, &lb, &params)) {
+        eprintln!(
+            "distance {:.6}: cost matrix {:.1} ms, transport {:.1} ms ({} pivots)",
+            r.distance, r.cost_ms, r.transport_ms, r.pivots
+        );
+    }
+    c.bench_function("cwn distance", |bch| {
+        bch.iter(|| {
+            pool.install(|| cwn::distance(black_box(&la), black_box(&lb), &params))
+                .map(|r| r.distance)
+        })
+    });
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(10);
+    targets = bench
+}
+criterion_main!(benches);
