@@ -97,6 +97,33 @@ pub fn graph_laplacian(n: usize, weights: &[((u32, u32), f64)]) -> SparseColMat<
     csc_from_columns(n, cols)
 }
 
+/// The stiffness matrix `−L + shift·I` of symmetric edge weights (`L` as in
+/// [`graph_laplacian`]): positive definite for `shift > 0` and non-negative
+/// weights, or for the cotangent weights of any planar triangulation
+/// without flipped triangles.
+pub fn shifted_stiffness(
+    n: usize,
+    weights: &[((u32, u32), f64)],
+    shift: f64,
+) -> SparseColMat<usize, f64> {
+    let mut cols: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
+    let mut diag = vec![shift; n];
+    for &((i, j), w) in weights {
+        let (i, j) = (i as usize, j as usize);
+        if i >= n || j >= n || i == j {
+            continue;
+        }
+        cols[j].push((i, -w));
+        cols[i].push((j, -w));
+        diag[i] += w;
+        diag[j] += w;
+    }
+    for (j, c) in cols.iter_mut().enumerate() {
+        c.push((j, diag[j]));
+    }
+    csc_from_columns(n, cols)
+}
+
 /// Assemble an `n × n` sparse matrix from per-column `(row, value)` lists
 /// (duplicates summed, rows sorted). Rows must be `< n`.
 pub(crate) fn csc_from_columns(

@@ -27,7 +27,9 @@ pub use flatten::{
     central_vertex, flatten_to_disk, flatten_to_disk_with, DiskMap, LaplacianWeights,
 };
 pub use intrinsic::intrinsic_delaunay_weights;
-pub use laplacian::{cotangent_edge_weights, cotmatrix, graph_laplacian, EdgeWeights};
+pub use laplacian::{
+    cotangent_edge_weights, cotmatrix, graph_laplacian, shifted_stiffness, EdgeWeights,
+};
 pub use normalize::{normalize, Normalization};
 pub use quality::{flipped_triangles, quasi_conformal_ratios, signed_area_2d};
 pub use validate::check_disk_topology;

@@ -2,6 +2,7 @@
 
 use super::locate::Location;
 use super::mobius::Mobius;
+use super::moser::area_preserving_correction;
 use super::prepare::{CpParams, Prepared};
 use super::procrustes::{Handedness, Moments, RigidFit};
 use super::warp::{mutually_nearest, DiskWarp};
@@ -103,6 +104,24 @@ pub fn evaluate_map(
     for ((&z, &x), &w) in s.uv.iter().zip(&s.vertices).zip(&s.vertex_areas) {
         let (loc, y) = image(t, map(z))?;
         mom.add(x, y, w);
+        corr.push((loc.face, loc.bary));
+    }
+    Some((mom.fit(handedness), corr))
+}
+
+/// Evaluate given images (points of `t`'s disk, one per vertex of `s`) as
+/// in [`evaluate_map`].
+pub fn evaluate_images(
+    s: &Prepared,
+    t: &Prepared,
+    images: &[[f64; 2]],
+    handedness: Handedness,
+) -> Option<(RigidFit, Correspondence)> {
+    let mut mom = Moments::default();
+    let mut corr = Vec::with_capacity(s.vertices.len());
+    for ((&w, &x), &a) in images.iter().zip(&s.vertices).zip(&s.vertex_areas) {
+        let (loc, y) = image(t, w)?;
+        mom.add(x, y, a);
         corr.push((loc.face, loc.bary));
     }
     Some((mom.fit(handedness), corr))
@@ -282,6 +301,24 @@ pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Direct
                         best = Some((fit.residual, m, fit, corr));
                         warp = Some(w);
                     }
+                }
+            }
+        }
+    }
+    // Make the final map area preserving (χ); its distance is the result.
+    if params.area_correction {
+        if let Some((_, m, _, _)) = &best {
+            let m = *m;
+            let images: Vec<[f64; 2]> =
+                s.uv.iter()
+                    .map(|&z| match &warp {
+                        Some(w) => w.apply(m.apply(z)),
+                        None => m.apply(z),
+                    })
+                    .collect();
+            if let Some(moved) = area_preserving_correction(t, &images, &s.vertex_areas) {
+                if let Some((fit, corr)) = evaluate_images(s, t, &moved, handedness(&m)) {
+                    best = Some((fit.residual, m, fit, corr));
                 }
             }
         }

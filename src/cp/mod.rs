@@ -11,9 +11,10 @@
 //! the first (farthest-point) samples; the best few are refined by
 //! Nelder–Mead over the disk automorphisms near them on all samples; the
 //! best is optionally deformed so that features land on features
-//! ([`warp`]); the final map is evaluated on every vertex weighted by
-//! vertex area with the optimal rigid motion (improper for orientation
-//! reversing maps). Everything is sequential and deterministic; matrices
+//! ([`warp`]); the result is made area preserving, as the cP distance
+//! requires ([`moser`]: the paper's χ); the final map is evaluated on every
+//! vertex weighted by vertex area with the optimal rigid motion (improper
+//! for orientation reversing maps). Everything is sequential and deterministic; matrices
 //! parallelize over pairs.
 
 pub mod distance;
@@ -21,6 +22,7 @@ pub mod features;
 pub mod graph;
 pub mod locate;
 pub mod mobius;
+pub mod moser;
 pub mod prepare;
 pub mod procrustes;
 pub mod samples;

@@ -4,10 +4,12 @@
 use super::features::{local_maxima, smooth_vertex_function};
 use super::graph::{graph_distance, vertex_adjacency};
 use super::locate::LocateGrid;
+use super::moser::DiskPoisson;
 use super::samples::farthest_point_samples;
 use crate::conformal::{self, conformal_factor, hyperbolic_density};
 use crate::mesh::{self, Mesh};
 use serde::{Deserialize, Serialize};
+use std::sync::{Arc, OnceLock};
 
 /// Parameters of the cP engine (the `[cp]` configuration section).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -44,6 +46,9 @@ pub struct CpParams {
     pub warp_max_match: f64,
     /// Whether orientation-reversing maps (mirror images) are searched.
     pub reflections: bool,
+    /// Whether the final map is made area preserving (Moser's flow) before
+    /// it is evaluated.
+    pub area_correction: bool,
 }
 
 impl Default for CpParams {
@@ -62,6 +67,7 @@ impl Default for CpParams {
             warp_width: 0.25,
             warp_max_match: 1.0,
             reflections: true,
+            area_correction: true,
         }
     }
 }
@@ -120,9 +126,22 @@ pub struct Prepared {
     pub sample_weights: Vec<f64>,
     /// Point-location grid over the disk triangulation.
     pub grid: LocateGrid,
+    /// The factored Poisson problem of the disk triangulation, for the
+    /// area correction; computed on first use and not cached on disk (it
+    /// is quick to recompute and large to store).
+    #[serde(skip)]
+    poisson: OnceLock<Option<Arc<DiskPoisson>>>,
 }
 
 impl Prepared {
+    /// The factored Poisson problem of the disk triangulation (see
+    /// [`DiskPoisson`]), or `None` when the factorization fails.
+    pub fn disk_poisson(&self) -> Option<&DiskPoisson> {
+        self.poisson
+            .get_or_init(|| DiskPoisson::new(&self.uv, &self.faces).map(Arc::new))
+            .as_deref()
+    }
+
     /// Check internal consistency (lengths and indices), e.g. after reading
     /// a cached copy.
     pub fn validate(&self) -> Result<(), CpError> {
@@ -270,5 +289,6 @@ pub fn prepare(input: &Mesh, params: &CpParams) -> Result<Prepared, CpError> {
         samples: sampling.vertices,
         sample_weights: sampling.weights,
         grid,
+        poisson: OnceLock::new(),
     })
 }
