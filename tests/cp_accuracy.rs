@@ -99,8 +99,17 @@ fn leave_one_out_on_real_teeth() {
     for s in &scores {
         println!("LOO {}: {}/{}", s.rank, s.correct, s.total);
     }
-    // The authors' implementation reaches 114/116, 99/106, 89/101; we
-    // require at least most of that.
-    assert!(scores[0].correct * 100 >= 95 * scores[0].total);
-    assert!(scores[2].correct * 100 >= 80 * scores[2].total);
+    // The authors' implementation reaches 114/116, 99/106, 89/101; with
+    // the area correction we measured 112/116, 99/106, 94/101. Guard that,
+    // with one specimen of slack on order and family.
+    let need = [111, 98, 93];
+    for (s, n) in scores.iter().zip(need) {
+        assert!(
+            s.correct >= n,
+            "LOO {}: {}/{} < {n}",
+            s.rank,
+            s.correct,
+            s.total
+        );
+    }
 }
