@@ -4,12 +4,10 @@
 use super::features::{local_maxima, smooth_vertex_function};
 use super::graph::{graph_distance, vertex_adjacency};
 use super::locate::LocateGrid;
-use super::moser::DiskPoisson;
 use super::samples::farthest_point_samples;
 use crate::conformal::{self, conformal_factor, hyperbolic_density};
 use crate::mesh::{self, Mesh};
 use serde::{Deserialize, Serialize};
-use std::sync::{Arc, OnceLock};
 
 /// Parameters of the cP engine (the `[cp]` configuration section).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -126,22 +124,9 @@ pub struct Prepared {
     pub sample_weights: Vec<f64>,
     /// Point-location grid over the disk triangulation.
     pub grid: LocateGrid,
-    /// The factored Poisson problem of the disk triangulation, for the
-    /// area correction; computed on first use and not cached on disk (it
-    /// is quick to recompute and large to store).
-    #[serde(skip)]
-    poisson: OnceLock<Option<Arc<DiskPoisson>>>,
 }
 
 impl Prepared {
-    /// The factored Poisson problem of the disk triangulation (see
-    /// [`DiskPoisson`]), or `None` when the factorization fails.
-    pub fn disk_poisson(&self) -> Option<&DiskPoisson> {
-        self.poisson
-            .get_or_init(|| DiskPoisson::new(&self.uv, &self.faces).map(Arc::new))
-            .as_deref()
-    }
-
     /// Check internal consistency (lengths and indices), e.g. after reading
     /// a cached copy.
     pub fn validate(&self) -> Result<(), CpError> {
@@ -289,6 +274,5 @@ pub fn prepare(input: &Mesh, params: &CpParams) -> Result<Prepared, CpError> {
         samples: sampling.vertices,
         sample_weights: sampling.weights,
         grid,
-        poisson: OnceLock::new(),
     })
 }
