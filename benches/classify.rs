@@ -11,7 +11,7 @@
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use morphoid::classify::{self, Classifier};
-use morphoid::library::{Cache, Library};
+use morphoid::library::{BuildOutcome, Cache, Library};
 use morphoid::mesh::io;
 use morphoid::mesh::synth::{self, LibrarySpec, RigidMotion};
 use morphoid::pipeline::Settings;
@@ -39,7 +39,11 @@ fn library_dir(tmp: &Path) -> PathBuf {
 }
 
 /// Time one `library build` (prepare what the cache lacks).
-fn timed_build(lib: &Library, cache: &Cache, settings: &Settings) -> (Classifier, f64) {
+fn timed_build(
+    lib: &Library,
+    cache: &Cache,
+    settings: &Settings,
+) -> (Classifier, BuildOutcome, f64) {
     let t = Instant::now();
     let (classifier, outcome) =
         Classifier::build(lib, cache, settings, |_| {}).expect("library builds");
@@ -51,7 +55,7 @@ fn timed_build(lib: &Library, cache: &Cache, settings: &Settings) -> (Classifier
         outcome.reused,
         outcome.failures.len()
     );
-    (classifier, secs)
+    (classifier, outcome, secs)
 }
 
 /// Identify one scan file as `morphoid classify` does; returns its status.
@@ -77,11 +81,14 @@ fn bench(c: &mut Criterion) {
     let lib = Library::open(&dir, None).expect("library opens");
     let cache = Cache::open(&tmp.path().join("cache")).expect("cache");
     let settings = Settings::default();
-    let (_, first) = timed_build(&lib, &cache, &settings);
-    let (classifier, second) = timed_build(&lib, &cache, &settings);
+    let (_, _, first) = timed_build(&lib, &cache, &settings);
+    let (classifier, outcome, second) = timed_build(&lib, &cache, &settings);
     eprintln!("library build: first run {first:.2} s, second run {second:.3} s");
 
     let mut store = Store::open(&tmp.path().join("bench.sqlite")).expect("database");
+    classifier
+        .register(&mut store, &outcome)
+        .expect("references recorded");
     let source = io::load(&lib.members[0].path)
         .expect("a library surface loads")
         .mesh;
