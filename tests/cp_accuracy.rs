@@ -16,24 +16,10 @@ fn leave_one_out_on_real_teeth() {
     let Some(dir) = cp_support::data_dir() else {
         return;
     };
-    let params: CpParams = match std::env::var("CP_PARAMS") {
-        Ok(json) => serde_json::from_str(&json).expect("CP_PARAMS is CpParams JSON"),
-        Err(_) => CpParams::default(),
-    };
-    println!(
-        "params: {}",
-        serde_json::to_string(&params).unwrap_or_default()
-    );
+    let params: CpParams = cp_support::params_from_env("CP_PARAMS");
     let names = cp_support::tooth_names(&dir);
     let t0 = std::time::Instant::now();
-    let prepared: Vec<cp::Prepared> = names
-        .par_iter()
-        .map(|n| {
-            let mut p = cp::prepare(&cp_support::load_tooth(&dir, n), &params).expect("prepare");
-            p.name = n.clone();
-            p
-        })
-        .collect();
+    let prepared = cp_support::prepare_teeth(&dir, &names, &params);
     println!("prepared {} in {:.1?}", prepared.len(), t0.elapsed());
     let t0 = std::time::Instant::now();
     let n = prepared.len();

@@ -7,7 +7,7 @@
 
 mod cp_support;
 
-use morphoid::cp::{self, CpParams};
+use morphoid::cp::CpParams;
 use morphoid::cwn::{self, CwnParams};
 use morphoid::eval::{leave_one_out, Labels};
 use rayon::prelude::*;
@@ -17,25 +17,14 @@ fn leave_one_out_on_real_teeth() {
     let Some(dir) = cp_support::data_dir() else {
         return;
     };
-    let params: CwnParams = match std::env::var("CWN_PARAMS") {
-        Ok(json) => serde_json::from_str(&json).expect("CWN_PARAMS is CwnParams JSON"),
-        Err(_) => CwnParams::default(),
-    };
-    println!(
-        "params: {}",
-        serde_json::to_string(&params).unwrap_or_default()
-    );
+    let params: CwnParams = cp_support::params_from_env("CWN_PARAMS");
     let names = cp_support::tooth_names(&dir);
     let t0 = std::time::Instant::now();
-    let landscapes: Vec<cwn::Landscape> = names
-        .par_iter()
-        .map(|n| {
-            let mut p = cp::prepare(&cp_support::load_tooth(&dir, n), &CpParams::default())
-                .expect("prepare");
-            p.name = n.clone();
-            cwn::prepare(&p, &params).expect("landscape")
-        })
-        .collect();
+    let landscapes: Vec<cwn::Landscape> =
+        cp_support::prepare_teeth(&dir, &names, &CpParams::default())
+            .par_iter()
+            .map(|p| cwn::prepare(p, &params).expect("landscape"))
+            .collect();
     println!("prepared {} in {:.1?}", landscapes.len(), t0.elapsed());
     let t0 = std::time::Instant::now();
     let m = cwn::distance_matrix(&landscapes, &params, |_| {}).expect("matrix");

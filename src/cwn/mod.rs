@@ -31,10 +31,8 @@ pub use landscape::{dissimilarity_matrix, neighbourhood_dissimilarity, Landscape
 pub use transport::{optimal_transport, TransportError, TransportPlan};
 
 use crate::cp::{CpError, Prepared};
-use crate::eval::DistanceMatrix;
-use rayon::prelude::*;
+use crate::eval::{pairwise_matrix, DistanceMatrix};
 use serde::{Deserialize, Serialize};
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 /// Parameters of the cWn distance.
@@ -172,28 +170,12 @@ pub fn distance_matrix(
     params: &CwnParams,
     progress: impl Fn(usize) + Sync,
 ) -> Result<DistanceMatrix, CwnError> {
-    let n = landscapes.len();
-    let pairs: Vec<(usize, usize)> = (0..n)
-        .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
-        .collect();
-    let done = AtomicUsize::new(0);
-    let d: Vec<f64> = pairs
-        .par_iter()
-        .map(|&(i, j)| {
-            let r = distance(&landscapes[i], &landscapes[j], params)?;
-            progress(done.fetch_add(1, Ordering::Relaxed) + 1);
-            Ok(r.distance)
-        })
-        .collect::<Result<_, CwnError>>()?;
-    let mut values = vec![vec![0.0; n]; n];
-    for (&(i, j), &v) in pairs.iter().zip(&d) {
-        values[i][j] = v;
-        values[j][i] = v;
-    }
-    Ok(DistanceMatrix {
-        names: landscapes.iter().map(|l| l.name.clone()).collect(),
-        values,
-    })
+    let names = landscapes.iter().map(|l| l.name.clone()).collect();
+    pairwise_matrix(
+        names,
+        |i, j| Ok(distance(&landscapes[i], &landscapes[j], params)?.distance),
+        progress,
+    )
 }
 
 #[cfg(test)]

@@ -155,7 +155,25 @@ pub fn distance_matrix(
     params: &CpParams,
     progress: impl Fn(usize) + Sync,
 ) -> DistanceMatrix {
-    let n = prepared.len();
+    let names = prepared.iter().map(|p| p.name.clone()).collect();
+    pairwise_matrix(
+        names,
+        |i, j| Ok(compare(&prepared[i], &prepared[j], params).distance),
+        progress,
+    )
+    .unwrap_or_else(|never: std::convert::Infallible| match never {})
+}
+
+/// The symmetric matrix (zero diagonal) of `distance(i, j)` over all pairs
+/// `i < j` of the `names`, pairs in parallel; `progress` receives the number
+/// of pairs done so far. The first error stops it. The values do not depend
+/// on the number of threads.
+pub fn pairwise_matrix<E: Send>(
+    names: Vec<String>,
+    distance: impl Fn(usize, usize) -> Result<f64, E> + Sync,
+    progress: impl Fn(usize) + Sync,
+) -> Result<DistanceMatrix, E> {
+    let n = names.len();
     let pairs: Vec<(usize, usize)> = (0..n)
         .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
         .collect();
@@ -163,20 +181,17 @@ pub fn distance_matrix(
     let d: Vec<f64> = pairs
         .par_iter()
         .map(|&(i, j)| {
-            let c = compare(&prepared[i], &prepared[j], params);
+            let v = distance(i, j)?;
             progress(done.fetch_add(1, Ordering::Relaxed) + 1);
-            c.distance
+            Ok(v)
         })
-        .collect();
+        .collect::<Result<_, E>>()?;
     let mut values = vec![vec![0.0; n]; n];
     for (&(i, j), &v) in pairs.iter().zip(&d) {
         values[i][j] = v;
         values[j][i] = v;
     }
-    DistanceMatrix {
-        names: prepared.iter().map(|p| p.name.clone()).collect(),
-        values,
-    }
+    Ok(DistanceMatrix { names, values })
 }
 
 #[cfg(test)]

@@ -10,7 +10,7 @@ pub mod shard;
 pub use labels::{Labels, LabelsError};
 pub use loo::{leave_one_out, RankScore};
 pub use mantel::{mantel_r, mantel_test, Mantel, MantelError};
-pub use matrix::{distance_matrix, DistanceMatrix, MatrixError};
+pub use matrix::{distance_matrix, pairwise_matrix, DistanceMatrix, MatrixError};
 
 /// Split one CSV line into fields (RFC 4180 quoting: `"a, b"` and `""`).
 pub(crate) fn split_csv_line(line: &str) -> Result<Vec<String>, &'static str> {

@@ -128,3 +128,39 @@ pub fn tooth_names(dir: &std::path::Path) -> Vec<String> {
         .map(|s| s.to_string())
         .collect()
 }
+
+/// Parameters from the JSON in the environment variable `var`, else the
+/// defaults; printed, so a run's output says what it measured.
+pub fn params_from_env<T>(var: &str) -> T
+where
+    T: serde::de::DeserializeOwned + serde::Serialize + Default,
+{
+    let params: T = match std::env::var(var) {
+        Ok(json) => serde_json::from_str(&json)
+            .unwrap_or_else(|e| panic!("{var} is not parameter JSON: {e}")),
+        Err(_) => T::default(),
+    };
+    println!(
+        "params: {}",
+        serde_json::to_string(&params).unwrap_or_default()
+    );
+    params
+}
+
+/// Every tooth of `names` prepared with `params` (in parallel), each
+/// carrying its name.
+pub fn prepare_teeth(
+    dir: &std::path::Path,
+    names: &[String],
+    params: &morphoid::cp::CpParams,
+) -> Vec<morphoid::cp::Prepared> {
+    use rayon::prelude::*;
+    names
+        .par_iter()
+        .map(|n| {
+            let mut p = morphoid::cp::prepare(&load_tooth(dir, n), params).expect("prepare");
+            p.name = n.clone();
+            p
+        })
+        .collect()
+}
