@@ -202,18 +202,23 @@ fn run_whole(
     Ok(ExitCode::SUCCESS)
 }
 
-/// Compute one shard: prepare only the specimens its pairs involve.
-fn run_shard(library: &Path, out: &Path, which: Shard, cache: Option<&Cache>) -> Result<ExitCode> {
-    let settings = Settings::default();
-    let files = surface_files(library)?;
-    let names: Vec<String> = files
+/// The specimen names of surface files: their stems.
+fn file_stems(files: &[PathBuf]) -> Vec<String> {
+    files
         .iter()
         .map(|f| {
             f.file_stem()
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_default()
         })
-        .collect();
+        .collect()
+}
+
+/// Compute one shard: prepare only the specimens its pairs involve.
+fn run_shard(library: &Path, out: &Path, which: Shard, cache: Option<&Cache>) -> Result<ExitCode> {
+    let settings = Settings::default();
+    let files = surface_files(library)?;
+    let names = file_stems(&files);
     let started = Instant::now();
     let hits = AtomicUsize::new(0);
     let own_pairs = shard::shard_pairs(names.len(), which);
@@ -265,14 +270,7 @@ fn merge(args: MergeArgs) -> Result<ExitCode> {
 /// The landmark Procrustes matrix over the specimens of the folder (the
 /// surface files' names, so that it lines up with the cP matrix).
 fn run_landmarks(library: &Path, out: &Path, allow_reflection: bool) -> Result<ExitCode> {
-    let names: Vec<String> = surface_files(library)?
-        .iter()
-        .map(|f| {
-            f.file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_default()
-        })
-        .collect();
+    let names = file_stems(&surface_files(library)?);
     let loaded = landmarks::load_library(library, &names);
     if let Some((name, why)) = loaded.problems.first() {
         bail!("landmarks of `{name}`: {why}");
