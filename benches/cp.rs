@@ -96,6 +96,14 @@ fn bench(c: &mut Criterion) {
     c.bench_function("compare", |bch| {
         bch.iter(|| cp::compare(black_box(&pa), black_box(&pb), &params).distance)
     });
+    // The same comparison without the area correction χ, to show its cost.
+    let plain = CpParams {
+        area_correction: false,
+        ..params.clone()
+    };
+    c.bench_function("compare without area correction", |bch| {
+        bch.iter(|| cp::compare(black_box(&pa), black_box(&pb), &plain).distance)
+    });
 }
 
 criterion_group! {

@@ -1,6 +1,6 @@
 //! The continuous Procrustes distance between two prepared surfaces.
 
-use super::locate::Location;
+use super::locate::{Location, NO_TRIANGLE};
 use super::mobius::Mobius;
 use super::moser::area_preserving_correction;
 use super::prepare::{CpParams, Prepared};
@@ -59,10 +59,15 @@ fn handedness(m: &Mobius) -> Handedness {
     }
 }
 
-/// Locate `z` in `t`'s disk and interpolate the 3D position there.
+/// Locate `z` in `t`'s disk, walking from the triangle `hint` unless it
+/// is [`NO_TRIANGLE`], and interpolate the 3D position there.
 #[inline]
-fn image(t: &Prepared, z: [f64; 2]) -> Option<(Location, [f64; 3])> {
-    let loc = t.grid.locate(&t.uv, &t.faces, z)?;
+fn image(t: &Prepared, z: [f64; 2], hint: u32) -> Option<(Location, [f64; 3])> {
+    let loc = if hint == NO_TRIANGLE {
+        t.grid.locate(&t.uv, &t.faces, z)?
+    } else {
+        t.grid.locate_near(&t.uv, &t.faces, z, hint)?
+    };
     let f = t.faces.get(loc.face as usize)?;
     let mut y = [0.0; 3];
     for (k, &v) in f.iter().enumerate() {
@@ -77,13 +82,25 @@ fn image(t: &Prepared, z: [f64; 2]) -> Option<(Location, [f64; 3])> {
 /// Weighted Procrustes residual of the first `count` samples of `s` and
 /// their images in `t` under `m`.
 pub fn sample_residual(s: &Prepared, t: &Prepared, m: &Mobius, count: usize) -> f64 {
+    let mut hints = vec![NO_TRIANGLE; count.min(s.samples.len())];
+    sample_residual_near(s, t, m, &mut hints)
+}
+
+/// [`sample_residual`] over the first `hints.len()` samples, where
+/// `hints[i]` is a triangle of `t` near the image of sample `i` (or
+/// [`NO_TRIANGLE`]); each is replaced by the triangle found, so that a
+/// search moving the map a little locates the next images cheaply.
+fn sample_residual_near(s: &Prepared, t: &Prepared, m: &Mobius, hints: &mut [u32]) -> f64 {
     let mut mom = Moments::default();
-    for (&v, &w) in s.samples.iter().zip(&s.sample_weights).take(count) {
+    for ((&v, &w), hint) in s.samples.iter().zip(&s.sample_weights).zip(hints) {
         let (Some(&z), Some(&x)) = (s.uv.get(v as usize), s.vertices.get(v as usize)) else {
             return f64::MAX;
         };
-        match image(t, m.apply(z)) {
-            Some((_, y)) => mom.add(x, y, w),
+        match image(t, m.apply(z), *hint) {
+            Some((loc, y)) => {
+                *hint = loc.face;
+                mom.add(x, y, w)
+            }
             None => return f64::MAX,
         }
     }
@@ -99,14 +116,8 @@ pub fn evaluate_map(
     map: impl Fn([f64; 2]) -> [f64; 2],
     handedness: Handedness,
 ) -> Option<(RigidFit, Correspondence)> {
-    let mut mom = Moments::default();
-    let mut corr = Vec::with_capacity(s.vertices.len());
-    for ((&z, &x), &w) in s.uv.iter().zip(&s.vertices).zip(&s.vertex_areas) {
-        let (loc, y) = image(t, map(z))?;
-        mom.add(x, y, w);
-        corr.push((loc.face, loc.bary));
-    }
-    Some((mom.fit(handedness), corr))
+    let images: Vec<[f64; 2]> = s.uv.iter().map(|&z| map(z)).collect();
+    evaluate_images(s, t, &images, handedness)
 }
 
 /// Evaluate given images (points of `t`'s disk, one per vertex of `s`) as
@@ -118,11 +129,24 @@ pub fn evaluate_images(
     handedness: Handedness,
 ) -> Option<(RigidFit, Correspondence)> {
     let mut mom = Moments::default();
-    let mut corr = Vec::with_capacity(s.vertices.len());
-    for ((&w, &x), &a) in images.iter().zip(&s.vertices).zip(&s.vertex_areas) {
-        let (loc, y) = image(t, w)?;
+    let mut corr: Correspondence = vec![(NO_TRIANGLE, [0.0; 3]); s.vertices.len()];
+    // Each vertex's image is searched from its sweep parent's triangle, one
+    // edge away.
+    for &[v, parent] in &s.sweep {
+        let hint = corr.get(parent as usize).map_or(NO_TRIANGLE, |c| c.0);
+        let (Some(&w), Some(&x), Some(&a)) = (
+            images.get(v as usize),
+            s.vertices.get(v as usize),
+            s.vertex_areas.get(v as usize),
+        ) else {
+            return None;
+        };
+        let (loc, y) = image(t, w, hint)?;
         mom.add(x, y, a);
-        corr.push((loc.face, loc.bary));
+        *corr.get_mut(v as usize)? = (loc.face, loc.bary);
+    }
+    if corr.iter().any(|c| c.0 == NO_TRIANGLE) {
+        return None;
     }
     Some((mom.fit(handedness), corr))
 }
@@ -154,10 +178,16 @@ fn feature_warp(s: &Prepared, t: &Prepared, m: &Mobius, params: &CpParams) -> Op
     DiskWarp::interpolating(&from, &to, params.warp_width)
 }
 
+/// Relative spread of the simplex's values at which the refinement stops:
+/// the objective is a squared distance, so this settles the distance to
+/// about 5e-5 of itself, far below what separates two specimens.
+const NELDER_MEAD_TOLERANCE: f64 = 1e-4;
+
 /// Minimize `f` over R³ from `x0` with the Nelder–Mead simplex method,
-/// initial steps `step`, at most `max_evals` evaluations.
+/// initial steps `step`, at most `max_evals` evaluations (fewer once the
+/// simplex's values agree to [`NELDER_MEAD_TOLERANCE`]).
 pub fn nelder_mead(
-    f: impl Fn([f64; 3]) -> f64,
+    mut f: impl FnMut([f64; 3]) -> f64,
     x0: [f64; 3],
     step: [f64; 3],
     max_evals: usize,
@@ -211,7 +241,7 @@ pub fn nelder_mead(
             .map(|s| s.1)
             .fold(f64::NEG_INFINITY, f64::max)
             - simplex.iter().map(|s| s.1).fold(f64::INFINITY, f64::min);
-        if spread <= 1e-14 * simplex[0].1.abs().max(1e-300) {
+        if spread <= NELDER_MEAD_TOLERANCE * simplex[0].1.abs().max(1e-300) {
             break;
         }
     }
@@ -262,9 +292,10 @@ pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Direct
     let step = std::f64::consts::TAU / angles as f64;
     for &(_, _, m0) in cands.iter().take(params.refine_candidates.max(1)) {
         let m = if params.refine_evaluations > 0 {
-            let score = sample_residual(s, t, &m0, all);
+            let mut hints = vec![NO_TRIANGLE; all];
+            let score = sample_residual_near(s, t, &m0, &mut hints);
             let obj = |x: [f64; 3]| {
-                perturbed(&m0, x).map_or(f64::MAX, |m| sample_residual(s, t, &m, all))
+                perturbed(&m0, x).map_or(f64::MAX, |m| sample_residual_near(s, t, &m, &mut hints))
             };
             let (x, fx) = nelder_mead(
                 obj,
@@ -316,7 +347,7 @@ pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Direct
                         None => m.apply(z),
                     })
                     .collect();
-            if let Some(moved) = area_preserving_correction(t, &images, &s.vertex_areas) {
+            if let Some(moved) = area_preserving_correction(t, &images, &s.vertex_areas, &s.sweep) {
                 if let Some((fit, corr)) = evaluate_images(s, t, &moved, handedness(&m)) {
                     best = Some((fit.residual, m, fit, corr));
                 }

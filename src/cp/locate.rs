@@ -1,6 +1,8 @@
 //! Point location in a triangulation of the unit disk: a uniform grid over
 //! `[-1, 1]²` whose cells list the triangles overlapping them, so that a
-//! query costs O(1) on a well-shaped mesh.
+//! query costs O(1) on a well-shaped mesh; and, for a query near a known
+//! triangle, a walk across triangle edges that touches only a few
+//! triangles (the grid's lists are too large to stay in cache).
 
 use serde::{Deserialize, Serialize};
 
@@ -24,6 +26,123 @@ pub struct LocateGrid {
     pub starts: Vec<u32>,
     /// Triangle indices, cell after cell.
     pub items: Vec<u32>,
+    /// For each triangle, the triangle across the edge opposite each of its
+    /// corners ([`NO_TRIANGLE`] on the boundary); see [`triangle_adjacency`].
+    pub adjacency: Vec<[u32; 3]>,
+    /// The boundary edges in order of polar angle, to place points that
+    /// fall between the boundary polygon and the unit circle.
+    pub rim: Vec<RimEdge>,
+    /// Points closer to the origin than this are inside the boundary
+    /// polygon (its distance to the nearest boundary edge line).
+    pub rim_radius: f64,
+}
+
+/// A boundary edge of a disk triangulation.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RimEdge {
+    /// Polar angle, in `[-π, π)`, where the edge's arc starts (going
+    /// counter-clockwise).
+    pub start: f64,
+    /// The triangle the edge belongs to.
+    pub face: u32,
+    /// The corner of that triangle opposite the edge.
+    pub corner: u8,
+}
+
+/// Marks a triangle edge with no triangle on its other side.
+pub const NO_TRIANGLE: u32 = u32::MAX;
+
+/// How far outside a triangle (in barycentric coordinates) a point may lie
+/// and still count as inside it, clamped onto its edge. Rounding puts a
+/// point that is exactly on a vertex of a tiny triangle (a feature point
+/// mapped onto a feature point, where the disk is most compressed) up to
+/// about 1e-16 / (triangle size) outside every triangle around it.
+const INSIDE: f64 = 1e-9;
+
+/// Longest walk tried before falling back to the grid: a hint farther than
+/// this is no better than none.
+const MAX_WALK: usize = 64;
+
+/// The boundary edges of a disk triangulation (edges with no triangle
+/// across, from `adjacency`) sorted by the polar angle where each edge's
+/// arc starts, and the distance from the origin to the nearest edge line.
+/// The rim is only usable when the boundary is inscribed in the unit
+/// circle (so the polygon is convex and the slivers outside it are the
+/// edges' circular segments); otherwise it is empty with an infinite
+/// radius, which turns it off.
+fn rim_edges(uv: &[[f64; 2]], faces: &[[u32; 3]], adjacency: &[[u32; 3]]) -> (Vec<RimEdge>, f64) {
+    let mut rim = Vec::new();
+    let mut radius = f64::INFINITY;
+    for (fi, (f, next)) in faces.iter().zip(adjacency).enumerate() {
+        for k in 0..3 {
+            if next[k] != NO_TRIANGLE {
+                continue;
+            }
+            let (Some(&a), Some(&b)) = (
+                uv.get(f[(k + 1) % 3] as usize),
+                uv.get(f[(k + 2) % 3] as usize),
+            ) else {
+                continue;
+            };
+            if (a[0].hypot(a[1]) - 1.0).abs() > 1e-6 || (b[0].hypot(b[1]) - 1.0).abs() > 1e-6 {
+                return (Vec::new(), f64::INFINITY);
+            }
+            let (alpha, beta) = (a[1].atan2(a[0]), b[1].atan2(b[0]));
+            // The arc spanned by the edge is the shorter way round.
+            let ccw = (beta - alpha).rem_euclid(std::f64::consts::TAU);
+            let start = if ccw <= std::f64::consts::PI {
+                alpha
+            } else {
+                beta
+            };
+            let len = (b[0] - a[0]).hypot(b[1] - a[1]);
+            if len > 0.0 {
+                radius = radius.min((a[0] * b[1] - a[1] * b[0]).abs() / len);
+            }
+            rim.push(RimEdge {
+                start,
+                face: fi as u32,
+                corner: k as u8,
+            });
+        }
+    }
+    rim.sort_by(|x, y| x.start.total_cmp(&y.start).then(x.face.cmp(&y.face)));
+    if rim.len() < 3 {
+        return (Vec::new(), f64::INFINITY);
+    }
+    (rim, radius)
+}
+
+/// The triangle across the edge opposite each corner of each triangle:
+/// `adjacency[f][k]` shares the edge `(faces[f][k+1], faces[f][k+2])` with
+/// `f`, or is [`NO_TRIANGLE`] when that edge is on the boundary or is
+/// shared by more than two triangles.
+pub fn triangle_adjacency(faces: &[[u32; 3]]) -> Vec<[u32; 3]> {
+    // (edge key, triangle, corner), sorted so that a shared edge's two
+    // entries are neighbours.
+    let mut edges: Vec<((u32, u32), u32, u8)> = Vec::with_capacity(3 * faces.len());
+    for (fi, f) in faces.iter().enumerate() {
+        for k in 0..3u8 {
+            let (a, b) = (f[(k as usize + 1) % 3], f[(k as usize + 2) % 3]);
+            edges.push(((a.min(b), a.max(b)), fi as u32, k));
+        }
+    }
+    edges.sort_unstable();
+    let mut adjacency = vec![[NO_TRIANGLE; 3]; faces.len()];
+    let mut i = 0;
+    while i < edges.len() {
+        let mut j = i + 1;
+        while j < edges.len() && edges[j].0 == edges[i].0 {
+            j += 1;
+        }
+        if j - i == 2 {
+            let ((_, f, k), (_, g, l)) = ((edges[i]), (edges[i + 1]));
+            adjacency[f as usize][k as usize] = g;
+            adjacency[g as usize][l as usize] = f;
+        }
+        i = j;
+    }
+    adjacency
 }
 
 /// Barycentric coordinates of `p` in the triangle `abc` (unclamped); `None`
@@ -41,9 +160,11 @@ pub fn barycentric(p: [f64; 2], a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> Option
 
 impl LocateGrid {
     /// Bucket the triangles `faces` of the planar positions `uv`; the grid
-    /// has about four cells per triangle (short lists where triangles are small).
+    /// has about one cell per triangle. Finer grids were measured no
+    /// faster (most queries walk instead) and cost memory: the large
+    /// triangles near the boundary fall in many cells each.
     pub fn build(uv: &[[f64; 2]], faces: &[[u32; 3]]) -> Self {
-        let resolution = ((2.0 * (faces.len() as f64).sqrt()).ceil() as u32).clamp(1, 2048);
+        let resolution = ((faces.len() as f64).sqrt().ceil() as u32).clamp(1, 2048);
         let n = resolution as usize;
         let cell_range = |lo: f64, hi: f64| -> (usize, usize) {
             (
@@ -98,11 +219,54 @@ impl LocateGrid {
                 }
             }
         }
+        let adjacency = triangle_adjacency(faces);
+        let (rim, rim_radius) = rim_edges(uv, faces, &adjacency);
         Self {
             resolution,
             starts,
             items,
+            adjacency,
+            rim,
+            rim_radius,
         }
+    }
+
+    /// For a point outside the boundary polygon (in the sliver between an
+    /// edge and the unit circle): the nearest point of the edge whose arc
+    /// holds it. `None` for a point inside, or one the sorted rim cannot
+    /// place (the grid search handles those).
+    fn locate_on_rim(&self, uv: &[[f64; 2]], faces: &[[u32; 3]], p: [f64; 2]) -> Option<Location> {
+        if p[0] * p[0] + p[1] * p[1] < self.rim_radius * self.rim_radius {
+            return None;
+        }
+        let theta = p[1].atan2(p[0]);
+        let i = self.rim.partition_point(|e| e.start <= theta);
+        let edge = if i == 0 {
+            self.rim.last()?
+        } else {
+            self.rim.get(i - 1)?
+        };
+        let f = faces.get(edge.face as usize)?;
+        let k = edge.corner as usize % 3;
+        let corner = |j: usize| uv.get(f[(k + j) % 3] as usize).copied();
+        let (c, a, b) = (corner(0)?, corner(1)?, corner(2)?);
+        if barycentric(p, c, a, b)?[0] >= -INSIDE {
+            return None;
+        }
+        let e = [b[0] - a[0], b[1] - a[1]];
+        let len2 = e[0] * e[0] + e[1] * e[1];
+        let t = if len2 > 0.0 {
+            (((p[0] - a[0]) * e[0] + (p[1] - a[1]) * e[1]) / len2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let mut bary = [0.0; 3];
+        bary[(k + 1) % 3] = 1.0 - t;
+        bary[(k + 2) % 3] = t;
+        Some(Location {
+            face: edge.face,
+            bary,
+        })
     }
 
     #[inline]
@@ -130,11 +294,37 @@ impl LocateGrid {
     /// circle), the nearby triangle it is least outside of, with clamped
     /// barycentric coordinates. `None` only for an empty triangulation.
     pub fn locate(&self, uv: &[[f64; 2]], faces: &[[u32; 3]], p: [f64; 2]) -> Option<Location> {
+        if let Some(l) = self.locate_on_rim(uv, faces, p) {
+            return Some(l);
+        }
         let n = self.resolution as usize;
         let cx = Self::cell_coord(p[0], self.resolution);
         let cy = Self::cell_coord(p[1], self.resolution);
+        let corners = |fi: u32| -> Option<[[f64; 2]; 3]> {
+            let f = faces.get(fi as usize)?;
+            Some([
+                *uv.get(f[0] as usize)?,
+                *uv.get(f[1] as usize)?,
+                *uv.get(f[2] as usize)?,
+            ])
+        };
+        // A point inside the triangulation is in a triangle of its cell.
+        for &fi in self.cell(cx, cy) {
+            let Some([a, b, c]) = corners(fi) else {
+                continue;
+            };
+            if let Some(l) = barycentric(p, a, b, c) {
+                if l[0].min(l[1]).min(l[2]) >= -INSIDE {
+                    return Some(Location {
+                        face: fi,
+                        bary: clamp_barycentric(l),
+                    });
+                }
+            }
+        }
+        // Otherwise: the nearest triangle, searched in rings of cells
+        // around p until some candidate is found.
         let mut best: Option<(f64, u32, [f64; 3])> = None;
-        // Search rings of cells around p until some candidate is found.
         for ring in 0..n {
             let (x0, x1) = (cx.saturating_sub(ring), (cx + ring).min(n - 1));
             let (y0, y1) = (cy.saturating_sub(ring), (cy + ring).min(n - 1));
@@ -144,27 +334,10 @@ impl LocateGrid {
                         continue;
                     }
                     for &fi in self.cell(x, y) {
-                        let Some(f) = faces.get(fi as usize) else {
+                        let Some(t) = corners(fi) else {
                             continue;
                         };
-                        let (Some(&a), Some(&b), Some(&c)) = (
-                            uv.get(f[0] as usize),
-                            uv.get(f[1] as usize),
-                            uv.get(f[2] as usize),
-                        ) else {
-                            continue;
-                        };
-                        let Some(l) = barycentric(p, a, b, c) else {
-                            continue;
-                        };
-                        let m = l[0].min(l[1]).min(l[2]);
-                        if m >= -1e-12 {
-                            return Some(Location {
-                                face: fi,
-                                bary: clamp_barycentric(l),
-                            });
-                        }
-                        let (d, l) = closest_on_triangle(p, [a, b, c]);
+                        let (d, l) = closest_on_triangle(p, t);
                         // Ties broken by the smaller triangle index.
                         if best.is_none_or(|(bd, bf, _)| d < bd || (d == bd && fi < bf)) {
                             best = Some((d, fi, l));
@@ -177,6 +350,70 @@ impl LocateGrid {
             }
         }
         best.map(|(_, face, bary)| Location { face, bary })
+    }
+}
+
+impl LocateGrid {
+    /// Locate `p` as [`LocateGrid::locate`] does, starting with a walk
+    /// from the triangle `hint` (for a point known to be near it, e.g. the
+    /// image of the previous vertex). Each step crosses the edge that `p`
+    /// is farthest beyond; a walk that leaves the triangulation or runs
+    /// long falls back to the grid.
+    pub fn locate_near(
+        &self,
+        uv: &[[f64; 2]],
+        faces: &[[u32; 3]],
+        p: [f64; 2],
+        hint: u32,
+    ) -> Option<Location> {
+        let mut face = hint;
+        for _ in 0..MAX_WALK {
+            let (Some(f), Some(next)) =
+                (faces.get(face as usize), self.adjacency.get(face as usize))
+            else {
+                break;
+            };
+            let (Some(&a), Some(&b), Some(&c)) = (
+                uv.get(f[0] as usize),
+                uv.get(f[1] as usize),
+                uv.get(f[2] as usize),
+            ) else {
+                break;
+            };
+            // Twice the signed areas of the triangles p makes with each
+            // edge: the barycentric coordinates times twice the area, so
+            // the test needs no division until p is found.
+            let area = |u: [f64; 2], v: [f64; 2]| {
+                (u[0] - p[0]) * (v[1] - p[1]) - (v[0] - p[0]) * (u[1] - p[1])
+            };
+            let mut w = [area(b, c), area(c, a), area(a, b)];
+            let d = w[0] + w[1] + w[2];
+            if d.is_nan() || d.abs() <= 1e-300 {
+                break;
+            }
+            if d < 0.0 {
+                w = w.map(|x| -x);
+            }
+            let k = if w[0] <= w[1] && w[0] <= w[2] {
+                0
+            } else if w[1] <= w[2] {
+                1
+            } else {
+                2
+            };
+            if w[k] >= -INSIDE * d.abs() {
+                let d = d.abs();
+                return Some(Location {
+                    face,
+                    bary: clamp_barycentric(w.map(|x| x / d)),
+                });
+            }
+            if next[k] == NO_TRIANGLE {
+                break;
+            }
+            face = next[k];
+        }
+        self.locate(uv, faces, p)
     }
 }
 
@@ -270,6 +507,79 @@ mod tests {
             });
             assert!((q[0] - p[0]).abs() < 1e-12 && (q[1] - p[1]).abs() < 1e-12);
             assert!(loc.bary.iter().all(|&b| b >= 0.0));
+        }
+    }
+
+    #[test]
+    fn adjacency_pairs_the_triangles_sharing_each_edge() {
+        let (_, faces) = disk(3, 6);
+        let adj = triangle_adjacency(&faces);
+        let mut boundary = 0;
+        for (f, nb) in adj.iter().enumerate() {
+            for k in 0..3 {
+                let edge = [faces[f][(k + 1) % 3], faces[f][(k + 2) % 3]];
+                if nb[k] == NO_TRIANGLE {
+                    boundary += 1;
+                    continue;
+                }
+                let g = faces[nb[k] as usize];
+                assert!(edge.iter().all(|v| g.contains(v)), "{f} {k}");
+                assert!(adj[nb[k] as usize].contains(&(f as u32)));
+            }
+        }
+        // The outer ring of a 6-sector disk has 6 edges.
+        assert_eq!(boundary, 6);
+    }
+
+    #[test]
+    fn a_walk_from_any_hint_finds_the_triangle_the_grid_finds() {
+        let (uv, faces) = disk(8, 24);
+        let grid = LocateGrid::build(&uv, &faces);
+        for k in 0..300 {
+            let t = k as f64 * 0.37;
+            let r = 1.02 * ((k * 7919) % 100) as f64 / 100.0;
+            let p = [r * t.cos(), r * t.sin()];
+            let hint = ((k * 31) % faces.len()) as u32;
+            let a = grid.locate(&uv, &faces, p).expect("grid");
+            let b = grid.locate_near(&uv, &faces, p, hint).expect("walk");
+            let at = |l: Location| {
+                let f = faces[l.face as usize];
+                [0, 1].map(|d| {
+                    (0..3)
+                        .map(|i| l.bary[i] * uv[f[i] as usize][d])
+                        .sum::<f64>()
+                })
+            };
+            let (qa, qb) = (at(a), at(b));
+            assert!((qa[0] - qb[0]).hypot(qa[1] - qb[1]) < 1e-12, "{p:?}");
+        }
+    }
+
+    #[test]
+    fn points_in_the_rim_slivers_snap_to_their_edge() {
+        let (uv, faces) = disk(4, 12);
+        let grid = LocateGrid::build(&uv, &faces);
+        assert_eq!(grid.rim.len(), 12);
+        for k in 0..120 {
+            // Just inside the unit circle, mostly outside the polygon.
+            let t = -3.0 + k as f64 * 0.05;
+            let p = [0.999_999 * t.cos(), 0.999_999 * t.sin()];
+            let loc = grid.locate(&uv, &faces, p).expect("located");
+            let f = faces[loc.face as usize];
+            let q = [0, 1].map(|d| {
+                (0..3)
+                    .map(|i| loc.bary[i] * uv[f[i] as usize][d])
+                    .sum::<f64>()
+            });
+            // The nearest point of the polygon is radially inward, at most
+            // the sagitta of a 30° chord away.
+            let gap = (q[0] - p[0]).hypot(q[1] - p[1]);
+            let sagitta = 1.0 - (std::f64::consts::PI / 12.0).cos();
+            assert!(gap <= sagitta + 1e-9, "{t}: {gap}");
+            // And it is on a boundary edge, or p is inside the polygon.
+            let on_rim = (0..3)
+                .any(|c| grid.adjacency[loc.face as usize][c] == NO_TRIANGLE && loc.bary[c] == 0.0);
+            assert!(on_rim || gap < 1e-12, "{t}: not on the rim");
         }
     }
 

@@ -13,7 +13,7 @@
 //! problem is factored once per process: no per-surface factor to compute
 //! or keep in memory (a library of hundreds would hold hundreds).
 
-use super::locate::{barycentric, LocateGrid, Location};
+use super::locate::{LocateGrid, Location};
 use super::prepare::Prepared;
 use crate::conformal::{cotangent_edge_weights, shifted_stiffness, SpdFactor};
 use crate::mesh::synth::unit_disk;
@@ -58,28 +58,37 @@ impl DiskPoisson {
         DISK.get_or_init(DiskPoisson::new).as_ref()
     }
 
-    /// Locate `z`, trying the triangle `hint` first (points move little
-    /// between steps) before searching the grid.
+    /// Locate `z`, walking from the triangle `hint` if there is one
+    /// (points move little between steps).
     fn locate(&self, z: [f64; 2], hint: Option<u32>) -> Option<Location> {
-        if let Some(f) = hint.and_then(|h| self.faces.get(h as usize).map(|f| (h, f))) {
-            let [a, b, c] = f.1.map(|v| self.uv[v as usize]);
-            if let Some(l) = barycentric(z, a, b, c) {
-                if l.iter().all(|&x| x >= 0.0) {
-                    return Some(Location { face: f.0, bary: l });
-                }
-            }
+        match hint {
+            Some(h) => self.grid.locate_near(&self.uv, &self.faces, z, h),
+            None => self.grid.locate(&self.uv, &self.faces, z),
         }
-        self.grid.locate(&self.uv, &self.faces, z)
     }
 
     /// The measure that points `w` carrying `mass` put on the vertices
     /// (each point's mass split by its barycentric coordinates), normalized
-    /// to total 1, with the points' locations.
-    fn splat(&self, w: &[[f64; 2]], mass: &[f64]) -> Option<(Vec<Location>, Vec<f64>)> {
-        let locs: Vec<Location> = w
-            .iter()
-            .map(|&z| self.locate(z, None))
-            .collect::<Option<_>>()?;
+    /// to total 1, with the points' locations. The points are located in
+    /// the order of `sweep` (see [`Prepared::sweep`]), each from its
+    /// parent's triangle.
+    fn splat(
+        &self,
+        w: &[[f64; 2]],
+        mass: &[f64],
+        sweep: &[[u32; 2]],
+    ) -> Option<(Vec<Location>, Vec<f64>)> {
+        let mut found: Vec<Option<Location>> = vec![None; w.len()];
+        for &[v, parent] in sweep {
+            let hint = found
+                .get(parent as usize)
+                .copied()
+                .flatten()
+                .map(|l| l.face);
+            let z = *w.get(v as usize)?;
+            *found.get_mut(v as usize)? = Some(self.locate(z, hint)?);
+        }
+        let locs: Vec<Location> = found.into_iter().collect::<Option<_>>()?;
         let mut splat = vec![0.0; self.uv.len()];
         for (loc, &m) in locs.iter().zip(mass) {
             let f = self.faces.get(loc.face as usize)?;
@@ -133,18 +142,33 @@ fn disk_vertex_areas(uv: &[[f64; 2]], faces: &[[u32; 3]]) -> Vec<f64> {
     a
 }
 
+/// The area of a surface flattened to `uv` (vertex areas `areas`, vertex
+/// order `sweep` as in [`Prepared::sweep`]) as a measure of total 1 on the
+/// vertices of the fixed disk triangulation. `None` if it cannot be
+/// computed (the correction is then skipped).
+pub fn disk_measure(uv: &[[f64; 2]], areas: &[f64], sweep: &[[u32; 2]]) -> Option<Vec<f64>> {
+    let disk = DiskPoisson::shared()?;
+    disk.splat(uv, areas, sweep).map(|(_, m)| m)
+}
+
 /// Move the images `w` (points of S′'s disk, images of S's vertices with
-/// areas `mass`) along Moser's flow so that the area they carry spreads
-/// like S′'s own area. Returns the moved points, or `None` when the solve
-/// fails (the caller keeps the uncorrected map).
+/// areas `mass`, visited in S's `sweep` order) along Moser's flow so that
+/// the area they carry spreads like S′'s own area. Returns the moved
+/// points, or `None` when the solve fails (the caller keeps the
+/// uncorrected map).
 pub fn area_preserving_correction(
     t: &Prepared,
     w: &[[f64; 2]],
     mass: &[f64],
+    sweep: &[[u32; 2]],
 ) -> Option<Vec<[f64; 2]>> {
     let disk = DiskPoisson::shared()?;
-    let (locs, pushed) = disk.splat(w, mass)?;
-    let (_, target) = disk.splat(&t.uv, &t.vertex_areas)?;
+    let (locs, pushed) = disk.splat(w, mass, sweep)?;
+    let target = if t.disk_mass.len() == disk.uv.len() {
+        t.disk_mass.clone()
+    } else {
+        disk.splat(&t.uv, &t.vertex_areas, &t.sweep)?.1
+    };
     // K u = target − pushed, K the stiffness matrix of the disk.
     let mut rhs = vec![target
         .iter()
@@ -242,7 +266,8 @@ mod tests {
     #[test]
     fn an_area_preserving_map_is_left_in_place() {
         let t = crown();
-        let moved = area_preserving_correction(&t, &t.uv, &t.vertex_areas).expect("correction");
+        let moved =
+            area_preserving_correction(&t, &t.uv, &t.vertex_areas, &t.sweep).expect("correction");
         let worst = moved
             .iter()
             .zip(&t.uv)
@@ -259,7 +284,8 @@ mod tests {
         let m = Mobius::from_point_rotation([0.35, -0.2], 0.7);
         let w: Vec<[f64; 2]> = t.uv.iter().map(|&z| m.apply(z)).collect();
         let before = area_mismatch(&t, &w, &t.vertex_areas);
-        let moved = area_preserving_correction(&t, &w, &t.vertex_areas).expect("correction");
+        let moved =
+            area_preserving_correction(&t, &w, &t.vertex_areas, &t.sweep).expect("correction");
         let after = area_mismatch(&t, &moved, &t.vertex_areas);
         assert!(moved.iter().all(|z| z[0].hypot(z[1]) < 1.0));
         assert!(after < 0.25 * before, "mismatch {before:.3} -> {after:.3}");

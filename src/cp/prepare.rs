@@ -2,8 +2,9 @@
 //! conformal factor, features, samples and the point-location grid.
 
 use super::features::{local_maxima, smooth_vertex_function};
-use super::graph::{graph_distance, vertex_adjacency};
+use super::graph::{breadth_first_tree, graph_distance, vertex_adjacency};
 use super::locate::LocateGrid;
+use super::moser::disk_measure;
 use super::samples::farthest_point_samples;
 use crate::conformal::{self, conformal_factor, hyperbolic_density};
 use crate::mesh::{self, Mesh};
@@ -124,6 +125,14 @@ pub struct Prepared {
     pub sample_weights: Vec<f64>,
     /// Point-location grid over the disk triangulation.
     pub grid: LocateGrid,
+    /// The vertices in breadth-first order, each as `[vertex, parent]`
+    /// with the parent an earlier neighbour: mapping vertices in this
+    /// order, each image is searched from a nearby one's triangle.
+    pub sweep: Vec<[u32; 2]>,
+    /// The surface's area as a measure on the vertices of the fixed disk
+    /// triangulation of the area correction (the target of the flow when
+    /// this surface is the target); empty if it could not be computed.
+    pub disk_mass: Vec<f64>,
 }
 
 impl Prepared {
@@ -155,8 +164,31 @@ impl Prepared {
                 .items
                 .iter()
                 .any(|&f| f as usize >= self.faces.len())
+            || self.grid.adjacency.len() != self.faces.len()
+            || self
+                .grid
+                .adjacency
+                .iter()
+                .flatten()
+                .any(|&f| f != super::locate::NO_TRIANGLE && f as usize >= self.faces.len())
         {
             return bad("location grid does not match the faces");
+        }
+        let mut seen = vec![false; n];
+        for &[v, parent] in &self.sweep {
+            let Some(&parent_seen) = seen.get(parent as usize) else {
+                return bad("sweep index out of range");
+            };
+            let Some(s) = seen.get_mut(v as usize) else {
+                return bad("sweep index out of range");
+            };
+            if *s || !(parent_seen || parent == v) {
+                return bad("sweep order is not a breadth-first tree");
+            }
+            *s = true;
+        }
+        if self.sweep.len() != n {
+            return bad("sweep does not visit every vertex");
         }
         Ok(())
     }
@@ -255,6 +287,8 @@ pub fn prepare(input: &Mesh, params: &CpParams) -> Result<Prepared, CpError> {
     let sampling =
         farthest_point_samples(&m, &adjacency, &vertex_areas, &seeds, params.samples.max(1));
     let grid = LocateGrid::build(&uv, &m.faces);
+    let sweep = breadth_first_tree(&adjacency);
+    let disk_mass = disk_measure(&uv, &vertex_areas, &sweep).unwrap_or_default();
     let features = if features.is_empty() {
         vec![center]
     } else {
@@ -274,5 +308,43 @@ pub fn prepare(input: &Mesh, params: &CpParams) -> Result<Prepared, CpError> {
         samples: sampling.vertices,
         sample_weights: sampling.weights,
         grid,
+        sweep,
+        disk_mass,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::synth;
+
+    fn crown() -> Prepared {
+        let genus = &synth::CROWN_GENERA[0];
+        prepare(&synth::crown(genus, 1, 1500), &CpParams::default()).expect("prepare")
+    }
+
+    #[test]
+    fn a_prepared_surface_is_consistent_and_its_sweep_visits_every_vertex_once() {
+        let p = crown();
+        p.validate().expect("consistent");
+        assert_eq!(p.sweep.len(), p.vertices.len());
+        assert_eq!(p.grid.adjacency.len(), p.faces.len());
+        let total: f64 = p.disk_mass.iter().sum();
+        assert!((total - 1.0).abs() < 1e-9, "disk measure total {total}");
+    }
+
+    #[test]
+    fn damaged_walk_data_is_caught() {
+        let p = crown();
+        let mut q = p.clone();
+        q.sweep.swap(1, 5);
+        q.sweep.swap(0, 4);
+        assert!(q.validate().is_err(), "a child before its parent");
+        let mut q = p.clone();
+        q.sweep.pop();
+        assert!(q.validate().is_err(), "a vertex left out");
+        let mut q = p.clone();
+        q.grid.adjacency[0][0] = q.faces.len() as u32;
+        assert!(q.validate().is_err(), "a neighbour out of range");
+    }
 }

@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 
 /// Bumped whenever the cached layout or the meaning of `Prepared` changes,
 /// so old entries are ignored instead of misread.
-const CACHE_FORMAT: u32 = 1;
+const CACHE_FORMAT: u32 = 2;
 
 /// Extension of cache entries.
 const EXTENSION: &str = "prep";
@@ -112,8 +112,19 @@ impl Cache {
                 return None;
             }
         };
-        (entry.format == CACHE_FORMAT && entry.key == key && entry.reference.name == name)
-            .then_some(entry.reference)
+        if !(entry.format == CACHE_FORMAT && entry.key == key && entry.reference.name == name) {
+            return None;
+        }
+        // A damaged entry can still decode; the engine indexes by what it
+        // holds, so check it before use.
+        if let Err(e) = entry.reference.prepared.validate() {
+            tracing::warn!(
+                reference = name,
+                "ignoring an inconsistent cache entry: {e}"
+            );
+            return None;
+        }
+        Some(entry.reference)
     }
 
     /// Store an entry under `key`, atomically (write, then rename).
