@@ -204,10 +204,13 @@ pub fn area_preserving_correction(
         let rho = rho.max(floor);
         [g[0] / rho, g[1] / rho]
     };
+    // Keep points inside the disk (squared radius first: this runs for
+    // every point at every half step).
+    const RADIUS: f64 = 1.0 - 1e-9;
     let clamp = |z: [f64; 2]| -> [f64; 2] {
-        let r = z[0].hypot(z[1]);
-        if r > 1.0 - 1e-9 {
-            let s = (1.0 - 1e-9) / r;
+        let r2 = z[0] * z[0] + z[1] * z[1];
+        if r2 > RADIUS * RADIUS {
+            let s = RADIUS / r2.sqrt();
             [z[0] * s, z[1] * s]
         } else {
             z

@@ -91,8 +91,9 @@ impl DiskWarp {
             w[0] += g * k[0];
             w[1] += g * k[1];
         }
-        let r = w[0].hypot(w[1]);
-        if r > 1.0 {
+        let r2 = w[0] * w[0] + w[1] * w[1];
+        if r2 > 1.0 {
+            let r = r2.sqrt();
             [w[0] / r, w[1] / r]
         } else {
             w
