@@ -490,6 +490,16 @@ mod tests {
         (uv, faces)
     }
 
+    /// The point of the triangulation at a location.
+    fn point_at(uv: &[[f64; 2]], faces: &[[u32; 3]], loc: Location) -> [f64; 2] {
+        let f = faces[loc.face as usize];
+        [0, 1].map(|d| {
+            (0..3)
+                .map(|i| loc.bary[i] * uv[f[i] as usize][d])
+                .sum::<f64>()
+        })
+    }
+
     #[test]
     fn locates_interior_points_exactly() {
         let (uv, faces) = disk(8, 24);
@@ -499,12 +509,7 @@ mod tests {
             let r = 0.95 * ((k * 7919) % 100) as f64 / 100.0;
             let p = [r * t.cos(), r * t.sin()];
             let loc = grid.locate(&uv, &faces, p).expect("located");
-            let f = faces[loc.face as usize];
-            let q = [0, 1].map(|d| {
-                (0..3)
-                    .map(|i| loc.bary[i] * uv[f[i] as usize][d])
-                    .sum::<f64>()
-            });
+            let q = point_at(&uv, &faces, loc);
             assert!((q[0] - p[0]).abs() < 1e-12 && (q[1] - p[1]).abs() < 1e-12);
             assert!(loc.bary.iter().all(|&b| b >= 0.0));
         }
@@ -542,15 +547,7 @@ mod tests {
             let hint = ((k * 31) % faces.len()) as u32;
             let a = grid.locate(&uv, &faces, p).expect("grid");
             let b = grid.locate_near(&uv, &faces, p, hint).expect("walk");
-            let at = |l: Location| {
-                let f = faces[l.face as usize];
-                [0, 1].map(|d| {
-                    (0..3)
-                        .map(|i| l.bary[i] * uv[f[i] as usize][d])
-                        .sum::<f64>()
-                })
-            };
-            let (qa, qb) = (at(a), at(b));
+            let (qa, qb) = (point_at(&uv, &faces, a), point_at(&uv, &faces, b));
             assert!((qa[0] - qb[0]).hypot(qa[1] - qb[1]) < 1e-12, "{p:?}");
         }
     }
@@ -565,14 +562,9 @@ mod tests {
             let t = -3.0 + k as f64 * 0.05;
             let p = [0.999_999 * t.cos(), 0.999_999 * t.sin()];
             let loc = grid.locate(&uv, &faces, p).expect("located");
-            let f = faces[loc.face as usize];
-            let q = [0, 1].map(|d| {
-                (0..3)
-                    .map(|i| loc.bary[i] * uv[f[i] as usize][d])
-                    .sum::<f64>()
-            });
-            // The nearest point of the polygon is radially inward, at most
-            // the sagitta of a 30° chord away.
+            let q = point_at(&uv, &faces, loc);
+            // The nearest point of the polygon is at most the sagitta of a
+            // 30° chord away.
             let gap = (q[0] - p[0]).hypot(q[1] - p[1]);
             let sagitta = 1.0 - (std::f64::consts::PI / 12.0).cos();
             assert!(gap <= sagitta + 1e-9, "{t}: {gap}");
@@ -592,11 +584,7 @@ mod tests {
         let p = [t.cos(), t.sin()];
         let loc = grid.locate(&uv, &faces, p).expect("located");
         let f = faces[loc.face as usize];
-        let q = [0, 1].map(|d| {
-            (0..3)
-                .map(|i| loc.bary[i] * uv[f[i] as usize][d])
-                .sum::<f64>()
-        });
+        let q = point_at(&uv, &faces, loc);
         // The snapped point is on the polygon, close to p.
         let gap = (q[0] - p[0]).hypot(q[1] - p[1]);
         assert!(gap < 0.01, "{gap} {f:?} {:?}", loc.bary);
