@@ -10,32 +10,10 @@ mod cp_support;
 use criterion::{criterion_group, criterion_main, Criterion};
 use morphoid::cp::{self, CpParams};
 use morphoid::cwn::{self, CwnParams};
-use morphoid::mesh::synth::{crown, CROWN_GENERA};
-use morphoid::mesh::Mesh;
 use std::hint::black_box;
 
-fn meshes() -> (Mesh, Mesh, &'static str) {
-    let dir = std::path::PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared/data/pnas-teeth"
-    ));
-    if dir.join("meshes/H10.ply").exists() && dir.join("meshes/H16.ply").exists() {
-        (
-            cp_support::load_tooth(&dir, "H10"),
-            cp_support::load_tooth(&dir, "H16"),
-            "real teeth H10, H16",
-        )
-    } else {
-        (
-            crown(&CROWN_GENERA[0], 1, 5000),
-            crown(&CROWN_GENERA[1], 2, 5000),
-            "synthetic crowns (data not found)",
-        )
-    }
-}
-
 fn bench(c: &mut Criterion) {
-    let (a, b, what) = meshes();
+    let (a, b, what) = cp_support::benchmark_pair();
     eprintln!("benchmarking cWn on {what}, one thread");
     let cp_params = CpParams::default();
     let params = CwnParams::default();

@@ -59,15 +59,12 @@ fn handedness(m: &Mobius) -> Handedness {
     }
 }
 
-/// Locate `z` in `t`'s disk, walking from the triangle `hint` unless it
-/// is [`NO_TRIANGLE`], and interpolate the 3D position there.
+/// Locate `z` in `t`'s disk, walking from the triangle `hint` (see
+/// [`LocateGrid::locate_near`](super::LocateGrid::locate_near)), and
+/// interpolate the 3D position there.
 #[inline]
 fn image(t: &Prepared, z: [f64; 2], hint: u32) -> Option<(Location, [f64; 3])> {
-    let loc = if hint == NO_TRIANGLE {
-        t.grid.locate(&t.uv, &t.faces, z)?
-    } else {
-        t.grid.locate_near(&t.uv, &t.faces, z, hint)?
-    };
+    let loc = t.grid.locate_near(&t.uv, &t.faces, z, hint)?;
     let f = t.faces.get(loc.face as usize)?;
     let mut y = [0.0; 3];
     for (k, &v) in f.iter().enumerate() {
@@ -79,18 +76,12 @@ fn image(t: &Prepared, z: [f64; 2], hint: u32) -> Option<(Location, [f64; 3])> {
     Some((loc, y))
 }
 
-/// Weighted Procrustes residual of the first `count` samples of `s` and
-/// their images in `t` under `m`.
-pub fn sample_residual(s: &Prepared, t: &Prepared, m: &Mobius, count: usize) -> f64 {
-    let mut hints = vec![NO_TRIANGLE; count.min(s.samples.len())];
-    sample_residual_near(s, t, m, &mut hints)
-}
-
-/// [`sample_residual`] over the first `hints.len()` samples, where
-/// `hints[i]` is a triangle of `t` near the image of sample `i` (or
-/// [`NO_TRIANGLE`]); each is replaced by the triangle found, so that a
-/// search moving the map a little locates the next images cheaply.
-fn sample_residual_near(s: &Prepared, t: &Prepared, m: &Mobius, hints: &mut [u32]) -> f64 {
+/// Weighted Procrustes residual of the first `hints.len()` samples of `s`
+/// and their images in `t` under `m`. `hints[i]` is a triangle of `t` near
+/// the image of sample `i` (or [`NO_TRIANGLE`]); each is replaced by the
+/// triangle found, so that a search moving the map a little locates the
+/// next images cheaply.
+pub fn sample_residual(s: &Prepared, t: &Prepared, m: &Mobius, hints: &mut [u32]) -> f64 {
     let mut mom = Moments::default();
     for ((&v, &w), hint) in s.samples.iter().zip(&s.sample_weights).zip(hints) {
         let (Some(&z), Some(&x)) = (s.uv.get(v as usize), s.vertices.get(v as usize)) else {
@@ -275,13 +266,12 @@ fn refine(
     params: &CpParams,
 ) -> (f64, Mobius) {
     let mut hints = vec![NO_TRIANGLE; s.samples.len()];
-    let score = sample_residual_near(s, t, &m0, &mut hints);
+    let score = sample_residual(s, t, &m0, &mut hints);
     if params.refine_evaluations == 0 {
         return (score, m0);
     }
-    let obj = |x: [f64; 3]| {
-        perturbed(&m0, x).map_or(f64::MAX, |m| sample_residual_near(s, t, &m, &mut hints))
-    };
+    let obj =
+        |x: [f64; 3]| perturbed(&m0, x).map_or(f64::MAX, |m| sample_residual(s, t, &m, &mut hints));
     let (x, fx) = nelder_mead(obj, [0.0; 3], step, params.refine_evaluations);
     match perturbed(&m0, x) {
         Some(m) if fx < score => (fx, m),
@@ -298,6 +288,7 @@ pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Direct
     };
     let angles = params.angles.max(1);
     let coarse = params.coarse_samples.max(1);
+    let mut coarse_hints = vec![NO_TRIANGLE; coarse.min(s.samples.len())];
     let mut cands: Vec<(f64, usize, Mobius)> = Vec::new();
     let mut index = 0usize;
     for &p in &s.features {
@@ -309,7 +300,9 @@ pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Direct
                 for k in 0..angles {
                     let th = k as f64 / angles as f64 * std::f64::consts::TAU;
                     let m = Mobius::sending(zp, zq, th, refl);
-                    cands.push((sample_residual(s, t, &m, coarse), index, m));
+                    // Candidates are far apart: no hints between them.
+                    coarse_hints.fill(NO_TRIANGLE);
+                    cands.push((sample_residual(s, t, &m, &mut coarse_hints), index, m));
                     index += 1;
                 }
             }

@@ -356,9 +356,10 @@ impl LocateGrid {
 impl LocateGrid {
     /// Locate `p` as [`LocateGrid::locate`] does, starting with a walk
     /// from the triangle `hint` (for a point known to be near it, e.g. the
-    /// image of the previous vertex). Each step crosses the edge that `p`
+    /// image of a neighbouring vertex). Each step crosses the edge that `p`
     /// is farthest beyond; a walk that leaves the triangulation or runs
-    /// long falls back to the grid.
+    /// long falls back to the grid, and so does a `hint` of
+    /// [`NO_TRIANGLE`] (no hint) at once.
     pub fn locate_near(
         &self,
         uv: &[[f64; 2]],

@@ -13,10 +13,11 @@
 //! problem is factored once per process: no per-surface factor to compute
 //! or keep in memory (a library of hundreds would hold hundreds).
 
-use super::locate::{LocateGrid, Location};
+use super::locate::{LocateGrid, Location, NO_TRIANGLE};
 use super::prepare::Prepared;
 use crate::conformal::{cotangent_edge_weights, shifted_stiffness, SpdFactor};
 use crate::mesh::synth::unit_disk;
+use std::borrow::Cow;
 use std::sync::OnceLock;
 
 /// Time steps of the flow integration (midpoint rule). Four keep the
@@ -58,13 +59,10 @@ impl DiskPoisson {
         DISK.get_or_init(DiskPoisson::new).as_ref()
     }
 
-    /// Locate `z`, walking from the triangle `hint` if there is one
-    /// (points move little between steps).
-    fn locate(&self, z: [f64; 2], hint: Option<u32>) -> Option<Location> {
-        match hint {
-            Some(h) => self.grid.locate_near(&self.uv, &self.faces, z, h),
-            None => self.grid.locate(&self.uv, &self.faces, z),
-        }
+    /// Locate `z`, walking from the triangle `hint` ([`NO_TRIANGLE`] for
+    /// none; points move little between steps).
+    fn locate(&self, z: [f64; 2], hint: u32) -> Option<Location> {
+        self.grid.locate_near(&self.uv, &self.faces, z, hint)
     }
 
     /// The measure that points `w` carrying `mass` put on the vertices
@@ -84,7 +82,7 @@ impl DiskPoisson {
                 .get(parent as usize)
                 .copied()
                 .flatten()
-                .map(|l| l.face);
+                .map_or(NO_TRIANGLE, |l| l.face);
             let z = *w.get(v as usize)?;
             *found.get_mut(v as usize)? = Some(self.locate(z, hint)?);
         }
@@ -164,10 +162,10 @@ pub fn area_preserving_correction(
 ) -> Option<Vec<[f64; 2]>> {
     let disk = DiskPoisson::shared()?;
     let (locs, pushed) = disk.splat(w, mass, sweep)?;
-    let target = if t.disk_mass.len() == disk.uv.len() {
-        t.disk_mass.clone()
+    let target: Cow<[f64]> = if t.disk_mass.len() == disk.uv.len() {
+        Cow::Borrowed(&t.disk_mass)
     } else {
-        disk.splat(&t.uv, &t.vertex_areas, &t.sweep)?.1
+        Cow::Owned(disk.splat(&t.uv, &t.vertex_areas, &t.sweep)?.1)
     };
     // K u = target − pushed, K the stiffness matrix of the disk.
     let mut rhs = vec![target
@@ -188,7 +186,7 @@ pub fn area_preserving_correction(
     let (rho0, rho1) = (density(&pushed), density(&target));
     let floor = 0.2 / std::f64::consts::PI;
     let velocity = |z: [f64; 2], time: f64, hint: &mut u32| -> [f64; 2] {
-        let Some(loc) = disk.locate(z, Some(*hint)) else {
+        let Some(loc) = disk.locate(z, *hint) else {
             return [0.0, 0.0];
         };
         *hint = loc.face;

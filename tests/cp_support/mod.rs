@@ -164,3 +164,27 @@ pub fn prepare_teeth(
         })
         .collect()
 }
+
+/// The pair the benchmarks compare: the real teeth H10 and H16 when the
+/// data is present, else two synthetic crowns of about 5,000 vertices;
+/// with a description of which.
+pub fn benchmark_pair() -> (Mesh, Mesh, &'static str) {
+    let dir = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared/data/pnas-teeth"
+    ));
+    if dir.join("meshes/H10.ply").exists() && dir.join("meshes/H16.ply").exists() {
+        (
+            load_tooth(&dir, "H10"),
+            load_tooth(&dir, "H16"),
+            "real teeth H10, H16",
+        )
+    } else {
+        use morphoid::mesh::synth::{crown, CROWN_GENERA};
+        (
+            crown(&CROWN_GENERA[0], 1, 5000),
+            crown(&CROWN_GENERA[1], 2, 5000),
+            "synthetic crowns (data not found)",
+        )
+    }
+}
