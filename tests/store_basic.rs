@@ -448,7 +448,12 @@ fn readers_see_whole_results_while_a_writer_commits() {
         register_references(&mut store, REFS);
     }
     let writer_path = path.clone();
+    // The writer starts only after the reader's first snapshot, so at least
+    // one read overlaps the writes however the threads are scheduled.
+    let start = std::sync::Arc::new(std::sync::Barrier::new(2));
+    let writer_start = start.clone();
     let writer = std::thread::spawn(move || {
+        writer_start.wait();
         let mut store = Store::open(&writer_path).expect("writer open");
         for i in 0..SCANS {
             let id = store
@@ -497,6 +502,9 @@ fn readers_see_whole_results_while_a_writer_commits() {
         assert!(ok >= last_ok, "ok count went backwards");
         last_ok = ok;
         reads += 1;
+        if reads == 1 {
+            start.wait();
+        }
         if finished {
             break;
         }
