@@ -3,6 +3,7 @@
 mod daemon_support;
 
 use daemon_support::*;
+use morphoid::daemon::serial::BACKOFF_MAX;
 use morphoid::store::ScanStatus;
 use std::fs::File;
 use std::io::Write;
@@ -61,7 +62,7 @@ fn trigger_lines_rescan_the_folder_and_an_unplugged_port_is_survived() {
     );
     let env = env(3600.0, "", &serial);
     let d = Daemon::start(&env);
-    assert!(wait_until(Duration::from_secs(20), || count(
+    assert!(wait_until(Duration::from_secs(120), || count(
         &d.log_text(),
         "open at 9600 baud"
     ) == 1));
@@ -72,7 +73,7 @@ fn trigger_lines_rescan_the_folder_and_an_unplugged_port_is_survived() {
     assert!(rows(&env.db).is_empty(), "taken without a trigger");
     master.write_all(b"SCAN DONE\r\n").unwrap();
     assert!(
-        wait_until(Duration::from_secs(60), || finished(&env.db) == 1),
+        wait_until(Duration::from_secs(120), || finished(&env.db) == 1),
         "{}",
         d.log_text()
     );
@@ -84,7 +85,7 @@ fn trigger_lines_rescan_the_folder_and_an_unplugged_port_is_survived() {
     master
         .write_all(format!("SCAN DONE {}\n", foreign.display()).as_bytes())
         .unwrap();
-    assert!(wait_until(Duration::from_secs(20), || count(
+    assert!(wait_until(Duration::from_secs(120), || count(
         &d.log_text(),
         "serial trigger:"
     ) == 2));
@@ -98,12 +99,12 @@ fn trigger_lines_rescan_the_folder_and_an_unplugged_port_is_survived() {
     // A trigger line naming a file.
     std::fs::write(env.export.join("b.ply"), scan_bytes(1, 912)).unwrap();
     master.write_all(b"SCAN COMPLETE b.ply\n").unwrap();
-    assert!(wait_until(Duration::from_secs(60), || finished(&env.db) == 2));
+    assert!(wait_until(Duration::from_secs(120), || finished(&env.db) == 2));
 
     // Unplugged: the far end closes; later a new device appears.
     drop(master);
     assert!(
-        wait_until(Duration::from_secs(20), || d.log_text().contains("lost")),
+        wait_until(Duration::from_secs(120), || d.log_text().contains("lost")),
         "{}",
         d.log_text()
     );
@@ -111,7 +112,7 @@ fn trigger_lines_rescan_the_folder_and_an_unplugged_port_is_survived() {
     let (mut master, device) = pty();
     point(&link, &device);
     assert!(
-        wait_until(Duration::from_secs(60), || count(
+        wait_until(Duration::from_secs(120), || count(
             &d.log_text(),
             "open at 9600 baud"
         ) == 2),
@@ -121,7 +122,7 @@ fn trigger_lines_rescan_the_folder_and_an_unplugged_port_is_survived() {
     std::fs::write(env.export.join("c.ply"), scan_bytes(2, 913)).unwrap();
     master.write_all(b"SCAN DONE\n").unwrap();
     assert!(
-        wait_until(Duration::from_secs(60), || finished(&env.db) == 3),
+        wait_until(Duration::from_secs(120), || finished(&env.db) == 3),
         "{}",
         d.log_text()
     );
@@ -144,25 +145,27 @@ fn an_absent_port_is_retried_and_does_not_stop_the_daemon() {
     );
     let env = env(0.2, "", &serial);
     let d = Daemon::start(&env);
-    assert!(wait_until(Duration::from_secs(20), || count(
+    assert!(wait_until(Duration::from_secs(120), || count(
         &d.log_text(),
         "unavailable"
     ) >= 2));
-    // The folder is still watched.
-    std::fs::write(env.export.join("a.ply"), scan_bytes(3, 914)).unwrap();
-    assert!(wait_until(Duration::from_secs(60), || finished(&env.db) == 1));
-    // The port appears.
+    // The folder is still watched (the file put there whole: with a 0.2 s
+    // settle time, one caught empty would be a scan of its own).
+    put(&env, &env.export.join("a.ply"), &scan_bytes(3, 914));
+    assert!(wait_until(Duration::from_secs(120), || finished(&env.db) == 1));
+    // The port appears: opened at the next retry, at most BACKOFF_MAX
+    // after the last, with as much again as margin.
     let (mut master, device) = pty();
     point(&link, &device);
     assert!(
-        wait_until(Duration::from_secs(40), || d
+        wait_until(2 * BACKOFF_MAX, || d
             .log_text()
             .contains("open at 9600 baud")),
         "{}",
         d.log_text()
     );
     master.write_all(b"GO\n").unwrap();
-    assert!(wait_until(Duration::from_secs(20), || d
+    assert!(wait_until(Duration::from_secs(120), || d
         .log_text()
         .contains("serial trigger: \"GO\"")));
 }

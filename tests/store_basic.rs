@@ -210,6 +210,11 @@ fn claim_complete_fail_transitions() {
         Err(StoreError::NoSuchScan(999))
     ));
 
+    // The start of the UTC day before anything finishes, so that the
+    // "finished today" count below is not cut short by a test that runs
+    // across midnight.
+    let today = utc_day_start_ms(now_ms());
+
     // Oldest first.
     let job = store.claim_next().expect("claim").expect("job a");
     assert_eq!(
@@ -289,12 +294,7 @@ fn claim_complete_fail_transitions() {
         (counts.pending, counts.running, counts.ok, counts.error),
         (0, 0, 1, 2)
     );
-    assert_eq!(
-        store
-            .finished_since(utc_day_start_ms(now_ms()))
-            .expect("today"),
-        3
-    );
+    assert_eq!(store.finished_since(today).expect("today"), 3);
     assert_eq!(store.finished_since(now_ms() + 60_000).expect("future"), 0);
 
     // Retry drops the result and makes it pending again.

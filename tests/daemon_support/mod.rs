@@ -70,6 +70,34 @@ pub fn scan_bytes(g: usize, seed: u64) -> Vec<u8> {
     std::fs::read(&path).unwrap()
 }
 
+/// Put `bytes` at `path` (in the export folder) in one step: written to a
+/// temporary file beside the export folder, then renamed into place. The
+/// daemon thus never sees the file empty or half written, however long
+/// the writing thread is descheduled between creating and filling it (an
+/// empty file left that way for the settle time would be taken as a scan
+/// of its own).
+pub fn put(env: &Env, path: &Path, bytes: &[u8]) {
+    use std::io::Write;
+    let mut staged = tempfile::NamedTempFile::new_in(&env.root).unwrap();
+    staged.write_all(bytes).unwrap();
+    staged.persist(path).unwrap();
+}
+
+/// A large scan of genus `g` (`vertices` vertices, posed at random) written
+/// beside the export folder; rename it into the folder to drop it in. Its
+/// job lasts seconds rather than a fraction of one, so that a test polling
+/// the database sees it running however the test thread is scheduled.
+pub fn large_scan(env: &Env, g: usize, seed: u64, vertices: usize) -> PathBuf {
+    let genus = &CROWN_GENERA[g % CROWN_GENERA.len()];
+    let crown = synth::crown(genus, seed, vertices);
+    let posed = RigidMotion::random(seed, 20.0).apply(&crown);
+    let dir = env.root.join("staging");
+    std::fs::create_dir_all(&dir).unwrap();
+    let staged = dir.join(format!("large-{seed}.ply"));
+    io::save(&staged, &posed).unwrap();
+    staged
+}
+
 /// Genus name of index `g`.
 pub fn genus(g: usize) -> &'static str {
     CROWN_GENERA[g % CROWN_GENERA.len()].name
