@@ -33,8 +33,8 @@ fn leave_one_out_on_real_teeth() {
             (
                 c.forward.distance,
                 c.backward.distance,
-                c.forward.mobius_distance,
-                c.backward.mobius_distance,
+                c.forward.search_distance,
+                c.backward.search_distance,
             )
         })
         .collect();
@@ -43,18 +43,18 @@ fn leave_one_out_on_real_teeth() {
         names: prepared.iter().map(|p| p.name.clone()).collect(),
         values: vec![vec![0.0; n]; n],
     };
-    let mut unwarped = fwd.clone();
+    let mut searched = fwd.clone();
     for (&(i, j), &(f, b, fm, bm)) in pairs.iter().zip(&directed) {
         fwd.values[i][j] = f;
         fwd.values[j][i] = b;
-        unwarped.values[i][j] = fm;
-        unwarped.values[j][i] = bm;
+        searched.values[i][j] = fm;
+        searched.values[j][i] = bm;
     }
     if let Ok(out) = std::env::var("CP_DIRECTED_OUT") {
         fwd.write_csv(std::path::Path::new(&out))
             .expect("write matrix");
-        let out = format!("{out}.mobius.csv");
-        unwarped
+        let out = format!("{out}.search.csv");
+        searched
             .write_csv(std::path::Path::new(&out))
             .expect("write matrix");
     }

@@ -26,8 +26,10 @@ pub struct Directed {
     /// The feature-aligning deformation applied after `mobius`, if it
     /// lowered the distance.
     pub warp: Option<DiskWarp>,
-    /// The distance of the Möbius map alone (before the deformation).
-    pub mobius_distance: f64,
+    /// The distance of the best map of the search, before the final steps
+    /// (the deformation of that map alone, when candidates are not warped,
+    /// and the area correction χ).
+    pub search_distance: f64,
     /// The optimal orthogonal matrix (row-major) applied to S.
     pub rotation: [[f64; 3]; 3],
     /// The optimal translation applied to S after the rotation.
@@ -77,17 +79,24 @@ fn image(t: &Prepared, z: [f64; 2], hint: u32) -> Option<(Location, [f64; 3])> {
 }
 
 /// Weighted Procrustes residual of the first `hints.len()` samples of `s`
-/// and their images in `t` under `m`. `hints[i]` is a triangle of `t` near
+/// and their images in `t` under the disk map `map` (of the given
+/// handedness). `hints[i]` is a triangle of `t` near
 /// the image of sample `i` (or [`NO_TRIANGLE`]); each is replaced by the
 /// triangle found, so that a search moving the map a little locates the
 /// next images cheaply.
-pub fn sample_residual(s: &Prepared, t: &Prepared, m: &Mobius, hints: &mut [u32]) -> f64 {
+pub fn sample_residual(
+    s: &Prepared,
+    t: &Prepared,
+    map: impl Fn([f64; 2]) -> [f64; 2],
+    handedness: Handedness,
+    hints: &mut [u32],
+) -> f64 {
     let mut mom = Moments::default();
     for ((&v, &w), hint) in s.samples.iter().zip(&s.sample_weights).zip(hints) {
         let (Some(&z), Some(&x)) = (s.uv.get(v as usize), s.vertices.get(v as usize)) else {
             return f64::MAX;
         };
-        match image(t, m.apply(z), *hint) {
+        match image(t, map(z), *hint) {
             Some((loc, y)) => {
                 *hint = loc.face;
                 mom.add(x, y, w)
@@ -95,7 +104,7 @@ pub fn sample_residual(s: &Prepared, t: &Prepared, m: &Mobius, hints: &mut [u32]
             None => return f64::MAX,
         }
     }
-    mom.residual(handedness(m))
+    mom.residual(handedness)
 }
 
 /// Evaluate a disk map (`map`, of the given handedness) on all vertices of
@@ -142,9 +151,15 @@ pub fn evaluate_images(
     Some((mom.fit(handedness), corr))
 }
 
-/// The deformation ϱ that moves the features of `s` (after `m`) onto their
-/// mutually nearest features of `t`.
-fn feature_warp(s: &Prepared, t: &Prepared, m: &Mobius, params: &CpParams) -> Option<DiskWarp> {
+/// The features of `s` carried by `m` into `t`'s disk, paired with their
+/// mutually nearest features of `t` (hyperbolic distance below
+/// `params.warp_max_match`): `(from, to)` disk points.
+fn matched_features(
+    s: &Prepared,
+    t: &Prepared,
+    m: &Mobius,
+    params: &CpParams,
+) -> Vec<([f64; 2], [f64; 2])> {
     let zs: Vec<[f64; 2]> = s
         .features
         .iter()
@@ -157,9 +172,17 @@ fn feature_warp(s: &Prepared, t: &Prepared, m: &Mobius, params: &CpParams) -> Op
         .filter_map(|&v| t.uv.get(v as usize))
         .copied()
         .collect();
+    mutually_nearest(&zs, &zt, params.warp_max_match)
+        .into_iter()
+        .map(|(i, j)| (zs[i], zt[j]))
+        .collect()
+}
+
+/// The deformation ϱ that moves the features of `s` (after `m`) onto their
+/// mutually nearest features of `t`.
+fn feature_warp(s: &Prepared, t: &Prepared, m: &Mobius, params: &CpParams) -> Option<DiskWarp> {
     let (mut from, mut to) = (Vec::new(), Vec::new());
-    for (i, j) in mutually_nearest(&zs, &zt, params.warp_max_match) {
-        let (a, b) = (zs[i], zt[j]);
+    for (a, b) in matched_features(s, t, m, params) {
         // Large moves would fold the disk; leave those features alone.
         if (a[0] - b[0]).hypot(a[1] - b[1]) < 0.5 * params.warp_width {
             from.push(a);
@@ -167,6 +190,39 @@ fn feature_warp(s: &Prepared, t: &Prepared, m: &Mobius, params: &CpParams) -> Op
         }
     }
     DiskWarp::interpolating(&from, &to, params.warp_width)
+}
+
+/// A map between disks: a Möbius map, followed by a deformation when the
+/// search warps every candidate.
+#[derive(Debug, Clone)]
+struct DiskMap {
+    mobius: Mobius,
+    warp: Option<DiskWarp>,
+}
+
+impl DiskMap {
+    /// `m`, followed by its feature warp when every candidate is warped
+    /// (`feature_warp` and `search_warp`).
+    fn for_candidate(s: &Prepared, t: &Prepared, m: Mobius, params: &CpParams) -> Self {
+        let warp = if params.feature_warp && params.search_warp {
+            feature_warp(s, t, &m, params)
+        } else {
+            None
+        };
+        Self { mobius: m, warp }
+    }
+
+    fn apply(&self, z: [f64; 2]) -> [f64; 2] {
+        let w = self.mobius.apply(z);
+        match &self.warp {
+            Some(d) => d.apply(w),
+            None => w,
+        }
+    }
+
+    fn residual(&self, s: &Prepared, t: &Prepared, hints: &mut [u32]) -> f64 {
+        sample_residual(s, t, |z| self.apply(z), handedness(&self.mobius), hints)
+    }
 }
 
 /// Relative spread of the simplex's values at which the refinement stops:
@@ -264,23 +320,36 @@ fn refine(
     m0: Mobius,
     step: [f64; 3],
     params: &CpParams,
-) -> (f64, Mobius) {
+) -> (f64, DiskMap) {
     let mut hints = vec![NO_TRIANGLE; s.samples.len()];
-    let score = sample_residual(s, t, &m0, &mut hints);
+    let start = DiskMap::for_candidate(s, t, m0, params);
+    let score = start.residual(s, t, &mut hints);
     if params.refine_evaluations == 0 {
-        return (score, m0);
+        return (score, start);
     }
-    let obj =
-        |x: [f64; 3]| perturbed(&m0, x).map_or(f64::MAX, |m| sample_residual(s, t, &m, &mut hints));
+    let obj = |x: [f64; 3]| {
+        perturbed(&m0, x).map_or(f64::MAX, |m| {
+            DiskMap::for_candidate(s, t, m, params).residual(s, t, &mut hints)
+        })
+    };
     let (x, fx) = nelder_mead(obj, [0.0; 3], step, params.refine_evaluations);
     match perturbed(&m0, x) {
-        Some(m) if fx < score => (fx, m),
-        _ => (score, m0),
+        Some(m) if fx < score => (fx, DiskMap::for_candidate(s, t, m, params)),
+        _ => (score, start),
     }
 }
 
-/// The directed comparison `S → S′`.
-pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Directed {
+/// The coarse search: for each feature pair, orientation and rotation
+/// angle, the Möbius map sending one feature to the other, scored on the
+/// first samples. Maps that bring fewer than `required` features onto
+/// mutually nearest features are left out. Each candidate is
+/// `(score, index in search order, map)`.
+fn coarse_candidates(
+    s: &Prepared,
+    t: &Prepared,
+    params: &CpParams,
+    required: usize,
+) -> Vec<(f64, usize, Mobius)> {
     let orientations: &[bool] = if params.reflections {
         &[false, true]
     } else {
@@ -289,7 +358,7 @@ pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Direct
     let angles = params.angles.max(1);
     let coarse = params.coarse_samples.max(1);
     let mut coarse_hints = vec![NO_TRIANGLE; coarse.min(s.samples.len())];
-    let mut cands: Vec<(f64, usize, Mobius)> = Vec::new();
+    let mut cands = Vec::new();
     let mut index = 0usize;
     for &p in &s.features {
         for &q in &t.features {
@@ -300,20 +369,41 @@ pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Direct
                 for k in 0..angles {
                     let th = k as f64 / angles as f64 * std::f64::consts::TAU;
                     let m = Mobius::sending(zp, zq, th, refl);
+                    index += 1;
+                    if required > 1 && matched_features(s, t, &m, params).len() < required {
+                        continue;
+                    }
                     // Candidates are far apart: no hints between them.
                     coarse_hints.fill(NO_TRIANGLE);
-                    cands.push((sample_residual(s, t, &m, &mut coarse_hints), index, m));
-                    index += 1;
+                    let score =
+                        DiskMap::for_candidate(s, t, m, params).residual(s, t, &mut coarse_hints);
+                    cands.push((score, index, m));
                 }
             }
         }
+    }
+    cands
+}
+
+/// The directed comparison `S → S′`.
+pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Directed {
+    let angles = params.angles.max(1);
+    // Surfaces with few features cannot meet the full requirement; when no
+    // map meets it, the search runs unconstrained.
+    let required = params
+        .min_feature_matches
+        .min(s.features.len())
+        .min(t.features.len());
+    let mut cands = coarse_candidates(s, t, params, required);
+    if cands.is_empty() && required > 1 {
+        cands = coarse_candidates(s, t, params, 0);
     }
     if cands.is_empty() {
         cands.push((0.0, 0, Mobius::identity()));
     }
     cands.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     let step = std::f64::consts::TAU / angles as f64;
-    let refined: Vec<(f64, Mobius)> = cands
+    let refined: Vec<(f64, DiskMap)> = cands
         .iter()
         .take(params.refine_candidates.max(1))
         .map(|&(_, _, m0)| refine(s, t, m0, [0.05, 0.05, 0.5 * step], params))
@@ -321,31 +411,36 @@ pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Direct
     // Only maps whose sample residual is near the best one's can have the
     // smallest residual over all vertices; the others are not evaluated.
     let best_sampled = refined.iter().map(|r| r.0).fold(f64::INFINITY, f64::min);
-    let mut best: Option<(f64, Mobius, RigidFit, Correspondence)> = None;
-    for &(score, m) in &refined {
+    let mut evaluated: Vec<(f64, DiskMap, RigidFit, Correspondence)> = Vec::new();
+    for (score, dm) in refined {
         if score > FULL_EVALUATION_MARGIN * best_sampled {
             continue;
         }
-        if let Some((fit, corr)) = evaluate_map(s, t, |z| m.apply(z), handedness(&m)) {
-            if best.as_ref().is_none_or(|b| fit.residual < b.0) {
-                best = Some((fit.residual, m, fit, corr));
-            }
+        if let Some((fit, corr)) = evaluate_map(s, t, |z| dm.apply(z), handedness(&dm.mobius)) {
+            evaluated.push((fit.residual, dm, fit, corr));
         }
     }
+    evaluated.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let search_residual = evaluated.first().map_or(f64::MAX, |b| b.0);
     // Deform the best map so that features land on features; keep the
     // deformation only when it lowers the distance.
-    let mut warp = None;
-    let mobius_residual = best.as_ref().map_or(f64::MAX, |b| b.0);
-    if params.feature_warp {
-        if let Some((res, m, _, _)) = &best {
-            if let Some(w) = feature_warp(s, t, m, params) {
-                let m = *m;
+    if params.feature_warp && !params.search_warp {
+        if let Some(first) = evaluated.first_mut() {
+            let m = first.1.mobius;
+            if let Some(w) = feature_warp(s, t, &m, params) {
                 if let Some((fit, corr)) =
                     evaluate_map(s, t, |z| w.apply(m.apply(z)), handedness(&m))
                 {
-                    if fit.residual < *res {
-                        best = Some((fit.residual, m, fit, corr));
-                        warp = Some(w);
+                    if fit.residual < first.0 {
+                        *first = (
+                            fit.residual,
+                            DiskMap {
+                                mobius: m,
+                                warp: Some(w),
+                            },
+                            fit,
+                            corr,
+                        );
                     }
                 }
             }
@@ -353,29 +448,29 @@ pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Direct
     }
     // Make the final map area preserving (χ); its distance is the result.
     if params.area_correction {
-        if let Some((_, m, _, _)) = &best {
-            let m = *m;
-            let images: Vec<[f64; 2]> =
-                s.uv.iter()
-                    .map(|&z| match &warp {
-                        Some(w) => w.apply(m.apply(z)),
-                        None => m.apply(z),
-                    })
-                    .collect();
+        if let Some(first) = evaluated.first_mut() {
+            let dm = &first.1;
+            let images: Vec<[f64; 2]> = s.uv.iter().map(|&z| dm.apply(z)).collect();
             if let Some(moved) = area_preserving_correction(t, &images, &s.vertex_areas, &s.sweep) {
-                if let Some((fit, corr)) = evaluate_images(s, t, &moved, handedness(&m)) {
-                    best = Some((fit.residual, m, fit, corr));
+                if let Some((fit, corr)) = evaluate_images(s, t, &moved, handedness(&dm.mobius)) {
+                    first.0 = fit.residual;
+                    first.2 = fit;
+                    first.3 = corr;
                 }
             }
         }
     }
+    let best = evaluated
+        .into_iter()
+        .next()
+        .map(|(res, dm, fit, corr)| (res, dm.mobius, fit, corr, dm.warp));
     match best {
-        Some((res, m, fit, corr)) => Directed {
+        Some((res, m, fit, corr, warp)) => Directed {
             distance: res.max(0.0).sqrt(),
             reflected: m.reverses_orientation(),
             mobius: m,
             warp,
-            mobius_distance: mobius_residual.max(0.0).sqrt(),
+            search_distance: search_residual.max(0.0).sqrt(),
             rotation: fit.rotation,
             translation: fit.translation,
             correspondence: corr,
@@ -387,7 +482,7 @@ pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Direct
             reflected: false,
             mobius: Mobius::identity(),
             warp: None,
-            mobius_distance: f64::MAX,
+            search_distance: f64::MAX,
             rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
             translation: [0.0; 3],
             correspondence: Vec::new(),

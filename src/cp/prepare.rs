@@ -34,10 +34,17 @@ pub struct CpParams {
     pub refine_candidates: usize,
     /// Objective evaluations of the local refinement of each candidate.
     pub refine_evaluations: usize,
-    /// Whether the best map is followed by a smooth deformation bringing
-    /// features onto their mutually nearest features (kept only when it
-    /// lowers the distance).
+    /// Whether maps are followed by a smooth deformation ϱ bringing
+    /// features onto their mutually nearest features.
     pub feature_warp: bool,
+    /// Whether every candidate of the search is scored after its own
+    /// deformation, as in the paper (otherwise only the best map is
+    /// deformed, and the deformation kept when it lowers the distance).
+    pub search_warp: bool,
+    /// Candidates of the coarse search that bring fewer than this many
+    /// features onto mutually nearest features are left out (capped by the
+    /// feature counts; if no map qualifies, none is left out).
+    pub min_feature_matches: usize,
     /// Width of that deformation's Gaussian kernel (disk units).
     pub warp_width: f64,
     /// Features farther apart than this (hyperbolic distance) are not
@@ -63,6 +70,8 @@ impl Default for CpParams {
             refine_candidates: 3,
             refine_evaluations: 60,
             feature_warp: true,
+            search_warp: true,
+            min_feature_matches: 3,
             warp_width: 0.25,
             warp_max_match: 1.0,
             reflections: true,
@@ -213,6 +222,35 @@ fn capped_volume(m: &Mesh, boundary: &[u32]) -> f64 {
         .sum()
 }
 
+/// The strongest local maxima of `values` among `eligible` vertices, at
+/// most `max_count`, each at least `separation` (graph distance on the
+/// surface) from those chosen before it.
+fn separated_maxima(
+    m: &Mesh,
+    adjacency: &[Vec<u32>],
+    values: &[f64],
+    eligible: &[bool],
+    max_count: usize,
+    separation: f64,
+) -> Vec<u32> {
+    let mut cache: std::collections::HashMap<u32, Vec<f64>> = Default::default();
+    let cands = local_maxima(adjacency, values, eligible, usize::MAX, 0.0, |_, _| 0.0);
+    let mut out: Vec<u32> = Vec::new();
+    for c in cands {
+        if out.len() >= max_count {
+            break;
+        }
+        let far = out.iter().all(|&o| {
+            let d = cache.entry(o).or_insert_with(|| graph_distance(m, &[o]));
+            d[c as usize] >= separation
+        });
+        if far {
+            out.push(c);
+        }
+    }
+    out
+}
+
 /// Prepare a cleaned disk-type mesh for cP comparisons.
 pub fn prepare(input: &Mesh, params: &CpParams) -> Result<Prepared, CpError> {
     let n = input.vertices.len();
@@ -261,25 +299,14 @@ pub fn prepare(input: &Mesh, params: &CpParams) -> Result<Prepared, CpError> {
         .iter()
         .map(|z| z[0].hypot(z[1]) <= params.feature_max_radius)
         .collect();
-    let features = {
-        let mut cache: std::collections::HashMap<u32, Vec<f64>> = Default::default();
-        let cands = local_maxima(&adjacency, &density, &eligible, usize::MAX, 0.0, |_, _| 0.0);
-        // Separation by geodesic distance from already chosen features.
-        let mut out: Vec<u32> = Vec::new();
-        for c in cands {
-            if out.len() >= params.max_features {
-                break;
-            }
-            let far = out.iter().all(|&o| {
-                let d = cache.entry(o).or_insert_with(|| graph_distance(&m, &[o]));
-                d[c as usize] >= params.feature_separation
-            });
-            if far {
-                out.push(c);
-            }
-        }
-        out
-    };
+    let features = separated_maxima(
+        &m,
+        &adjacency,
+        &density,
+        &eligible,
+        params.max_features,
+        params.feature_separation,
+    );
     let mut seeds = features.clone();
     if seeds.is_empty() {
         seeds.push(center);
