@@ -151,38 +151,48 @@ pub fn evaluate_images(
     Some((mom.fit(handedness), corr))
 }
 
-/// The features of `s` carried by `m` into `t`'s disk, paired with their
-/// mutually nearest features of `t` (hyperbolic distance below
-/// `params.warp_max_match`): `(from, to)` disk points.
-fn matched_features(
-    s: &Prepared,
-    t: &Prepared,
-    m: &Mobius,
-    params: &CpParams,
-) -> Vec<([f64; 2], [f64; 2])> {
-    let zs: Vec<[f64; 2]> = s
-        .features
-        .iter()
-        .filter_map(|&v| s.uv.get(v as usize))
-        .map(|&z| m.apply(z))
-        .collect();
-    let zt: Vec<[f64; 2]> = t
-        .features
-        .iter()
-        .filter_map(|&v| t.uv.get(v as usize))
-        .copied()
-        .collect();
-    mutually_nearest(&zs, &zt, params.warp_max_match)
-        .into_iter()
-        .map(|(i, j)| (zs[i], zt[j]))
-        .collect()
+/// Disk positions of the features of both surfaces of a directed
+/// comparison, taken once for all the maps it tries.
+struct FeaturePoints {
+    source: Vec<[f64; 2]>,
+    target: Vec<[f64; 2]>,
 }
 
-/// The deformation ϱ that moves the features of `s` (after `m`) onto their
-/// mutually nearest features of `t`.
-fn feature_warp(s: &Prepared, t: &Prepared, m: &Mobius, params: &CpParams) -> Option<DiskWarp> {
+/// A feature of `S` carried into `S′`'s disk and the feature of `S′` it is
+/// matched with: `(from, to)`.
+type FeatureMatch = ([f64; 2], [f64; 2]);
+
+impl FeaturePoints {
+    fn of(s: &Prepared, t: &Prepared) -> Self {
+        let on_disk = |p: &Prepared| -> Vec<[f64; 2]> {
+            p.features
+                .iter()
+                .filter_map(|&v| p.uv.get(v as usize))
+                .copied()
+                .collect()
+        };
+        Self {
+            source: on_disk(s),
+            target: on_disk(t),
+        }
+    }
+
+    /// The source features carried by `m`, paired with their mutually
+    /// nearest target features (hyperbolic distance below
+    /// `params.warp_max_match`).
+    fn matched(&self, m: &Mobius, params: &CpParams) -> Vec<FeatureMatch> {
+        let zs: Vec<[f64; 2]> = self.source.iter().map(|&z| m.apply(z)).collect();
+        mutually_nearest(&zs, &self.target, params.warp_max_match)
+            .into_iter()
+            .map(|(i, j)| (zs[i], self.target[j]))
+            .collect()
+    }
+}
+
+/// The deformation ϱ that moves matched features onto each other.
+fn feature_warp(matches: &[FeatureMatch], params: &CpParams) -> Option<DiskWarp> {
     let (mut from, mut to) = (Vec::new(), Vec::new());
-    for (a, b) in matched_features(s, t, m, params) {
+    for &(a, b) in matches {
         // Large moves would fold the disk; leave those features alone.
         if (a[0] - b[0]).hypot(a[1] - b[1]) < 0.5 * params.warp_width {
             from.push(a);
@@ -190,6 +200,11 @@ fn feature_warp(s: &Prepared, t: &Prepared, m: &Mobius, params: &CpParams) -> Op
         }
     }
     DiskWarp::interpolating(&from, &to, params.warp_width)
+}
+
+/// Whether every map of the search is followed by its feature deformation.
+fn warps_candidates(params: &CpParams) -> bool {
+    params.feature_warp && params.search_warp
 }
 
 /// A map between disks: a Möbius map, followed by a deformation when the
@@ -201,15 +216,28 @@ struct DiskMap {
 }
 
 impl DiskMap {
-    /// `m`, followed by its feature warp when every candidate is warped
-    /// (`feature_warp` and `search_warp`).
-    fn for_candidate(s: &Prepared, t: &Prepared, m: Mobius, params: &CpParams) -> Self {
-        let warp = if params.feature_warp && params.search_warp {
-            feature_warp(s, t, &m, params)
+    /// `m`, followed by the deformation of the given feature matches when
+    /// the search warps every candidate.
+    fn with_matches(m: Mobius, matches: &[FeatureMatch], params: &CpParams) -> Self {
+        let warp = if warps_candidates(params) {
+            feature_warp(matches, params)
         } else {
             None
         };
         Self { mobius: m, warp }
+    }
+
+    /// `m`, followed by its feature deformation when the search warps every
+    /// candidate.
+    fn for_candidate(m: Mobius, features: &FeaturePoints, params: &CpParams) -> Self {
+        if warps_candidates(params) {
+            Self::with_matches(m, &features.matched(&m, params), params)
+        } else {
+            Self {
+                mobius: m,
+                warp: None,
+            }
+        }
     }
 
     fn apply(&self, z: [f64; 2]) -> [f64; 2] {
@@ -317,24 +345,25 @@ const FULL_EVALUATION_MARGIN: f64 = 1.3;
 fn refine(
     s: &Prepared,
     t: &Prepared,
+    features: &FeaturePoints,
     m0: Mobius,
     step: [f64; 3],
     params: &CpParams,
 ) -> (f64, DiskMap) {
     let mut hints = vec![NO_TRIANGLE; s.samples.len()];
-    let start = DiskMap::for_candidate(s, t, m0, params);
+    let start = DiskMap::for_candidate(m0, features, params);
     let score = start.residual(s, t, &mut hints);
     if params.refine_evaluations == 0 {
         return (score, start);
     }
     let obj = |x: [f64; 3]| {
         perturbed(&m0, x).map_or(f64::MAX, |m| {
-            DiskMap::for_candidate(s, t, m, params).residual(s, t, &mut hints)
+            DiskMap::for_candidate(m, features, params).residual(s, t, &mut hints)
         })
     };
     let (x, fx) = nelder_mead(obj, [0.0; 3], step, params.refine_evaluations);
     match perturbed(&m0, x) {
-        Some(m) if fx < score => (fx, DiskMap::for_candidate(s, t, m, params)),
+        Some(m) if fx < score => (fx, DiskMap::for_candidate(m, features, params)),
         _ => (score, start),
     }
 }
@@ -347,6 +376,7 @@ fn refine(
 fn coarse_candidates(
     s: &Prepared,
     t: &Prepared,
+    features: &FeaturePoints,
     params: &CpParams,
     required: usize,
 ) -> Vec<(f64, usize, Mobius)> {
@@ -370,13 +400,21 @@ fn coarse_candidates(
                     let th = k as f64 / angles as f64 * std::f64::consts::TAU;
                     let m = Mobius::sending(zp, zq, th, refl);
                     index += 1;
-                    if required > 1 && matched_features(s, t, &m, params).len() < required {
+                    let matches = if required > 1 || warps_candidates(params) {
+                        features.matched(&m, params)
+                    } else {
+                        Vec::new()
+                    };
+                    if required > 1 && matches.len() < required {
                         continue;
                     }
                     // Candidates are far apart: no hints between them.
                     coarse_hints.fill(NO_TRIANGLE);
-                    let score =
-                        DiskMap::for_candidate(s, t, m, params).residual(s, t, &mut coarse_hints);
+                    let score = DiskMap::with_matches(m, &matches, params).residual(
+                        s,
+                        t,
+                        &mut coarse_hints,
+                    );
                     cands.push((score, index, m));
                 }
             }
@@ -394,9 +432,10 @@ pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Direct
         .min_feature_matches
         .min(s.features.len())
         .min(t.features.len());
-    let mut cands = coarse_candidates(s, t, params, required);
+    let features = FeaturePoints::of(s, t);
+    let mut cands = coarse_candidates(s, t, &features, params, required);
     if cands.is_empty() && required > 1 {
-        cands = coarse_candidates(s, t, params, 0);
+        cands = coarse_candidates(s, t, &features, params, 0);
     }
     if cands.is_empty() {
         cands.push((0.0, 0, Mobius::identity()));
@@ -406,7 +445,7 @@ pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Direct
     let refined: Vec<(f64, DiskMap)> = cands
         .iter()
         .take(params.refine_candidates.max(1))
-        .map(|&(_, _, m0)| refine(s, t, m0, [0.05, 0.05, 0.5 * step], params))
+        .map(|&(_, _, m0)| refine(s, t, &features, m0, [0.05, 0.05, 0.5 * step], params))
         .collect();
     // Only maps whose sample residual is near the best one's can have the
     // smallest residual over all vertices; the others are not evaluated.
@@ -422,47 +461,32 @@ pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Direct
     }
     evaluated.sort_by(|a, b| a.0.total_cmp(&b.0));
     let search_residual = evaluated.first().map_or(f64::MAX, |b| b.0);
-    // The deformation interpolates feature positions, which carry the noise
-    // of the meshing: the best map's Möbius part alone competes with it (on
-    // a remeshed copy of a surface, it wins).
     if let Some(first) = evaluated.first_mut() {
-        if first.1.warp.is_some() {
-            let m = first.1.mobius;
-            if let Some((fit, corr)) = evaluate_map(s, t, |z| m.apply(z), handedness(&m)) {
+        let m = first.1.mobius;
+        let alternative = if first.1.warp.is_some() {
+            // The deformation interpolates feature positions, which carry
+            // the noise of the meshing: the Möbius part alone competes with
+            // it (on a remeshed copy of a surface, it wins).
+            Some(DiskMap {
+                mobius: m,
+                warp: None,
+            })
+        } else if params.feature_warp && !params.search_warp {
+            // Only the best map is deformed so that features land on
+            // features.
+            feature_warp(&features.matched(&m, params), params).map(|w| DiskMap {
+                mobius: m,
+                warp: Some(w),
+            })
+        } else {
+            None
+        };
+        // Either way, the alternative is kept only when it lowers the
+        // distance.
+        if let Some(dm) = alternative {
+            if let Some((fit, corr)) = evaluate_map(s, t, |z| dm.apply(z), handedness(&m)) {
                 if fit.residual < first.0 {
-                    *first = (
-                        fit.residual,
-                        DiskMap {
-                            mobius: m,
-                            warp: None,
-                        },
-                        fit,
-                        corr,
-                    );
-                }
-            }
-        }
-    }
-    // Deform the best map so that features land on features; keep the
-    // deformation only when it lowers the distance.
-    if params.feature_warp && !params.search_warp {
-        if let Some(first) = evaluated.first_mut() {
-            let m = first.1.mobius;
-            if let Some(w) = feature_warp(s, t, &m, params) {
-                if let Some((fit, corr)) =
-                    evaluate_map(s, t, |z| w.apply(m.apply(z)), handedness(&m))
-                {
-                    if fit.residual < first.0 {
-                        *first = (
-                            fit.residual,
-                            DiskMap {
-                                mobius: m,
-                                warp: Some(w),
-                            },
-                            fit,
-                            corr,
-                        );
-                    }
+                    *first = (fit.residual, dm, fit, corr);
                 }
             }
         }

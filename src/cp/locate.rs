@@ -501,14 +501,19 @@ mod tests {
         })
     }
 
+    /// The `k`-th of a scattered set of points within `radius` of 0.
+    fn probe(k: usize, radius: f64) -> [f64; 2] {
+        let t = k as f64 * 0.37;
+        let r = radius * ((k * 7919) % 100) as f64 / 100.0;
+        [r * t.cos(), r * t.sin()]
+    }
+
     #[test]
     fn locates_interior_points_exactly() {
         let (uv, faces) = disk(8, 24);
         let grid = LocateGrid::build(&uv, &faces);
         for k in 0..200 {
-            let t = k as f64 * 0.37;
-            let r = 0.95 * ((k * 7919) % 100) as f64 / 100.0;
-            let p = [r * t.cos(), r * t.sin()];
+            let p = probe(k, 0.95);
             let loc = grid.locate(&uv, &faces, p).expect("located");
             let q = point_at(&uv, &faces, loc);
             assert!((q[0] - p[0]).abs() < 1e-12 && (q[1] - p[1]).abs() < 1e-12);
@@ -542,9 +547,7 @@ mod tests {
         let (uv, faces) = disk(8, 24);
         let grid = LocateGrid::build(&uv, &faces);
         for k in 0..300 {
-            let t = k as f64 * 0.37;
-            let r = 1.02 * ((k * 7919) % 100) as f64 / 100.0;
-            let p = [r * t.cos(), r * t.sin()];
+            let p = probe(k, 1.02);
             let hint = ((k * 31) % faces.len()) as u32;
             let a = grid.locate(&uv, &faces, p).expect("grid");
             let b = grid.locate_near(&uv, &faces, p, hint).expect("walk");
