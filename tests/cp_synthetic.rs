@@ -59,3 +59,35 @@ fn matrix_is_symmetric_deterministic_and_separates_genera() {
     assert_eq!(score[0].total, 9);
     assert!(score[0].correct >= 8, "{score:?}");
 }
+
+#[test]
+fn the_final_descent_lowers_the_distance_of_different_crowns() {
+    let params = CpParams::default();
+    let searched_only = CpParams {
+        descent_steps: 0,
+        ..params.clone()
+    };
+    let a = cp::prepare(&synth::crown(&CROWN_GENERA[0], 1, 2000), &params).expect("prepare");
+    let b = cp::prepare(&synth::crown(&CROWN_GENERA[2], 2, 2000), &params).expect("prepare");
+    let searched = cp::compare(&a, &b, &searched_only);
+    let descended = cp::compare(&a, &b, &params);
+    // The descent starts from the searched maps and keeps only steps that
+    // lower the residual.
+    assert!(descended.distance <= searched.distance);
+    assert!(
+        descended.distance < 0.97 * searched.distance,
+        "descent: {} -> {}",
+        searched.distance,
+        descended.distance
+    );
+    // The better direction was descended; the other kept its searched map.
+    let (down, kept, kept_before) = if searched.forward.distance <= searched.backward.distance {
+        (&descended.forward, &descended.backward, &searched.backward)
+    } else {
+        (&descended.backward, &descended.forward, &searched.forward)
+    };
+    assert_eq!(down.distance, descended.distance);
+    assert_eq!(kept.distance, kept_before.distance);
+    // A surface is still at distance zero from itself.
+    assert!(cp::compare(&a, &a, &params).distance < 1e-6);
+}

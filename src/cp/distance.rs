@@ -423,8 +423,18 @@ fn coarse_candidates(
     cands
 }
 
-/// The directed comparison `S → S′`.
+/// The directed comparison `S → S′`: the searched map (see
+/// [`search_directed`]) lowered by the final descent.
 pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Directed {
+    let mut d = search_directed(s, t, params);
+    procrustes_descent(s, t, &mut d, params);
+    d
+}
+
+/// The directed comparison `S → S′` up to the final descent: the search
+/// over Möbius maps and feature deformations, and the area correction χ
+/// of the best map.
+pub fn search_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Directed {
     let angles = params.angles.max(1);
     // Surfaces with few features cannot meet the full requirement; when no
     // map meets it, the search runs unconstrained.
@@ -535,11 +545,156 @@ pub fn compare_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Direct
     }
 }
 
+/// Lower the distance of a directed comparison by up to
+/// `params.descent_steps` Gauss–Newton steps over the images of `s`'s
+/// vertices, each made area preserving again by χ and kept only when it
+/// lowers the residual. The cP distance is an infimum over area-preserving
+/// maps; the corrected map of the search is one such map, not the best, and
+/// this moves it towards a better one.
+fn procrustes_descent(s: &Prepared, t: &Prepared, d: &mut Directed, params: &CpParams) {
+    if !params.area_correction || d.correspondence.len() != s.vertices.len() {
+        return;
+    }
+    let h = handedness(&d.mobius);
+    let mut fit = RigidFit {
+        rotation: d.rotation,
+        translation: d.translation,
+        residual: d.distance * d.distance,
+    };
+    for _ in 0..params.descent_steps {
+        let Some(moved) = gauss_newton_step(s, t, &fit, &d.correspondence, params) else {
+            break;
+        };
+        let Some(corrected) = area_preserving_correction(t, &moved, &s.vertex_areas, &s.sweep)
+        else {
+            break;
+        };
+        match evaluate_images(s, t, &corrected, h) {
+            Some((f, corr)) if f.residual < fit.residual => {
+                fit = f;
+                d.correspondence = corr;
+            }
+            _ => break,
+        }
+    }
+    d.distance = fit.residual.max(0.0).sqrt();
+    d.rotation = fit.rotation;
+    d.translation = fit.translation;
+}
+
+/// The images of `s`'s vertices after one Gauss–Newton step of the
+/// residual `Σ a |R x + t − S′(y)|²` in the images y (points of `t`'s disk,
+/// given by the correspondence `corr`), with the rigid motion `fit` held
+/// fixed. Each vertex's step solves the linearized problem in its image's
+/// triangle; the step field is then smoothed over `s` and damped, so that
+/// the map stays regular. `None` if the correspondence is inconsistent.
+fn gauss_newton_step(
+    s: &Prepared,
+    t: &Prepared,
+    fit: &RigidFit,
+    corr: &Correspondence,
+    params: &CpParams,
+) -> Option<Vec<[f64; 2]>> {
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let mut images = Vec::with_capacity(corr.len());
+    let mut step = Vec::with_capacity(corr.len());
+    for (&x, &(f, b)) in s.vertices.iter().zip(corr) {
+        let f = t.faces.get(f as usize)?;
+        let mut p = [[0.0; 3]; 3];
+        let mut u = [[0.0; 2]; 3];
+        for k in 0..3 {
+            p[k] = *t.vertices.get(f[k] as usize)?;
+            u[k] = *t.uv.get(f[k] as usize)?;
+        }
+        let y: [f64; 3] = [0, 1, 2].map(|d| b[0] * p[0][d] + b[1] * p[1][d] + b[2] * p[2][d]);
+        images.push([0, 1].map(|d| b[0] * u[0][d] + b[1] * u[1][d] + b[2] * u[2][d]));
+        let r = fit.rotation;
+        let e: [f64; 3] = [0, 1, 2].map(|d| dot(r[d], x) + fit.translation[d] - y[d]);
+        // The residual's least-squares step in the triangle's barycentric
+        // directions, carried into the disk.
+        let e1: [f64; 3] = [0, 1, 2].map(|d| p[1][d] - p[0][d]);
+        let e2: [f64; 3] = [0, 1, 2].map(|d| p[2][d] - p[0][d]);
+        let (g11, g12, g22) = (dot(e1, e1), dot(e1, e2), dot(e2, e2));
+        let det = g11 * g22 - g12 * g12;
+        if det <= f64::MIN_POSITIVE {
+            step.push([0.0; 2]);
+            continue;
+        }
+        let (b1, b2) = (dot(e1, e), dot(e2, e));
+        let c1 = (g22 * b1 - g12 * b2) / det;
+        let c2 = (g11 * b2 - g12 * b1) / det;
+        step.push([0, 1].map(|d| c1 * (u[1][d] - u[0][d]) + c2 * (u[2][d] - u[0][d])));
+    }
+    let step = smooth_on_faces(&s.faces, &s.vertex_areas, step, params.descent_smoothing);
+    Some(
+        images
+            .iter()
+            .zip(&step)
+            .map(|(z, d)| {
+                let w = [0, 1].map(|k| z[k] + params.descent_damping * d[k]);
+                let r = w[0].hypot(w[1]);
+                if r > 1.0 {
+                    [w[0] / r, w[1] / r]
+                } else {
+                    w
+                }
+            })
+            .collect(),
+    )
+}
+
+/// `iterations` steps of averaging a vector field over the faces around
+/// each vertex, weighted by face area (vertex areas summed).
+fn smooth_on_faces(
+    faces: &[[u32; 3]],
+    areas: &[f64],
+    mut field: Vec<[f64; 2]>,
+    iterations: usize,
+) -> Vec<[f64; 2]> {
+    let n = field.len();
+    for _ in 0..iterations {
+        let mut sum = vec![[0.0; 2]; n];
+        let mut weight = vec![0.0; n];
+        for f in faces {
+            let idx = f.map(|v| v as usize);
+            if idx.iter().any(|&v| v >= n || v >= areas.len()) {
+                continue;
+            }
+            let a: f64 = idx.iter().map(|&v| areas[v]).sum();
+            let mean = [0, 1].map(|d| idx.iter().map(|&v| field[v][d]).sum::<f64>() / 3.0);
+            for &v in &idx {
+                sum[v][0] += a * mean[0];
+                sum[v][1] += a * mean[1];
+                weight[v] += a;
+            }
+        }
+        for ((f, s), w) in field.iter_mut().zip(&sum).zip(&weight) {
+            if *w > 0.0 {
+                *f = [s[0] / w, s[1] / w];
+            }
+        }
+    }
+    field
+}
+
 /// The cP distance between two prepared surfaces: both directed
-/// comparisons and the smaller of the two.
+/// comparisons and the smaller of the two. Only the direction with the
+/// smaller distance after the search goes through the final descent
+/// (unless `descent_both_directions`); the other's distance is that of its
+/// searched map, an upper bound.
 pub fn compare(s: &Prepared, t: &Prepared, params: &CpParams) -> Comparison {
-    let forward = compare_directed(s, t, params);
-    let backward = compare_directed(t, s, params);
+    let mut forward = search_directed(s, t, params);
+    let mut backward = search_directed(t, s, params);
+    // The descent is the dearest final step, and it lowers both directions
+    // by similar amounts: the direction that is better after the search is
+    // the one the distance comes from, so by default only it is descended.
+    let forward_better = forward.distance <= backward.distance;
+    if params.descent_both_directions || forward_better {
+        procrustes_descent(s, t, &mut forward, params);
+    }
+    if params.descent_both_directions || !forward_better {
+        procrustes_descent(t, s, &mut backward, params);
+    }
     let (distance, reflected) = if forward.distance <= backward.distance {
         (forward.distance, forward.reflected)
     } else {

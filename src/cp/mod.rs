@@ -28,7 +28,7 @@ pub mod procrustes;
 pub mod samples;
 pub mod warp;
 
-pub use distance::{compare, compare_directed, Comparison, Directed};
+pub use distance::{compare, compare_directed, search_directed, Comparison, Directed};
 pub use locate::{LocateGrid, Location};
 pub use mobius::Mobius;
 pub use prepare::{prepare, CpError, CpParams, Prepared};

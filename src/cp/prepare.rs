@@ -55,6 +55,18 @@ pub struct CpParams {
     /// Whether the final map is made area preserving (Moser's flow) before
     /// it is evaluated.
     pub area_correction: bool,
+    /// Steps of the final descent: Gauss–Newton steps that lower the
+    /// area-corrected map's residual, each made area preserving again
+    /// (needs `area_correction`; 0 turns it off).
+    pub descent_steps: usize,
+    /// Smoothing steps (face averaging over the source surface) of each
+    /// descent step's displacement field, which keep the map regular.
+    pub descent_smoothing: usize,
+    /// Fraction of the Gauss–Newton step taken.
+    pub descent_damping: f64,
+    /// Whether `compare` descends both directed maps (otherwise only the
+    /// one with the smaller distance after the search).
+    pub descent_both_directions: bool,
 }
 
 impl Default for CpParams {
@@ -76,6 +88,10 @@ impl Default for CpParams {
             warp_max_match: 1.0,
             reflections: true,
             area_correction: true,
+            descent_steps: 2,
+            descent_smoothing: 10,
+            descent_damping: 0.5,
+            descent_both_directions: false,
         }
     }
 }
