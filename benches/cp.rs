@@ -26,7 +26,16 @@ fn bench(c: &mut Criterion) {
     c.bench_function("compare", |bch| {
         bch.iter(|| cp::compare(black_box(&pa), black_box(&pb), &params).distance)
     });
-    // The same comparison without the area correction χ, to show its cost.
+    // The same comparison without the final descent, to show its cost.
+    let searched_only = CpParams {
+        descent_steps: 0,
+        ..params.clone()
+    };
+    c.bench_function("compare without final descent", |bch| {
+        bch.iter(|| cp::compare(black_box(&pa), black_box(&pb), &searched_only).distance)
+    });
+    // The same comparison without the area correction χ (and so without
+    // the descent, which needs it), to show its cost.
     let plain = CpParams {
         area_correction: false,
         ..params.clone()

@@ -2,7 +2,7 @@
 
 use super::locate::{Location, NO_TRIANGLE};
 use super::mobius::Mobius;
-use super::moser::area_preserving_correction;
+use super::moser::{area_preserving_correction, FLOW_STEPS};
 use super::prepare::{CpParams, Prepared};
 use super::procrustes::{Handedness, Moments, RigidFit};
 use super::warp::{mutually_nearest, DiskWarp};
@@ -506,7 +506,9 @@ pub fn search_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Directe
         if let Some(first) = evaluated.first_mut() {
             let dm = &first.1;
             let images: Vec<[f64; 2]> = s.uv.iter().map(|&z| dm.apply(z)).collect();
-            if let Some(moved) = area_preserving_correction(t, &images, &s.vertex_areas, &s.sweep) {
+            if let Some(moved) =
+                area_preserving_correction(t, &images, &s.vertex_areas, &s.sweep, FLOW_STEPS)
+            {
                 if let Some((fit, corr)) = evaluate_images(s, t, &moved, handedness(&dm.mobius)) {
                     first.0 = fit.residual;
                     first.2 = fit;
@@ -545,6 +547,11 @@ pub fn search_directed(s: &Prepared, t: &Prepared, params: &CpParams) -> Directe
     }
 }
 
+/// Flow steps of the area correction after a descent step: the step moves
+/// an area-preserving map only a little, so the flow that undoes its area
+/// change is short.
+const DESCENT_FLOW_STEPS: usize = 1;
+
 /// Lower the distance of a directed comparison by up to
 /// `params.descent_steps` Gauss–Newton steps over the images of `s`'s
 /// vertices, each made area preserving again by χ and kept only when it
@@ -565,7 +572,8 @@ fn procrustes_descent(s: &Prepared, t: &Prepared, d: &mut Directed, params: &CpP
         let Some(moved) = gauss_newton_step(s, t, &fit, &d.correspondence, params) else {
             break;
         };
-        let Some(corrected) = area_preserving_correction(t, &moved, &s.vertex_areas, &s.sweep)
+        let Some(corrected) =
+            area_preserving_correction(t, &moved, &s.vertex_areas, &s.sweep, DESCENT_FLOW_STEPS)
         else {
             break;
         };
@@ -652,20 +660,28 @@ fn smooth_on_faces(
     iterations: usize,
 ) -> Vec<[f64; 2]> {
     let n = field.len();
+    // Faces with their weights, and each vertex's total weight, once.
+    let weighted: Vec<([usize; 3], f64)> = faces
+        .iter()
+        .map(|f| f.map(|v| v as usize))
+        .filter(|idx| idx.iter().all(|&v| v < n && v < areas.len()))
+        .map(|idx| (idx, idx.iter().map(|&v| areas[v]).sum::<f64>() / 3.0))
+        .collect();
+    let mut weight = vec![0.0; n];
+    for (idx, a) in &weighted {
+        for &v in idx {
+            weight[v] += 3.0 * a;
+        }
+    }
+    let mut sum = vec![[0.0; 2]; n];
     for _ in 0..iterations {
-        let mut sum = vec![[0.0; 2]; n];
-        let mut weight = vec![0.0; n];
-        for f in faces {
-            let idx = f.map(|v| v as usize);
-            if idx.iter().any(|&v| v >= n || v >= areas.len()) {
-                continue;
-            }
-            let a: f64 = idx.iter().map(|&v| areas[v]).sum();
-            let mean = [0, 1].map(|d| idx.iter().map(|&v| field[v][d]).sum::<f64>() / 3.0);
-            for &v in &idx {
-                sum[v][0] += a * mean[0];
-                sum[v][1] += a * mean[1];
-                weight[v] += a;
+        sum.fill([0.0; 2]);
+        for (idx, a) in &weighted {
+            // The face's area times the mean of its three values.
+            let m = [0, 1].map(|d| a * (field[idx[0]][d] + field[idx[1]][d] + field[idx[2]][d]));
+            for &v in idx {
+                sum[v][0] += m[0];
+                sum[v][1] += m[1];
             }
         }
         for ((f, s), w) in field.iter_mut().zip(&sum).zip(&weight) {
