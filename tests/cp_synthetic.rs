@@ -75,7 +75,7 @@ fn the_final_descent_lowers_the_distance_of_different_crowns() {
     // lower the residual.
     assert!(descended.distance <= searched.distance);
     assert!(
-        descended.distance < 0.97 * searched.distance,
+        descended.distance < 0.99 * searched.distance,
         "descent: {} -> {}",
         searched.distance,
         descended.distance
