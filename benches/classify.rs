@@ -12,8 +12,8 @@
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use morphoid::classify::{self, Classifier};
 use morphoid::library::{BuildOutcome, Cache, Library};
-use morphoid::mesh::io;
 use morphoid::mesh::synth::{self, LibrarySpec, RigidMotion};
+use morphoid::mesh::{io, Mesh};
 use morphoid::pipeline::Settings;
 use morphoid::store::{content_hash, Enqueued, ScanStatus, Store};
 use std::path::{Path, PathBuf};
@@ -95,27 +95,60 @@ fn bench(c: &mut Criterion) {
     let mut seed = 0u64;
     let mut group = c.benchmark_group("classify");
     group.sample_size(10);
-    group.bench_function(
-        format!("new scan vs {} references", classifier.references.len()),
-        |b| {
-            b.iter_batched(
-                || {
-                    // A scan the database has not seen: a fresh pose each time.
-                    seed += 1;
-                    let scan = synth::scale(&RigidMotion::random(seed, 5.0).apply(&source), 1000.0);
-                    let path = tmp.path().join(format!("scan{seed}.ply"));
-                    io::save(&path, &scan).expect("write scan");
-                    path
-                },
-                |path| {
-                    let status = identify(&mut store, &classifier, &path);
-                    assert_eq!(status, ScanStatus::Ok);
-                },
-                BatchSize::PerIteration,
-            )
-        },
+    let name = format!("new scan vs {} references", classifier.references.len());
+    bench_identify(
+        &mut group,
+        &name,
+        &mut store,
+        &classifier,
+        &source,
+        tmp.path(),
+        &mut seed,
+    );
+    // The same without the final descent of each comparison, to show its
+    // cost (the references' preparation does not depend on it).
+    let mut searched_only = classifier.clone();
+    searched_only.settings.cp.descent_steps = 0;
+    bench_identify(
+        &mut group,
+        &format!("{name}, without final descent"),
+        &mut store,
+        &searched_only,
+        &source,
+        tmp.path(),
+        &mut seed,
     );
     group.finish();
+}
+
+/// Time one identification of a fresh pose of `source` (written to
+/// `dir`) against `classifier`'s references, under `name`.
+fn bench_identify(
+    group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    name: &str,
+    store: &mut Store,
+    classifier: &Classifier,
+    source: &Mesh,
+    dir: &Path,
+    seed: &mut u64,
+) {
+    group.bench_function(name, |b| {
+        b.iter_batched(
+            || {
+                // A scan the database has not seen: a fresh pose each time.
+                *seed += 1;
+                let scan = synth::scale(&RigidMotion::random(*seed, 5.0).apply(source), 1000.0);
+                let path = dir.join(format!("scan{seed}.ply"));
+                io::save(&path, &scan).expect("write scan");
+                path
+            },
+            |path| {
+                let status = identify(store, classifier, &path);
+                assert_eq!(status, ScanStatus::Ok);
+            },
+            BatchSize::PerIteration,
+        )
+    });
 }
 
 criterion_group!(benches, bench);
