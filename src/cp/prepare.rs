@@ -79,7 +79,7 @@ impl Default for CpParams {
             feature_separation: 0.1,
             feature_max_radius: 0.9,
             angles: 12,
-            refine_candidates: 3,
+            refine_candidates: 2,
             refine_evaluations: 60,
             feature_warp: true,
             search_warp: true,
