@@ -51,8 +51,6 @@ fn ready_status_watchdog_and_stopping_reach_the_service_manager() {
         ),
         "{got:?}"
     );
-    // Put there whole: with a 0.2 s settle time, a file caught empty would
-    // be a scan of its own, and the count could go past 1 unseen.
     let utc_day = || morphoid::store::utc_day_start_ms(morphoid::store::now_ms());
     let day_of_put = utc_day();
     // Where the lines that come after the scan begin.
@@ -64,6 +62,8 @@ fn ready_status_watchdog_and_stopping_reach_the_service_manager() {
         },
         1,
     );
+    // Put there whole: with a 0.2 s settle time, a file caught empty would
+    // be a scan of its own, and the count could go past 1 unseen.
     put(&env, &env.export.join("n.ply"), &scan_bytes(0, 921));
     let done = format!("STATUS=idle, {refs} references, 1 scans today");
     // A scan that finishes just before midnight UTC is not one of the next
