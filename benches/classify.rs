@@ -11,11 +11,12 @@
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use morphoid::classify::{self, Classifier};
+use morphoid::hash::content_hash;
 use morphoid::library::{BuildOutcome, Cache, Library};
 use morphoid::mesh::synth::{self, LibrarySpec, RigidMotion};
 use morphoid::mesh::{io, Mesh};
 use morphoid::pipeline::Settings;
-use morphoid::store::{content_hash, Enqueued, ScanStatus, Store};
+use morphoid::store::{Enqueued, ScanStatus, Store};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 

@@ -22,6 +22,7 @@ pub mod cp;
 pub mod cwn;
 pub mod daemon;
 pub mod eval;
+pub mod hash;
 pub mod landmarks;
 pub mod library;
 pub mod mesh;

@@ -7,7 +7,8 @@
 
 mod store_support;
 
-use morphoid::store::{content_hash, ScanStatus, Store};
+use morphoid::hash::content_hash;
+use morphoid::store::{ScanStatus, Store};
 use rand::Rng;
 use rusqlite::Connection;
 use std::path::Path;

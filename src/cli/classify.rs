@@ -4,7 +4,8 @@
 use super::common::{open_cache, open_library, progress_bar, ConfigArgs};
 use anyhow::{Context, Result};
 use morphoid::classify::{self, Classifier, NEAREST};
-use morphoid::store::{content_hash, Enqueued, ScanRecord, ScanStatus, Store};
+use morphoid::hash::content_hash;
+use morphoid::store::{Enqueued, ScanRecord, ScanStatus, Store};
 use std::path::PathBuf;
 use std::process::ExitCode;
 

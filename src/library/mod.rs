@@ -14,10 +14,10 @@ pub use cache::{Cache, CacheError, CachedReference};
 pub use identify::{identify, Identification};
 
 use crate::eval::{Labels, LabelsError};
+use crate::hash::content_hash;
 use crate::landmarks::LibraryLandmarks;
 use crate::mesh::io::{self, Format};
 use crate::pipeline::{self, Settings};
-use crate::store::content_hash;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, HashSet};
 use std::path::{Path, PathBuf};

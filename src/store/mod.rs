@@ -18,7 +18,8 @@
 //! The store does no numerical work: it takes results as plain data.
 //!
 //! ```
-//! use morphoid::store::{content_hash, DistanceRow, Labels, RankResult, ScanOutcome, Store};
+//! use morphoid::hash::content_hash;
+//! use morphoid::store::{DistanceRow, Labels, RankResult, ScanOutcome, Store};
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
 //! # let dir = tempfile::tempdir()?;
 //! let mut store = Store::open(&dir.path().join("morphoid.sqlite"))?;
@@ -58,11 +59,9 @@
 //! # }
 //! ```
 
-pub mod hash;
 pub mod schema;
 mod types;
 
-pub use hash::{content_hash, content_hash_file, content_hash_reader};
 pub use schema::SCHEMA_VERSION;
 pub use types::{
     DistanceRow, Enqueued, Job, Labels, LandmarkPoint, Nearest, RankResult, ReferenceRecord,
