@@ -14,6 +14,7 @@
 //!
 //! See `ARCHITECTURE.md` at the repository root for the data flow.
 
+pub mod atomic_write;
 pub mod classify;
 pub mod clean;
 pub mod config;
