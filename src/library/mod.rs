@@ -11,7 +11,10 @@ mod cache;
 mod identify;
 
 pub use cache::{Cache, CacheError, CachedReference};
-pub use identify::{identify, Identification};
+pub use identify::{
+    identify, DistanceRow, Identification, LandmarkPoint, Nearest, RankResult, ScanLandmarks,
+    ScanOutcome,
+};
 
 use crate::eval::{Labels, LabelsError};
 use crate::hash::content_hash;
