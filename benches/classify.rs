@@ -51,7 +51,7 @@ fn timed_build(
     let secs = t.elapsed().as_secs_f64();
     eprintln!(
         "library build: {} references ({} prepared, {} from the cache, {} failed) in {secs:.2} s",
-        classifier.references.len(),
+        classifier.references().len(),
         outcome.prepared,
         outcome.reused,
         outcome.failures.len()
@@ -96,7 +96,7 @@ fn bench(c: &mut Criterion) {
     let mut seed = 0u64;
     let mut group = c.benchmark_group("classify");
     group.sample_size(10);
-    let name = format!("new scan vs {} references", classifier.references.len());
+    let name = format!("new scan vs {} references", classifier.references().len());
     bench_identify(
         &mut group,
         &name,
@@ -108,8 +108,9 @@ fn bench(c: &mut Criterion) {
     );
     // The same without the final descent of each comparison, to show its
     // cost (the references' preparation does not depend on it).
-    let mut searched_only = classifier.clone();
-    searched_only.settings.cp.descent_steps = 0;
+    let mut settings = classifier.settings().clone();
+    settings.cp.descent_steps = 0;
+    let searched_only = classifier.clone().with_settings(settings);
     bench_identify(
         &mut group,
         &format!("{name}, without final descent"),
