@@ -9,6 +9,7 @@
 //! - [`cp`]: prepared surfaces and the continuous Procrustes distance;
 //! - [`cwn`]: the conformal Wasserstein neighbourhood dissimilarity distance;
 //! - [`pipeline`]: one file or mesh to one prepared surface;
+//! - [`config`]: the TOML configuration;
 //! - [`eval`]: distance matrices and leave-one-out classification;
 //! - [`landmarks`]: landmark files and their propagation between surfaces;
 //! - [`library`]: the reference library folder, its cache of prepared
@@ -16,7 +17,6 @@
 //! - [`store`]: the SQLite record of references, scans, results and distances;
 //! - [`classify`]: one scan through preparation, comparison, identification
 //!   and the store;
-//! - [`config`]: the TOML configuration;
 //! - [`daemon`]: the export-folder watcher and job loop behind `morphoid run`.
 //!
 //! See `ARCHITECTURE.md` at the repository root for the data flow.
