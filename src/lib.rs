@@ -21,6 +21,8 @@
 //!
 //! See `ARCHITECTURE.md` at the repository root for the data flow.
 
+#![forbid(unsafe_code)]
+
 pub mod atomic_write;
 pub mod classify;
 pub mod clean;
