@@ -113,7 +113,8 @@ fn killed_writer_leaves_only_whole_results() {
     for round in 0..ROUNDS {
         let mut child = Command::new(&exe)
             .args([
-                "crash_child_writer",
+                // Test names in the one test crate carry their module.
+                "store_crash::crash_child_writer",
                 "--exact",
                 "--ignored",
                 "--test-threads=1",
