@@ -108,7 +108,7 @@ fn bench(c: &mut Criterion) {
     // The same without the final descent of each comparison, to show its
     // cost (the references' preparation does not depend on it).
     let mut searched_only = classifier.clone();
-    searched_only.settings.cp.descent_steps = 0;
+    searched_only.settings.cp.compare.descent_steps = 0;
     bench_identify(
         &mut group,
         &format!("{name}, without final descent"),

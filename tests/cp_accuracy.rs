@@ -19,7 +19,7 @@ fn leave_one_out_on_real_teeth() {
     let params: CpParams = cp_support::params_from_env("CP_PARAMS");
     let names = cp_support::tooth_names(&dir);
     let t0 = std::time::Instant::now();
-    let prepared = cp_support::prepare_teeth(&dir, &names, &params);
+    let prepared = cp_support::prepare_teeth(&dir, &names, &params.prepare);
     println!("prepared {} in {:.1?}", prepared.len(), t0.elapsed());
     let t0 = std::time::Instant::now();
     let n = prepared.len();
@@ -29,7 +29,7 @@ fn leave_one_out_on_real_teeth() {
     let directed: Vec<(f64, f64, f64, f64)> = pairs
         .par_iter()
         .map(|&(i, j)| {
-            let c = cp::compare(&prepared[i], &prepared[j], &params);
+            let c = cp::compare(&prepared[i], &prepared[j], &params.compare);
             (
                 c.forward.distance,
                 c.backward.distance,
@@ -40,7 +40,7 @@ fn leave_one_out_on_real_teeth() {
         .collect();
     println!("matrix in {:.1?}", t0.elapsed());
     let mut fwd = DistanceMatrix {
-        names: prepared.iter().map(|p| p.name.clone()).collect(),
+        names: prepared.iter().map(|p| p.name().to_string()).collect(),
         values: vec![vec![0.0; n]; n],
     };
     let mut searched = fwd.clone();
@@ -66,7 +66,7 @@ fn leave_one_out_on_real_teeth() {
     }
     // The library's matrix function gives the same values.
     let few = &prepared[..4];
-    let lib = distance_matrix(few, &params, |_| {});
+    let lib = distance_matrix(few, &params.compare, |_| {});
     for i in 0..4 {
         for j in 0..4 {
             assert_eq!(lib.values[i][j], m.values[i][j]);

@@ -15,14 +15,14 @@ fn quick_look() {
         .take(6)
         .map(|n| {
             let m = cp_support::load_tooth(&dir, n);
-            let p = cp::prepare(&m, &params).expect("prepare");
+            let p = cp::prepare(&m, &params.prepare).expect("prepare");
             println!(
                 "{n}: feats {:?} reor {} dens {:?}",
-                p.features.len(),
-                p.reoriented,
-                p.features
+                p.features().len(),
+                p.reoriented(),
+                p.features()
                     .iter()
-                    .map(|&f| p.density[f as usize])
+                    .map(|&f| p.density()[f as usize])
                     .collect::<Vec<_>>()
             );
             p
@@ -32,7 +32,7 @@ fn quick_look() {
     let t0 = std::time::Instant::now();
     for i in 0..6 {
         for j in 0..6 {
-            let c = cp::compare(&preps[i], &preps[j], &params);
+            let c = cp::compare(&preps[i], &preps[j], &params.compare);
             print!("{:.4}{} ", c.distance, if c.reflected { "r" } else { " " });
         }
         println!();

@@ -7,7 +7,7 @@
 
 mod cp_support;
 
-use morphoid::cp::CpParams;
+use morphoid::cp::PrepareParams;
 use morphoid::cwn::{self, CwnParams};
 use morphoid::eval::{leave_one_out, Labels};
 use rayon::prelude::*;
@@ -21,7 +21,7 @@ fn leave_one_out_on_real_teeth() {
     let names = cp_support::tooth_names(&dir);
     let t0 = std::time::Instant::now();
     let landscapes: Vec<cwn::Landscape> =
-        cp_support::prepare_teeth(&dir, &names, &CpParams::default())
+        cp_support::prepare_teeth(&dir, &names, &PrepareParams::default())
             .par_iter()
             .map(|p| cwn::prepare(p, &params).expect("landscape"))
             .collect();

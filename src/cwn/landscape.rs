@@ -174,11 +174,11 @@ pub fn from_origin(z: [f64; 2], u: [f64; 2]) -> [f64; 2] {
 /// The (smoothed) hyperbolic density of `p` at the disk point `w`, linear
 /// in the triangle of the flattening that holds `w`.
 fn density_at(p: &Prepared, w: [f64; 2]) -> Option<f64> {
-    let loc = p.grid.locate(&p.uv, &p.faces, w)?;
-    let f = p.faces.get(loc.face as usize)?;
+    let loc = p.locate(w)?;
+    let f = p.faces().get(loc.face as usize)?;
     let mut d = 0.0;
     for (k, &v) in f.iter().enumerate() {
-        d += loc.bary[k] * p.density.get(v as usize)?;
+        d += loc.bary[k] * p.density().get(v as usize)?;
     }
     Some(d.max(0.0))
 }
@@ -194,7 +194,7 @@ pub fn landscape(p: &Prepared, params: &CwnParams) -> Result<Landscape, CwnError
         .flat_map(|k| (0..angles).map(move |j| (k, j)))
         .map(|(k, j)| quad.point(k, j))
         .collect();
-    let points: Vec<[f64; 2]> = p.samples.iter().map(|&v| p.uv[v as usize]).collect();
+    let points: Vec<[f64; 2]> = p.samples().iter().map(|&v| p.uv()[v as usize]).collect();
     let per_sample: Vec<Option<Vec<f32>>> = points
         .par_iter()
         .map(|&z| {
@@ -223,10 +223,10 @@ pub fn landscape(p: &Prepared, params: &CwnParams) -> Result<Landscape, CwnError
     }
     let (profile_turned, profile_mirrored) = doubled(&profile, angles);
     Ok(Landscape {
-        name: p.name.clone(),
+        name: p.name().to_string(),
         quadrature: quad,
         points,
-        masses: p.sample_weights.clone(),
+        masses: p.sample_weights().to_vec(),
         values,
         turned,
         mirrored,
@@ -389,11 +389,12 @@ mod tests {
 
     #[test]
     fn pruned_search_equals_trying_every_rotation() {
-        use crate::cp::{self, CpParams};
+        use crate::cp::{self, PrepareParams};
         use crate::mesh::synth::{crown, CROWN_GENERA};
         let params = CwnParams::default();
         let land = |g: usize| {
-            let p = cp::prepare(&crown(&CROWN_GENERA[g], 5, 1500), &CpParams::default()).unwrap();
+            let p =
+                cp::prepare(&crown(&CROWN_GENERA[g], 5, 1500), &PrepareParams::default()).unwrap();
             landscape(&p, &params).unwrap()
         };
         let (a, b) = (land(0), land(4));

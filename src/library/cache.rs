@@ -87,9 +87,12 @@ impl Cache {
     }
 
     /// The key of a surface with content hash `content_hash` prepared with
-    /// `settings`.
+    /// `settings`: only what preparation reads (cleaning and the cP
+    /// preparation parameters), so changing a comparison setting keeps
+    /// every entry.
     pub fn key(content_hash: &str, settings: &Settings) -> String {
-        let params = serde_json::to_string(settings).unwrap_or_default();
+        let params =
+            serde_json::to_string(&(&settings.clean, &settings.cp.prepare)).unwrap_or_default();
         let mut h = Sha256::new();
         h.update(CACHE_FORMAT.to_le_bytes());
         h.update(content_hash.as_bytes());

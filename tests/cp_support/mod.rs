@@ -152,14 +152,14 @@ where
 pub fn prepare_teeth(
     dir: &std::path::Path,
     names: &[String],
-    params: &morphoid::cp::CpParams,
+    params: &morphoid::cp::PrepareParams,
 ) -> Vec<morphoid::cp::Prepared> {
     use rayon::prelude::*;
     names
         .par_iter()
         .map(|n| {
             let mut p = morphoid::cp::prepare(&load_tooth(dir, n), params).expect("prepare");
-            p.name = n.clone();
+            p.set_name(n.clone());
             p
         })
         .collect()
