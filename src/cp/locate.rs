@@ -463,7 +463,7 @@ fn closest_on_triangle(p: [f64; 2], t: [[f64; 2]; 3]) -> (f64, [f64; 3]) {
 
 /// Clamp barycentric coordinates to be non-negative and renormalize.
 #[inline]
-pub fn clamp_barycentric(l: [f64; 3]) -> [f64; 3] {
+fn clamp_barycentric(l: [f64; 3]) -> [f64; 3] {
     let c = [l[0].max(0.0), l[1].max(0.0), l[2].max(0.0)];
     let s = c[0] + c[1] + c[2];
     if s > 0.0 {

@@ -53,7 +53,7 @@ impl Moments {
     }
 
     /// Weighted centroids `(x̄, ȳ)`; zero for zero total weight.
-    pub fn centroids(&self) -> ([f64; 3], [f64; 3]) {
+    fn centroids(&self) -> ([f64; 3], [f64; 3]) {
         if self.w <= 0.0 {
             return ([0.0; 3], [0.0; 3]);
         }

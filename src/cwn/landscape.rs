@@ -75,47 +75,42 @@ impl Quadrature {
     pub fn len(&self) -> usize {
         self.rings * self.angles
     }
-
-    /// Whether the quadrature has no points (never, once checked).
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
 }
 
 /// A surface as cWn sees it: its samples (with their area as mass) and,
 /// at each, the hyperbolic density over the neighbourhood `N(z, R)` pulled
-/// back to `N(0, R)` and sampled on the [`Quadrature`].
+/// back to `N(0, R)` and sampled on a fixed polar quadrature.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Landscape {
     /// Name of the specimen (copied from the prepared surface).
-    pub name: String,
+    pub(super) name: String,
     /// The quadrature every landscape of a comparison must share.
-    pub quadrature: Quadrature,
+    pub(super) quadrature: Quadrature,
     /// Disk position of each sample.
-    pub points: Vec<[f64; 2]>,
+    pub(super) points: Vec<[f64; 2]>,
     /// Mass of each sample: the area of its Voronoi cell (sum 1), i.e.
     /// `𝐟 dη` lumped at the samples.
-    pub masses: Vec<f64>,
+    pub(super) masses: Vec<f64>,
     /// Per sample, `rings × angles` values `w_k 𝐟(T_z⁻¹ u_kj)` (ring-major),
     /// already multiplied by the cell weights so that an L1 distance of two
     /// such vectors is the quadrature of `∫ |𝐟 − 𝐟′| dη`.
-    pub values: Vec<f32>,
+    pub(super) values: Vec<f32>,
     /// The same values with each ring written twice in a row, so that the
     /// landscape rotated by `s` steps is the contiguous window `s..s+angles`
     /// of each ring.
-    pub turned: Vec<f32>,
+    pub(super) turned: Vec<f32>,
     /// As `turned`, for the reflected landscape `u ↦ ū` (angle index
     /// `j ↦ −j`).
-    pub mirrored: Vec<f32>,
+    pub(super) mirrored: Vec<f32>,
     /// Per sample, the angular profile: the weighted values summed over
     /// the rings (`angles` numbers). By the triangle inequality the L1
     /// distance of two rotated profiles is a lower bound of the full one,
     /// which lets most rotations be skipped exactly.
-    pub profile: Vec<f32>,
+    pub(super) profile: Vec<f32>,
     /// The profiles, each written twice in a row (see `turned`).
-    pub profile_turned: Vec<f32>,
+    pub(super) profile_turned: Vec<f32>,
     /// The reflected profiles, each written twice in a row.
-    pub profile_mirrored: Vec<f32>,
+    pub(super) profile_mirrored: Vec<f32>,
 }
 
 impl Landscape {
@@ -162,7 +157,7 @@ impl Landscape {
 
 /// Inverse of `T_z`: `u ↦ (u + z)/(1 + z̄ u)`, sending 0 to `z`.
 #[inline]
-pub fn from_origin(z: [f64; 2], u: [f64; 2]) -> [f64; 2] {
+fn from_origin(z: [f64; 2], u: [f64; 2]) -> [f64; 2] {
     // numerator u + z, denominator 1 + conj(z)·u.
     let (nr, ni) = (u[0] + z[0], u[1] + z[1]);
     let dr = 1.0 + z[0] * u[0] + z[1] * u[1];

@@ -14,9 +14,10 @@
 //!    `j` of B is the smallest `∫ |𝐟 − 𝐟′ ∘ m| dη` over `N(z_i, R)` among
 //!    automorphisms `m` with `m(z_i) = z′_j` (rotations about the two
 //!    points, and their mirror images unless reflections are off), see
-//!    [`neighbourhood_dissimilarity`]; with these costs, one exact
-//!    Kantorovich problem between the two sets of masses
-//!    ([`optimal_transport`]) gives the distance.
+//!    `landscape::neighbourhood_dissimilarity`; with these costs, one
+//!    exact Kantorovich problem between the two sets of masses
+//!    (`transport::optimal_transport`, a network simplex) gives the
+//!    distance.
 //!
 //! Unlike cP, cWn is intrinsic (it sees only the conformal structure and
 //! area), and needs no search over maps between the whole surfaces: the
@@ -27,8 +28,11 @@
 mod landscape;
 mod transport;
 
-pub use landscape::{dissimilarity_matrix, neighbourhood_dissimilarity, Landscape, Quadrature};
-pub use transport::{optimal_transport, Marginal, TransportError, TransportPlan};
+pub use landscape::Landscape;
+pub use transport::{Marginal, TransportError};
+
+use landscape::dissimilarity_matrix;
+use transport::optimal_transport;
 
 use crate::cp::{CpError, ParamError, Prepared, Requirement};
 use crate::eval::{pairwise_matrix, DistanceMatrix};
@@ -135,7 +139,7 @@ pub struct CwnResult {
     pub transport_ms: f64,
 }
 
-/// The landscape of a prepared surface (step 1; see [`landscape::landscape`]).
+/// The landscape of a prepared surface (step 1 above).
 pub fn prepare(p: &Prepared, params: &CwnParams) -> Result<Landscape, CwnError> {
     landscape::landscape(p, params)
 }

@@ -26,7 +26,7 @@
 //!   pivot; costs stay in `f64`.
 
 /// Total of each marginal after scaling to integers (2⁴⁰).
-pub const MASS_UNITS: i64 = 1 << 40;
+const MASS_UNITS: i64 = 1 << 40;
 
 /// One side of the transport problem.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

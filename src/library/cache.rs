@@ -173,3 +173,39 @@ impl Cache {
         Ok(removed)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::library::{build, Library};
+    use crate::mesh::synth::{write_synthetic_library, LibrarySpec};
+
+    #[test]
+    fn only_preparation_settings_key_the_cache() {
+        let dir = tempfile::tempdir().unwrap();
+        let spec = LibrarySpec {
+            per_genus: 1,
+            target_vertices: 1200,
+            ..LibrarySpec::default()
+        };
+        write_synthetic_library(&dir.path().join("lib"), &spec).unwrap();
+        let library = Library::open(&dir.path().join("lib"), None).unwrap();
+        let cache = Cache::open(&dir.path().join("cache")).unwrap();
+        let n = library.members.len();
+        let mut settings = Settings::default();
+        let first = build(&library, &cache, &settings, |_| {}).unwrap();
+        assert!(first.failures.is_empty(), "{:?}", first.failures);
+        assert_eq!((first.prepared, first.reused), (n, 0));
+        // Comparison settings: every entry is still a hit.
+        settings.cp.compare.descent_steps += 3;
+        settings.cp.compare.angles += 1;
+        settings.cp.compare.reflections = false;
+        let second = build(&library, &cache, &settings, |_| {}).unwrap();
+        assert_eq!((second.prepared, second.reused, second.removed), (0, n, 0));
+        // A preparation setting: every surface is prepared again, and the
+        // old entries go.
+        settings.cp.prepare.samples += 10;
+        let third = build(&library, &cache, &settings, |_| {}).unwrap();
+        assert_eq!((third.prepared, third.reused, third.removed), (n, 0, n));
+    }
+}
