@@ -382,3 +382,87 @@ pub fn search_directed(s: &Prepared, t: &Prepared, params: &CompareParams) -> Di
         },
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cp::{prepare, PrepareParams};
+    use crate::mesh::synth::{self, transform, CROWN_GENERA};
+
+    fn crown(genus: usize, seed: u64) -> Prepared {
+        let m = synth::crown(&CROWN_GENERA[genus], seed, 1500);
+        prepare(&m, &PrepareParams::default()).expect("prepare")
+    }
+
+    #[test]
+    fn perturbations_stay_inside_the_disk_and_zero_changes_nothing() {
+        let m = Mobius::sending([0.1, -0.2], [0.3, 0.1], 0.4, false);
+        let same = perturbed(&m, [0.0; 3]).expect("inside");
+        for z in [[0.0, 0.0], [0.5, -0.3], [-0.7, 0.2]] {
+            let (a, b) = (m.apply(z), same.apply(z));
+            assert!((a[0] - b[0]).hypot(a[1] - b[1]) < 1e-12);
+        }
+        assert!(perturbed(&m, [0.9, 0.0, 0.0]).is_none());
+        assert!(perturbed(&m, [0.1, f64::NAN, 0.0]).is_none());
+    }
+
+    #[test]
+    fn features_match_themselves_and_far_moves_are_not_warped() {
+        let s = crown(0, 1);
+        let features = FeaturePoints::of(&s, &s);
+        let params = CompareParams::default();
+        let matches = features.matched(&Mobius::identity(), &params);
+        assert_eq!(matches.len(), s.features.len());
+        assert!(matches.iter().all(|(a, b)| a == b));
+        // A move of half the kernel width or more would fold the disk.
+        let far = [([0.0, 0.0], [0.6 * params.warp_width, 0.0])];
+        assert!(feature_warp(&far, &params).is_none());
+        let near = [([0.0, 0.0], [0.2 * params.warp_width, 0.0])];
+        let w = feature_warp(&near, &params).expect("a warp");
+        let moved = w.apply([0.0, 0.0]);
+        assert!((moved[0] - 0.2 * params.warp_width).abs() < 1e-12 && moved[1].abs() < 1e-12);
+    }
+
+    #[test]
+    fn candidates_are_ranked_and_respect_the_orientations_asked_for() {
+        let (s, t) = (crown(0, 1), crown(1, 2));
+        let features = FeaturePoints::of(&s, &t);
+        let params = CompareParams::default();
+        let cands = ranked_candidates(&s, &t, &features, &params);
+        assert!(!cands.is_empty());
+        assert!(cands.windows(2).all(|w| w[0].0 <= w[1].0));
+        let proper = CompareParams {
+            reflections: false,
+            min_feature_matches: 0,
+            ..params.clone()
+        };
+        let cands = ranked_candidates(&s, &t, &features, &proper);
+        let all = s.features.len() * t.features.len() * proper.angles;
+        assert_eq!(cands.len(), all);
+        assert!(cands.iter().all(|c| !c.2.reverses_orientation()));
+        // The requirement is capped by the feature counts; when no map
+        // meets it, the whole search is ranked.
+        let strict = CompareParams {
+            min_feature_matches: 1000,
+            ..proper
+        };
+        let required = s.features.len().min(t.features.len());
+        let meeting = coarse_candidates(&s, &t, &features, &strict, required).len();
+        let ranked = ranked_candidates(&s, &t, &features, &strict).len();
+        assert_eq!(ranked, if meeting == 0 { all } else { meeting });
+        assert!(meeting < all);
+    }
+
+    #[test]
+    fn a_surface_and_its_moved_copy_are_found_to_match() {
+        let m = synth::crown(&CROWN_GENERA[2], 4, 1500);
+        let s = prepare(&m, &PrepareParams::default()).expect("prepare");
+        let moved = transform::rigid_motion(&m, 3);
+        let t = prepare(&moved, &PrepareParams::default()).expect("prepare");
+        let d = search_directed(&s, &t, &CompareParams::default());
+        assert!(d.distance < 1e-3, "{}", d.distance);
+        assert!(!d.reflected);
+        assert_eq!(d.correspondence.len(), s.vertices.len());
+        assert!(d.search_distance.is_finite());
+    }
+}
