@@ -114,7 +114,7 @@ fn bench(c: &mut Criterion) {
     // The same without the final descent of each comparison, to show its
     // cost (the references' preparation does not depend on it).
     let mut settings = classifier.settings().clone();
-    settings.cp.descent_steps = 0;
+    settings.cp.compare.descent_steps = 0;
     let searched_only = classifier.clone().with_settings(settings);
     bench_identify(
         &mut group,

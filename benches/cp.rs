@@ -20,31 +20,30 @@ fn bench(c: &mut Criterion) {
     );
     let params = CpParams::default();
     c.bench_function("prepare", |bch| {
-        bch.iter(|| cp::prepare(black_box(&a), &params).map(|p| p.samples.len()))
+        bch.iter(|| cp::prepare(black_box(&a), &params.prepare).map(|p| p.samples().len()))
     });
-    let (Ok(pa), Ok(pb)) = (cp::prepare(&a, &params), cp::prepare(&b, &params)) else {
+    let (Ok(pa), Ok(pb)) = (
+        cp::prepare(&a, &params.prepare),
+        cp::prepare(&b, &params.prepare),
+    ) else {
         eprintln!("preparation failed; compare not benchmarked");
         return;
     };
     c.bench_function("compare", |bch| {
-        bch.iter(|| cp::compare(black_box(&pa), black_box(&pb), &params).distance)
+        bch.iter(|| cp::compare(black_box(&pa), black_box(&pb), &params.compare).distance)
     });
     // The same comparison without the final descent, to show its cost.
-    let searched_only = CpParams {
-        descent_steps: 0,
-        ..params.clone()
-    };
+    let mut searched_only = params.clone();
+    searched_only.compare.descent_steps = 0;
     c.bench_function("compare without final descent", |bch| {
-        bch.iter(|| cp::compare(black_box(&pa), black_box(&pb), &searched_only).distance)
+        bch.iter(|| cp::compare(black_box(&pa), black_box(&pb), &searched_only.compare).distance)
     });
     // The same comparison without the area correction χ (and so without
     // the descent, which needs it), to show its cost.
-    let plain = CpParams {
-        area_correction: false,
-        ..params.clone()
-    };
+    let mut plain = params.clone();
+    plain.compare.area_correction = false;
     c.bench_function("compare without area correction", |bch| {
-        bch.iter(|| cp::compare(black_box(&pa), black_box(&pb), &plain).distance)
+        bch.iter(|| cp::compare(black_box(&pa), black_box(&pb), &plain.compare).distance)
     });
 }
 

@@ -20,7 +20,10 @@ fn bench(c: &mut Criterion) {
     eprintln!("benchmarking cWn on {what}, one thread");
     let cp_params = CpParams::default();
     let params = CwnParams::default();
-    let (Ok(pa), Ok(pb)) = (cp::prepare(&a, &cp_params), cp::prepare(&b, &cp_params)) else {
+    let (Ok(pa), Ok(pb)) = (
+        cp::prepare(&a, &cp_params.prepare),
+        cp::prepare(&b, &cp_params.prepare),
+    ) else {
         eprintln!("preparation failed; nothing benchmarked");
         return;
     };

@@ -198,7 +198,7 @@ impl Classifier {
             self.references
                 .par_iter()
                 .map(|r| {
-                    let c = cp::compare(&surface.prepared, &r.prepared, &self.settings.cp);
+                    let c = cp::compare(&surface.prepared, &r.prepared, &self.settings.cp.compare);
                     DistanceRow {
                         reference: r.name.clone(),
                         forward: c.forward.distance,
@@ -271,7 +271,11 @@ impl Classifier {
         lm: &Landmarks,
         scan: &PreparedSurface,
     ) -> Result<Vec<LandmarkPoint>, PropagateError> {
-        let map = cp::compare_directed(&reference.prepared, &scan.prepared, &self.settings.cp);
+        let map = cp::compare_directed(
+            &reference.prepared,
+            &scan.prepared,
+            &self.settings.cp.compare,
+        );
         let source = Surface::from_normalized(&reference.prepared)?;
         let target = Surface::from_prepared(scan)?;
         let out = landmarks::propagate(lm, &source, &target, &map.correspondence)?;

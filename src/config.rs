@@ -189,6 +189,7 @@ impl Config {
         {
             return Err("results.dir is empty (leave it out for no result files)".into());
         }
+        self.cp.validate().map_err(|e| format!("[cp] {e}"))?;
         if let Some(s) = &self.serial {
             if s.port.is_empty() {
                 return Err("serial.port is empty".into());
@@ -256,5 +257,20 @@ mod tests {
         let c = Config::parse("[results]\ndir = \"out\"\n", p).unwrap();
         assert_eq!(c.results.dir, Some(PathBuf::from("out")));
         assert_eq!(Config::parse("", p).unwrap(), Config::default());
+    }
+
+    #[test]
+    fn cp_values_are_checked_and_named_with_their_section() {
+        let p = Path::new("x.toml");
+        let e = Config::parse("[cp]\nwarp_width = 0\n", p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("[cp] warp_width = 0: must be"), "{e}");
+        let e = Config::parse("[cp]\ndescent_damping = nan\n", p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("[cp] descent_damping = NaN"), "{e}");
+        let c = Config::parse("[cp]\nsamples = 120\ndescent_steps = 0\n", p).unwrap();
+        assert_eq!((c.cp.prepare.samples, c.cp.compare.descent_steps), (120, 0));
     }
 }

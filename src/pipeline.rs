@@ -122,9 +122,9 @@ pub fn prepare_mesh(
     let t = Instant::now();
     let mut prepared = {
         let _s = tracing::debug_span!("prepare", scan = %name).entered();
-        cp::prepare(&cleaned.mesh, &settings.cp)?
+        cp::prepare(&cleaned.mesh, &settings.cp.prepare)?
     };
-    prepared.name = name.to_string();
+    prepared.set_name(name);
     Ok(PreparedSurface {
         cleaned: cleaned.mesh,
         prepared,

@@ -128,7 +128,8 @@ fn run_cwn(args: Args) -> Result<ExitCode> {
     let landscapes_ms = t.elapsed().as_secs_f64() * 1e3;
     let t = Instant::now();
     let r = {
-        let _s = tracing::info_span!("cwn", a = %a.prepared.name, b = %b.prepared.name).entered();
+        let _s =
+            tracing::info_span!("cwn", a = %a.prepared.name(), b = %b.prepared.name()).entered();
         cwn::distance(&la, &lb, &params)?
     };
     let compare_ms = t.elapsed().as_secs_f64() * 1e3;
@@ -176,9 +177,9 @@ fn run_cp(args: Args) -> Result<ExitCode> {
     let (a, b) = (a?, b?);
     let t = Instant::now();
     let c = {
-        let _s =
-            tracing::info_span!("compare", a = %a.prepared.name, b = %b.prepared.name).entered();
-        cp::compare(&a.prepared, &b.prepared, &settings.cp)
+        let _s = tracing::info_span!("compare", a = %a.prepared.name(), b = %b.prepared.name())
+            .entered();
+        cp::compare(&a.prepared, &b.prepared, &settings.cp.compare)
     };
     let compare_ms = t.elapsed().as_secs_f64() * 1e3;
     if let Some(out) = &args.map {
@@ -239,7 +240,7 @@ fn write_map(
     {
         let tri = b
             .prepared
-            .faces
+            .faces()
             .get(face as usize)
             .context("the correspondence names a triangle that does not exist")?;
         let mut image = [0.0; 3];

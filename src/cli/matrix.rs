@@ -133,7 +133,7 @@ fn prepare(
         let key = Cache::key(&content_hash(&bytes), settings);
         if let Some(hit) = cache.get(&name, &key) {
             let mut prepared = hit.prepared;
-            prepared.name = name;
+            prepared.set_name(name);
             hits.fetch_add(1, Ordering::Relaxed);
             return Ok(prepared);
         }
@@ -174,11 +174,11 @@ fn run_whole(
     let n = prepared.len();
     let bar = progress_bar((n * n.saturating_sub(1) / 2) as u64, "comparing");
     let matrix = match method {
-        Method::Cp => eval::distance_matrix(&prepared, &settings.cp, |_| bar.inc(1)),
+        Method::Cp => eval::distance_matrix(&prepared, &settings.cp.compare, |_| bar.inc(1)),
         Method::Cwn => {
             let landscapes = prepared
                 .par_iter()
-                .map(|p| cwn::prepare(p, &cwn_params).with_context(|| p.name.clone()))
+                .map(|p| cwn::prepare(p, &cwn_params).with_context(|| p.name().to_string()))
                 .collect::<Result<Vec<_>>>()?;
             cwn::distance_matrix(&landscapes, &cwn_params, |_| bar.inc(1))?
         }
@@ -231,7 +231,7 @@ fn run_shard(library: &Path, out: &Path, which: Shard, cache: Option<&Cache>) ->
             let path = files.get(k).map(PathBuf::as_path).unwrap_or(library);
             prepare(path, &settings, cache, &hits)
         },
-        &settings.cp,
+        &settings.cp.compare,
         |_| bar.inc(1),
     )?;
     bar.finish_and_clear();

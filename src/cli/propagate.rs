@@ -70,14 +70,18 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let maps: Vec<Directed> = steps
         .par_iter()
         .map(|&(a, b)| {
-            cp::compare_directed(&surfaces[a].prepared, &surfaces[b].prepared, &settings.cp)
+            cp::compare_directed(
+                &surfaces[a].prepared,
+                &surfaces[b].prepared,
+                &settings.cp.compare,
+            )
         })
         .collect();
     for (&(a, b), m) in steps.iter().zip(&maps) {
         eprintln!(
             "{} → {}: directed cP distance {:.6}{}",
-            surfaces[a].prepared.name,
-            surfaces[b].prepared.name,
+            surfaces[a].prepared.name(),
+            surfaces[b].prepared.name(),
             m.distance,
             if m.reflected { " (mirror image)" } else { "" }
         );
@@ -86,7 +90,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         .iter()
         .map(|&i| {
             Surface::from_prepared(&surfaces[i])
-                .with_context(|| format!("surface {}", surfaces[i].prepared.name))
+                .with_context(|| format!("surface {}", surfaces[i].prepared.name()))
         })
         .collect::<Result<_>>()?;
     let along: Vec<&Surface> = indexed.iter().collect();
@@ -168,7 +172,12 @@ fn mst_route(
         .par_iter()
         .map(|&(i, j)| {
             lookup(i, j).unwrap_or_else(|| {
-                cp::compare(&surfaces[i].prepared, &surfaces[j].prepared, &settings.cp).distance
+                cp::compare(
+                    &surfaces[i].prepared,
+                    &surfaces[j].prepared,
+                    &settings.cp.compare,
+                )
+                .distance
             })
         })
         .collect();

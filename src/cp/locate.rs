@@ -231,6 +231,23 @@ impl LocateGrid {
         }
     }
 
+    /// Whether the grid fits a triangulation of `faces` triangles: its
+    /// cells, triangle lists and adjacency are consistent and refer to
+    /// those triangles only (e.g. after reading a cached copy).
+    pub fn fits(&self, faces: usize) -> bool {
+        let r = self.resolution as usize;
+        let in_range = |f: u32| (f as usize) < faces;
+        self.starts.len() == r * r + 1
+            && self.starts.last().map(|&s| s as usize) == Some(self.items.len())
+            && self.items.iter().all(|&f| in_range(f))
+            && self.adjacency.len() == faces
+            && self
+                .adjacency
+                .iter()
+                .flatten()
+                .all(|&f| f == NO_TRIANGLE || in_range(f))
+    }
+
     /// For a point outside the boundary polygon (in the sliver between an
     /// edge and the unit circle): the nearest point of the edge whose arc
     /// holds it. `None` for a point inside, or one the sorted rim cannot
@@ -446,7 +463,7 @@ fn closest_on_triangle(p: [f64; 2], t: [[f64; 2]; 3]) -> (f64, [f64; 3]) {
 
 /// Clamp barycentric coordinates to be non-negative and renormalize.
 #[inline]
-pub fn clamp_barycentric(l: [f64; 3]) -> [f64; 3] {
+fn clamp_barycentric(l: [f64; 3]) -> [f64; 3] {
     let c = [l[0].max(0.0), l[1].max(0.0), l[2].max(0.0)];
     let s = c[0] + c[1] + c[2];
     if s > 0.0 {

@@ -14,10 +14,8 @@
 //! or keep in memory (a library of hundreds would hold hundreds).
 
 use super::locate::{LocateGrid, Location, NO_TRIANGLE};
-use super::prepare::Prepared;
 use crate::conformal::{cotangent_edge_weights, shifted_stiffness, SpdFactor};
 use crate::mesh::synth::unit_disk;
-use std::borrow::Cow;
 use std::sync::OnceLock;
 
 /// Time steps of the flow integration (midpoint rule) for a map that is
@@ -143,22 +141,29 @@ fn disk_vertex_areas(uv: &[[f64; 2]], faces: &[[u32; 3]]) -> Vec<f64> {
 }
 
 /// The area of a surface flattened to `uv` (vertex areas `areas`, vertex
-/// order `sweep` as in [`Prepared::sweep`]) as a measure of total 1 on the
-/// vertices of the fixed disk triangulation. `None` if it cannot be
-/// computed (the correction is then skipped).
+/// order `sweep` as in [`Prepared::sweep`](super::Prepared)) as a measure
+/// of total 1 on the vertices of the fixed disk triangulation. `None` if
+/// it cannot be computed (the correction is then skipped).
 pub fn disk_measure(uv: &[[f64; 2]], areas: &[f64], sweep: &[[u32; 2]]) -> Option<Vec<f64>> {
     let disk = DiskPoisson::shared()?;
     disk.splat(uv, areas, sweep).map(|(_, m)| m)
 }
 
+/// Whether `measure` has one value per vertex of the fixed disk
+/// triangulation, as [`disk_measure`] gives.
+pub fn is_disk_measure(measure: &[f64]) -> bool {
+    DiskPoisson::shared().is_some_and(|disk| measure.len() == disk.uv.len())
+}
+
 /// Move the images `w` (points of S′'s disk, images of S's vertices with
 /// areas `mass`, visited in S's `sweep` order) along Moser's flow so that
-/// the area they carry spreads like S′'s own area. Returns the moved
-/// points, or `None` when the solve fails (the caller keeps the
-/// uncorrected map). The flow is integrated in `steps` midpoint steps
-/// (at least one; see [`FLOW_STEPS`]).
+/// the area they carry spreads like `target`, S′'s own area as a
+/// [`disk_measure`]. Returns the moved points, or `None` when the solve
+/// fails or `target` is no disk measure (the caller keeps the uncorrected
+/// map). The flow is integrated in `steps` midpoint steps (at least one;
+/// see [`FLOW_STEPS`]).
 pub fn area_preserving_correction(
-    t: &Prepared,
+    target: &[f64],
     w: &[[f64; 2]],
     mass: &[f64],
     sweep: &[[u32; 2]],
@@ -166,12 +171,10 @@ pub fn area_preserving_correction(
 ) -> Option<Vec<[f64; 2]>> {
     let steps = steps.max(1);
     let disk = DiskPoisson::shared()?;
+    if target.len() != disk.uv.len() {
+        return None;
+    }
     let (locs, pushed) = disk.splat(w, mass, sweep)?;
-    let target: Cow<[f64]> = if t.disk_mass.len() == disk.uv.len() {
-        Cow::Borrowed(&t.disk_mass)
-    } else {
-        Cow::Owned(disk.splat(&t.uv, &t.vertex_areas, &t.sweep)?.1)
-    };
     // K u = target − pushed, K the stiffness matrix of the disk.
     let mut rhs = vec![target
         .iter()
@@ -188,7 +191,7 @@ pub fn area_preserving_correction(
             .map(|(m, a)| m / a.max(1e-300))
             .collect()
     };
-    let (rho0, rho1) = (density(&pushed), density(&target));
+    let (rho0, rho1) = (density(&pushed), density(target));
     let floor = 0.2 / std::f64::consts::PI;
     let velocity = |z: [f64; 2], time: f64, hint: &mut u32| -> [f64; 2] {
         let Some(loc) = disk.locate(z, *hint) else {
@@ -242,7 +245,7 @@ pub fn area_preserving_correction(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cp::{prepare, CpParams, Mobius};
+    use crate::cp::{prepare, Mobius, PrepareParams, Prepared};
     use crate::mesh::synth;
 
     /// Total variation between the area that points `w` carrying `mass`
@@ -260,20 +263,25 @@ mod tests {
             }
             b
         };
-        let (p, q) = (bins(w, mass), bins(&t.uv, &t.vertex_areas));
+        let (p, q) = (bins(w, mass), bins(t.uv(), t.vertex_areas()));
         p.iter().zip(&q).map(|(a, b)| (a - b).abs()).sum()
     }
 
     fn crown() -> Prepared {
         let genus = &synth::CROWN_GENERA[0];
-        prepare(&synth::crown(genus, 3, 3000), &CpParams::default()).expect("prepare")
+        prepare(&synth::crown(genus, 3, 3000), &PrepareParams::default()).expect("prepare")
+    }
+
+    /// χ of the images `w` of `t`'s own vertices onto `t`.
+    fn corrected(t: &Prepared, w: &[[f64; 2]], steps: usize) -> Option<Vec<[f64; 2]>> {
+        let target = t.disk_measure()?;
+        area_preserving_correction(&target, w, &t.vertex_areas, &t.sweep, steps)
     }
 
     #[test]
     fn an_area_preserving_map_is_left_in_place() {
         let t = crown();
-        let moved = area_preserving_correction(&t, &t.uv, &t.vertex_areas, &t.sweep, FLOW_STEPS)
-            .expect("correction");
+        let moved = corrected(&t, &t.uv, FLOW_STEPS).expect("correction");
         let worst = moved
             .iter()
             .zip(&t.uv)
@@ -288,10 +296,9 @@ mod tests {
         // map must spread it as the surface does.
         let t = crown();
         let m = Mobius::from_point_rotation([0.35, -0.2], 0.7);
-        let w: Vec<[f64; 2]> = t.uv.iter().map(|&z| m.apply(z)).collect();
+        let w: Vec<[f64; 2]> = t.uv().iter().map(|&z| m.apply(z)).collect();
         let before = area_mismatch(&t, &w, &t.vertex_areas);
-        let moved = area_preserving_correction(&t, &w, &t.vertex_areas, &t.sweep, FLOW_STEPS)
-            .expect("correction");
+        let moved = corrected(&t, &w, FLOW_STEPS).expect("correction");
         let after = area_mismatch(&t, &moved, &t.vertex_areas);
         assert!(moved.iter().all(|z| z[0].hypot(z[1]) < 1.0));
         assert!(after < 0.25 * before, "mismatch {before:.3} -> {after:.3}");
@@ -304,10 +311,9 @@ mod tests {
         // corrects it with a single flow step.
         let t = crown();
         let m = Mobius::from_point_rotation([0.06, 0.03], 0.0);
-        let w: Vec<[f64; 2]> = t.uv.iter().map(|&z| m.apply(z)).collect();
+        let w: Vec<[f64; 2]> = t.uv().iter().map(|&z| m.apply(z)).collect();
         let before = area_mismatch(&t, &w, &t.vertex_areas);
-        let moved =
-            area_preserving_correction(&t, &w, &t.vertex_areas, &t.sweep, 1).expect("correction");
+        let moved = corrected(&t, &w, 1).expect("correction");
         let after = area_mismatch(&t, &moved, &t.vertex_areas);
         assert!(after < 0.35 * before, "mismatch {before:.4} -> {after:.4}");
         eprintln!("one step: sector mismatch {before:.4} -> {after:.4}");

@@ -53,7 +53,7 @@ impl Moments {
     }
 
     /// Weighted centroids `(x̄, ȳ)`; zero for zero total weight.
-    pub fn centroids(&self) -> ([f64; 3], [f64; 3]) {
+    fn centroids(&self) -> ([f64; 3], [f64; 3]) {
         if self.w <= 0.0 {
             return ([0.0; 3], [0.0; 3]);
         }
@@ -131,31 +131,30 @@ impl Moments {
     }
 }
 
-/// Weighted Procrustes: the rigid motion of the given handedness that best
-/// maps `x` onto `y` (pairs by index) with weights `w`.
-pub fn weighted_procrustes(
-    x: &[[f64; 3]],
-    y: &[[f64; 3]],
-    w: &[f64],
-    handedness: Handedness,
-) -> RigidFit {
-    let mut m = Moments::default();
-    for ((a, b), &wi) in x.iter().zip(y).zip(w) {
-        m.add(*a, *b, wi);
-    }
-    m.fit(handedness)
-}
-
-/// Apply a rigid motion to a point.
-#[inline]
-pub fn apply_rigid(fit: &RigidFit, x: [f64; 3]) -> [f64; 3] {
-    let r = &fit.rotation;
-    [0, 1, 2].map(|i| r[i][0] * x[0] + r[i][1] * x[1] + r[i][2] * x[2] + fit.translation[i])
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Weighted Procrustes: the rigid motion of the given handedness that best
+    /// maps `x` onto `y` (pairs by index) with weights `w`.
+    fn weighted_procrustes(
+        x: &[[f64; 3]],
+        y: &[[f64; 3]],
+        w: &[f64],
+        handedness: Handedness,
+    ) -> RigidFit {
+        let mut m = Moments::default();
+        for ((a, b), &wi) in x.iter().zip(y).zip(w) {
+            m.add(*a, *b, wi);
+        }
+        m.fit(handedness)
+    }
+
+    /// Apply a rigid motion to a point.
+    fn apply_rigid(fit: &RigidFit, x: [f64; 3]) -> [f64; 3] {
+        let r = &fit.rotation;
+        [0, 1, 2].map(|i| r[i][0] * x[0] + r[i][1] * x[1] + r[i][2] * x[2] + fit.translation[i])
+    }
 
     fn rot(ax: f64, ay: f64) -> Matrix3<f64> {
         let rx = nalgebra::Rotation3::from_euler_angles(ax, ay, 0.3);

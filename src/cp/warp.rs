@@ -17,7 +17,7 @@ pub struct DiskWarp {
 }
 
 /// Hyperbolic distance between two points of the unit disk.
-pub fn hyperbolic_distance(z: [f64; 2], w: [f64; 2]) -> f64 {
+fn hyperbolic_distance(z: [f64; 2], w: [f64; 2]) -> f64 {
     // |z − w| / |1 − z̄ w|
     let num = (z[0] - w[0]).hypot(z[1] - w[1]);
     let re = 1.0 - (z[0] * w[0] + z[1] * w[1]);

@@ -75,47 +75,42 @@ impl Quadrature {
     pub fn len(&self) -> usize {
         self.rings * self.angles
     }
-
-    /// Whether the quadrature has no points (never, once checked).
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
 }
 
 /// A surface as cWn sees it: its samples (with their area as mass) and,
 /// at each, the hyperbolic density over the neighbourhood `N(z, R)` pulled
-/// back to `N(0, R)` and sampled on the [`Quadrature`].
+/// back to `N(0, R)` and sampled on a fixed polar quadrature.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Landscape {
     /// Name of the specimen (copied from the prepared surface).
-    pub name: String,
+    pub(super) name: String,
     /// The quadrature every landscape of a comparison must share.
-    pub quadrature: Quadrature,
+    pub(super) quadrature: Quadrature,
     /// Disk position of each sample.
-    pub points: Vec<[f64; 2]>,
+    pub(super) points: Vec<[f64; 2]>,
     /// Mass of each sample: the area of its Voronoi cell (sum 1), i.e.
     /// `𝐟 dη` lumped at the samples.
-    pub masses: Vec<f64>,
+    pub(super) masses: Vec<f64>,
     /// Per sample, `rings × angles` values `w_k 𝐟(T_z⁻¹ u_kj)` (ring-major),
     /// already multiplied by the cell weights so that an L1 distance of two
     /// such vectors is the quadrature of `∫ |𝐟 − 𝐟′| dη`.
-    pub values: Vec<f32>,
+    pub(super) values: Vec<f32>,
     /// The same values with each ring written twice in a row, so that the
     /// landscape rotated by `s` steps is the contiguous window `s..s+angles`
     /// of each ring.
-    pub turned: Vec<f32>,
+    pub(super) turned: Vec<f32>,
     /// As `turned`, for the reflected landscape `u ↦ ū` (angle index
     /// `j ↦ −j`).
-    pub mirrored: Vec<f32>,
+    pub(super) mirrored: Vec<f32>,
     /// Per sample, the angular profile: the weighted values summed over
     /// the rings (`angles` numbers). By the triangle inequality the L1
     /// distance of two rotated profiles is a lower bound of the full one,
     /// which lets most rotations be skipped exactly.
-    pub profile: Vec<f32>,
+    pub(super) profile: Vec<f32>,
     /// The profiles, each written twice in a row (see `turned`).
-    pub profile_turned: Vec<f32>,
+    pub(super) profile_turned: Vec<f32>,
     /// The reflected profiles, each written twice in a row.
-    pub profile_mirrored: Vec<f32>,
+    pub(super) profile_mirrored: Vec<f32>,
 }
 
 impl Landscape {
@@ -162,7 +157,7 @@ impl Landscape {
 
 /// Inverse of `T_z`: `u ↦ (u + z)/(1 + z̄ u)`, sending 0 to `z`.
 #[inline]
-pub fn from_origin(z: [f64; 2], u: [f64; 2]) -> [f64; 2] {
+fn from_origin(z: [f64; 2], u: [f64; 2]) -> [f64; 2] {
     // numerator u + z, denominator 1 + conj(z)·u.
     let (nr, ni) = (u[0] + z[0], u[1] + z[1]);
     let dr = 1.0 + z[0] * u[0] + z[1] * u[1];
@@ -174,11 +169,11 @@ pub fn from_origin(z: [f64; 2], u: [f64; 2]) -> [f64; 2] {
 /// The (smoothed) hyperbolic density of `p` at the disk point `w`, linear
 /// in the triangle of the flattening that holds `w`.
 fn density_at(p: &Prepared, w: [f64; 2]) -> Option<f64> {
-    let loc = p.grid.locate(&p.uv, &p.faces, w)?;
-    let f = p.faces.get(loc.face as usize)?;
+    let loc = p.locate(w)?;
+    let f = p.faces().get(loc.face as usize)?;
     let mut d = 0.0;
     for (k, &v) in f.iter().enumerate() {
-        d += loc.bary[k] * p.density.get(v as usize)?;
+        d += loc.bary[k] * p.density().get(v as usize)?;
     }
     Some(d.max(0.0))
 }
@@ -194,7 +189,7 @@ pub fn landscape(p: &Prepared, params: &CwnParams) -> Result<Landscape, CwnError
         .flat_map(|k| (0..angles).map(move |j| (k, j)))
         .map(|(k, j)| quad.point(k, j))
         .collect();
-    let points: Vec<[f64; 2]> = p.samples.iter().map(|&v| p.uv[v as usize]).collect();
+    let points: Vec<[f64; 2]> = p.samples().iter().map(|&v| p.uv()[v as usize]).collect();
     let per_sample: Vec<Option<Vec<f32>>> = points
         .par_iter()
         .map(|&z| {
@@ -223,10 +218,10 @@ pub fn landscape(p: &Prepared, params: &CwnParams) -> Result<Landscape, CwnError
     }
     let (profile_turned, profile_mirrored) = doubled(&profile, angles);
     Ok(Landscape {
-        name: p.name.clone(),
+        name: p.name().to_string(),
         quadrature: quad,
         points,
-        masses: p.sample_weights.clone(),
+        masses: p.sample_weights().to_vec(),
         values,
         turned,
         mirrored,
@@ -389,11 +384,12 @@ mod tests {
 
     #[test]
     fn pruned_search_equals_trying_every_rotation() {
-        use crate::cp::{self, CpParams};
+        use crate::cp::{self, PrepareParams};
         use crate::mesh::synth::{crown, CROWN_GENERA};
         let params = CwnParams::default();
         let land = |g: usize| {
-            let p = cp::prepare(&crown(&CROWN_GENERA[g], 5, 1500), &CpParams::default()).unwrap();
+            let p =
+                cp::prepare(&crown(&CROWN_GENERA[g], 5, 1500), &PrepareParams::default()).unwrap();
             landscape(&p, &params).unwrap()
         };
         let (a, b) = (land(0), land(4));

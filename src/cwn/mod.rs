@@ -14,9 +14,10 @@
 //!    `j` of B is the smallest `∫ |𝐟 − 𝐟′ ∘ m| dη` over `N(z_i, R)` among
 //!    automorphisms `m` with `m(z_i) = z′_j` (rotations about the two
 //!    points, and their mirror images unless reflections are off), see
-//!    [`landscape::neighbourhood_dissimilarity`]; with these costs, one
+//!    `landscape::neighbourhood_dissimilarity`; with these costs, one
 //!    exact Kantorovich problem between the two sets of masses
-//!    ([`transport::optimal_transport`]) gives the distance.
+//!    (`transport::optimal_transport`, a network simplex) gives the
+//!    distance.
 //!
 //! Unlike cP, cWn is intrinsic (it sees only the conformal structure and
 //! area), and needs no search over maps between the whole surfaces: the
@@ -24,13 +25,16 @@
 //! the global map. Everything here is pure; parallelism (rayon) never
 //! changes a result.
 
-pub mod landscape;
-pub mod transport;
+mod landscape;
+mod transport;
 
-pub use landscape::{dissimilarity_matrix, neighbourhood_dissimilarity, Landscape, Quadrature};
-pub use transport::{optimal_transport, TransportError, TransportPlan};
+pub use landscape::Landscape;
+pub use transport::{Marginal, TransportError};
 
-use crate::cp::{CpError, Prepared};
+use landscape::dissimilarity_matrix;
+use transport::optimal_transport;
+
+use crate::cp::{CpError, ParamError, Prepared, Requirement};
 use crate::eval::{pairwise_matrix, DistanceMatrix};
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -64,26 +68,26 @@ impl Default for CwnParams {
 }
 
 impl CwnParams {
-    /// Check the values: `0 < radius < 1`, at least one ring, at least
-    /// four angles.
-    pub fn validate(&self) -> Result<(), CwnError> {
-        if !(self.radius > 0.0 && self.radius < 1.0) {
-            return Err(CwnError::Params(format!(
-                "radius must be between 0 and 1 (exclusive), got {}",
-                self.radius
-            )));
-        }
-        if self.rings == 0 || self.rings > 64 {
-            return Err(CwnError::Params(format!(
-                "rings must be 1 to 64, got {}",
-                self.rings
-            )));
-        }
-        if self.angles < 4 || self.angles > 720 {
-            return Err(CwnError::Params(format!(
-                "angles must be 4 to 720, got {}",
-                self.angles
-            )));
+    /// Check the values: `0 < radius < 1`, 1 to 64 rings, 4 to 720 angles;
+    /// the error names the first bad one.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        let radius = self.radius;
+        crate::cp::check(
+            "radius",
+            radius,
+            Requirement::OpenUnitInterval,
+            radius > 0.0 && radius < 1.0,
+        )?;
+        for (key, value, min, max) in [
+            ("rings", self.rings, 1, 64),
+            ("angles", self.angles, 4, 720),
+        ] {
+            crate::cp::check(
+                key,
+                value as f64,
+                Requirement::Between { min, max },
+                (min as usize..=max as usize).contains(&value),
+            )?;
         }
         Ok(())
     }
@@ -94,7 +98,7 @@ impl CwnParams {
 pub enum CwnError {
     /// Invalid parameters.
     #[error("invalid cWn parameters: {0}")]
-    Params(String),
+    Params(#[from] ParamError),
     /// The prepared surface is inconsistent.
     #[error(transparent)]
     Prepared(#[from] CpError),
@@ -103,8 +107,15 @@ pub enum CwnError {
     #[error("the flattened surface has no triangles to sample the density on")]
     Locate,
     /// Two landscapes were built with different quadratures.
-    #[error("landscapes of `{0}` and `{1}` use different quadratures (radius, rings, angles)")]
-    Mismatch(String, String),
+    #[error(
+        "landscapes of `{first}` and `{second}` use different quadratures (radius, rings, angles)"
+    )]
+    Mismatch {
+        /// Name of the first landscape's surface.
+        first: String,
+        /// Name of the second landscape's surface.
+        second: String,
+    },
     /// The transport problem failed.
     #[error("transport: {0}")]
     Transport(#[from] TransportError),
@@ -128,7 +139,7 @@ pub struct CwnResult {
     pub transport_ms: f64,
 }
 
-/// The landscape of a prepared surface (step 1; see [`landscape::landscape`]).
+/// The landscape of a prepared surface (step 1 above).
 pub fn prepare(p: &Prepared, params: &CwnParams) -> Result<Landscape, CwnError> {
     landscape::landscape(p, params)
 }
@@ -137,7 +148,10 @@ pub fn prepare(p: &Prepared, params: &CwnParams) -> Result<Landscape, CwnError> 
 /// `params.reflections` decides whether mirror-image neighbourhoods count.
 pub fn distance(a: &Landscape, b: &Landscape, params: &CwnParams) -> Result<CwnResult, CwnError> {
     if a.quadrature != b.quadrature {
-        return Err(CwnError::Mismatch(a.name.clone(), b.name.clone()));
+        return Err(CwnError::Mismatch {
+            first: a.name.clone(),
+            second: b.name.clone(),
+        });
     }
     let t = Instant::now();
     let (cost, mirrored) = dissimilarity_matrix(a, b, params.reflections);
@@ -181,7 +195,7 @@ pub fn distance_matrix(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cp::{self, CpParams};
+    use crate::cp::{self, PrepareParams};
     use crate::mesh::synth::{self, CROWN_GENERA};
 
     fn prepared(
@@ -190,7 +204,7 @@ mod tests {
         mesh_fn: impl Fn(crate::mesh::Mesh) -> crate::mesh::Mesh,
     ) -> Prepared {
         let m = mesh_fn(synth::crown(&CROWN_GENERA[genus], seed, 2500));
-        cp::prepare(&m, &CpParams::default()).expect("prepare")
+        cp::prepare(&m, &PrepareParams::default()).expect("prepare")
     }
 
     #[test]
@@ -228,12 +242,8 @@ mod tests {
         // than the distance to another surface.
         let params = CwnParams::default();
         let p = prepared(1, 3, |m| m);
-        let mut q = p.clone();
         let mob = cp::Mobius::sending([0.0, 0.0], [0.25, -0.15], 0.7, false);
-        for z in &mut q.uv {
-            *z = mob.apply(*z);
-        }
-        q.grid = cp::LocateGrid::build(&q.uv, &q.faces);
+        let q = p.reflattened(|z| mob.apply(z));
         let a = prepare(&p, &params).unwrap();
         let b = prepare(&q, &params).unwrap();
         let other = prepare(&prepared(3, 4, |m| m), &params).unwrap();
@@ -291,6 +301,8 @@ mod tests {
             },
         ] {
             assert!(matches!(prepare(&p, &bad), Err(CwnError::Params(_))));
+            let key = bad.validate().unwrap_err().key;
+            assert!(["radius", "rings", "angles"].contains(&key), "{key}");
         }
         let a = prepare(&p, &CwnParams::default()).unwrap();
         let b = prepare(
@@ -303,7 +315,7 @@ mod tests {
         .unwrap();
         assert!(matches!(
             distance(&a, &b, &CwnParams::default()),
-            Err(CwnError::Mismatch(..))
+            Err(CwnError::Mismatch { .. })
         ));
     }
 
@@ -313,7 +325,7 @@ mod tests {
         let ls: Vec<Landscape> = (0..3)
             .map(|g| {
                 let mut p = prepared(g, 2, |m| m);
-                p.name = format!("s{g}");
+                p.set_name(format!("s{g}"));
                 prepare(&p, &params).unwrap()
             })
             .collect();

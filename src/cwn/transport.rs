@@ -26,7 +26,25 @@
 //!   pivot; costs stay in `f64`.
 
 /// Total of each marginal after scaling to integers (2⁴⁰).
-pub const MASS_UNITS: i64 = 1 << 40;
+const MASS_UNITS: i64 = 1 << 40;
+
+/// One side of the transport problem.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Marginal {
+    /// The row masses (the first surface's samples).
+    Rows,
+    /// The column masses (the second surface's samples).
+    Columns,
+}
+
+impl std::fmt::Display for Marginal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Marginal::Rows => "row",
+            Marginal::Columns => "column",
+        })
+    }
+}
 
 /// Why a transport problem could not be solved.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -47,9 +65,24 @@ pub enum TransportError {
         /// `rows × columns`.
         expected: usize,
     },
-    /// A mass is negative or not finite, or a marginal has no mass.
-    #[error("invalid masses: {0}")]
-    InvalidMass(String),
+    /// A mass is negative or not finite.
+    #[error("invalid masses: {side} mass {index} is {mass} (negative or not finite)")]
+    InvalidMass {
+        /// The side it is on.
+        side: Marginal,
+        /// Its index on that side.
+        index: usize,
+        /// The mass.
+        mass: f64,
+    },
+    /// A side's masses do not sum to a positive finite total.
+    #[error("invalid masses: the {side} masses sum to {total}")]
+    NoMass {
+        /// The side.
+        side: Marginal,
+        /// Their sum.
+        total: f64,
+    },
     /// A cost is not finite.
     #[error("a transport cost is not finite")]
     InvalidCost,
@@ -74,17 +107,17 @@ pub struct TransportPlan {
 /// Scale non-negative masses to integers summing exactly to
 /// [`MASS_UNITS`] (largest remainder; ties to the lower index so the
 /// result is deterministic).
-fn integer_masses(masses: &[f64], side: &str) -> Result<Vec<i64>, TransportError> {
-    if masses.iter().any(|&m| !(m.is_finite() && m >= 0.0)) {
-        return Err(TransportError::InvalidMass(format!(
-            "a {side} mass is negative or not finite"
-        )));
+fn integer_masses(masses: &[f64], side: Marginal) -> Result<Vec<i64>, TransportError> {
+    if let Some(index) = masses.iter().position(|&m| !(m.is_finite() && m >= 0.0)) {
+        return Err(TransportError::InvalidMass {
+            side,
+            index,
+            mass: masses[index],
+        });
     }
     let total: f64 = masses.iter().sum();
     if !(total > 0.0 && total.is_finite()) {
-        return Err(TransportError::InvalidMass(format!(
-            "the {side} masses sum to {total}"
-        )));
+        return Err(TransportError::NoMass { side, total });
     }
     let scaled: Vec<f64> = masses
         .iter()
@@ -107,7 +140,8 @@ fn integer_masses(masses: &[f64], side: &str) -> Result<Vec<i64>, TransportError
 
 /// The network: row nodes `0..n`, column nodes `n..n+m`, the artificial
 /// root `n+m`. Real arc `i*m + j` goes from row `i` to column `j`;
-/// artificial arc `n*m + v` joins node `v` and the root.
+/// artificial arc `n*m + v` joins node `v` and the root. The basic arcs
+/// form a spanning tree hanging from the root.
 struct Network<'a> {
     n: usize,
     m: usize,
@@ -127,7 +161,89 @@ struct Network<'a> {
     potential: Vec<f64>,
 }
 
-impl Network<'_> {
+/// The cycle an entering arc closes in the tree: the arc from `first` to
+/// `second`, then the tree path from `second` up to `join`, then down to
+/// `first`.
+struct Cycle {
+    arc: u32,
+    first: usize,
+    second: usize,
+    join: usize,
+}
+
+/// The arc that leaves the basis on a cycle: the tree arc above `node`,
+/// whether it is on the `second` side of the cycle, and the flow `delta`
+/// that the pivot pushes around the cycle.
+struct Leaving {
+    node: usize,
+    on_second_side: bool,
+    delta: i64,
+}
+
+impl<'a> Network<'a> {
+    /// The all-artificial tree (every node hangs from the root by its
+    /// artificial arc, which carries the node's supply or demand): a
+    /// strongly feasible start. The artificial cost exceeds every real
+    /// path, so the simplex drives artificial flow out.
+    fn initial_feasible_tree(supply: &[i64], demand: &[i64], cost: &'a [f64]) -> Self {
+        let (n, m) = (supply.len(), demand.len());
+        let nodes = n + m + 1;
+        let root = n + m;
+        let max_cost = cost.iter().fold(0.0f64, |a, &c| a.max(c.abs()));
+        // Any tree path has fewer than `nodes` arcs, so one artificial arc
+        // costs more than every real path: artificial flow is driven out.
+        let artificial_cost = (max_cost + 1.0) * nodes as f64;
+        let real = n * m;
+        let mut art_ends = Vec::with_capacity(n + m);
+        let mut flow = vec![0i64; real + n + m];
+        for (i, &s) in supply.iter().enumerate() {
+            // Positive supply flows up to the root; a zero-supply row gets an
+            // arc pointing away from the root (strong feasibility).
+            art_ends.push(if s > 0 { (i, root) } else { (root, i) });
+            flow[real + i] = s;
+        }
+        for (j, &d) in demand.iter().enumerate() {
+            art_ends.push((root, n + j));
+            flow[real + n + j] = d;
+        }
+        let mut net = Network {
+            n,
+            m,
+            cost,
+            artificial_cost,
+            art_ends,
+            flow,
+            basic: vec![false; real + n + m],
+            tree_arcs: vec![Vec::new(); nodes],
+            parent: vec![root; nodes],
+            pred: vec![u32::MAX; nodes],
+            pred_up: vec![false; nodes],
+            depth: vec![0; nodes],
+            potential: vec![0.0; nodes],
+        };
+        for v in 0..n + m {
+            let e = (real + v) as u32;
+            net.basic[e as usize] = true;
+            net.tree_arcs[v].push(e);
+            net.tree_arcs[root].push(e);
+            let (s, _) = net.ends(e);
+            net.parent[v] = root;
+            net.pred[v] = e;
+            net.pred_up[v] = s == v;
+            net.depth[v] = 1;
+            net.potential[v] = net.potential_below(root, e, s == v);
+        }
+        net
+    }
+
+    fn real_arcs(&self) -> usize {
+        self.n * self.m
+    }
+
+    fn nodes(&self) -> usize {
+        self.n + self.m + 1
+    }
+
     fn ends(&self, arc: u32) -> (usize, usize) {
         let a = arc as usize;
         if a < self.n * self.m {
@@ -146,11 +262,136 @@ impl Network<'_> {
         }
     }
 
+    /// The potential of a node hung from `parent` by the basic `arc`
+    /// (pointing up to the parent when `up`): basic arcs have zero reduced
+    /// cost.
+    fn potential_below(&self, parent: usize, arc: u32, up: bool) -> f64 {
+        let c = self.arc_cost(arc);
+        if up {
+            self.potential[parent] - c
+        } else {
+            self.potential[parent] + c
+        }
+    }
+
     /// Reduced cost `c + π(source) − π(target)` of a real arc.
     #[inline]
     fn reduced_cost(&self, arc: usize) -> f64 {
         let (i, j) = (arc / self.m, arc % self.m);
         self.cost[arc] + self.potential[i] - self.potential[self.n + j]
+    }
+
+    /// The entering arc by block search: from the arc after the last one
+    /// scanned (`next`, advanced cyclically), blocks of `block` arcs, the
+    /// most negative reduced cost below `-tolerance` in the first block
+    /// that has one. `None` when no arc has one: the tree is optimal.
+    fn entering_arc(&self, next: &mut usize, block: usize, tolerance: f64) -> Option<u32> {
+        let real = self.real_arcs();
+        let mut entering: Option<(usize, f64)> = None;
+        let mut scanned = 0usize;
+        let mut in_block = 0usize;
+        while scanned < real {
+            let a = *next;
+            *next += 1;
+            if *next == real {
+                *next = 0;
+            }
+            scanned += 1;
+            in_block += 1;
+            if !self.basic[a] {
+                let rc = self.reduced_cost(a);
+                if rc < -tolerance && entering.is_none_or(|(_, best)| rc < best) {
+                    entering = Some((a, rc));
+                }
+            }
+            if in_block == block {
+                if entering.is_some() {
+                    break;
+                }
+                in_block = 0;
+            }
+        }
+        entering.map(|(a, _)| a as u32)
+    }
+
+    /// The cycle that `arc` closes: its ends and their nearest common
+    /// ancestor in the tree.
+    fn cycle(&self, arc: u32) -> Cycle {
+        let (first, second) = self.ends(arc);
+        let (mut u, mut v) = (first, second);
+        while u != v {
+            if self.depth[u] >= self.depth[v] {
+                u = self.parent[u];
+            } else {
+                v = self.parent[v];
+            }
+        }
+        Cycle {
+            arc,
+            first,
+            second,
+            join: u,
+        }
+    }
+
+    /// The leaving arc (strongly feasible rule): the last blocking arc met
+    /// going around the cycle from the join in the flow's direction —
+    /// strict comparison on the first side, non-strict on the second.
+    /// `None` if nothing blocks (an unbounded problem, impossible here).
+    fn leaving_arc(&self, cycle: &Cycle) -> Option<Leaving> {
+        let mut delta = i64::MAX;
+        let mut leaving: Option<usize> = None;
+        let mut u = cycle.first;
+        while u != cycle.join {
+            // Flow runs parent → u here: it decreases on arcs u → parent.
+            if self.pred_up[u] {
+                let d = self.flow[self.pred[u] as usize];
+                if d < delta {
+                    delta = d;
+                    leaving = Some(u);
+                }
+            }
+            u = self.parent[u];
+        }
+        let mut on_second_side = false;
+        let mut u = cycle.second;
+        while u != cycle.join {
+            // Flow runs u → parent: it decreases on arcs parent → u.
+            if !self.pred_up[u] {
+                let d = self.flow[self.pred[u] as usize];
+                if d <= delta {
+                    delta = d;
+                    leaving = Some(u);
+                    on_second_side = true;
+                }
+            }
+            u = self.parent[u];
+        }
+        leaving.map(|node| Leaving {
+            node,
+            on_second_side,
+            delta,
+        })
+    }
+
+    /// Push `delta` units around the cycle, in the direction of its arc.
+    fn augment(&mut self, cycle: &Cycle, delta: i64) {
+        if delta <= 0 {
+            return;
+        }
+        self.flow[cycle.arc as usize] += delta;
+        let mut u = cycle.first;
+        while u != cycle.join {
+            let e = self.pred[u] as usize;
+            self.flow[e] += if self.pred_up[u] { -delta } else { delta };
+            u = self.parent[u];
+        }
+        let mut u = cycle.second;
+        while u != cycle.join {
+            let e = self.pred[u] as usize;
+            self.flow[e] += if self.pred_up[u] { delta } else { -delta };
+            u = self.parent[u];
+        }
     }
 
     /// Re-hang the subtree containing `start` below `new_parent` through
@@ -164,13 +405,7 @@ impl Network<'_> {
             self.pred[v] = e;
             self.pred_up[v] = up;
             self.depth[v] = self.depth[p] + 1;
-            let c = self.arc_cost(e);
-            // Basic arcs have zero reduced cost.
-            self.potential[v] = if up {
-                self.potential[p] - c
-            } else {
-                self.potential[p] + c
-            };
+            self.potential[v] = self.potential_below(p, e, up);
             for &f in &self.tree_arcs[v] {
                 if f == e {
                     continue;
@@ -180,6 +415,83 @@ impl Network<'_> {
                 stack.push((w, v, f));
             }
         }
+    }
+
+    /// One pivot: push flow around the cycle of the entering arc, swap the
+    /// entering and the leaving arc in the basis and re-hang the subtree
+    /// the leaving arc cut off. `None` if no arc can leave.
+    fn pivot(&mut self, in_arc: u32) -> Option<()> {
+        let cycle = self.cycle(in_arc);
+        let leaving = self.leaving_arc(&cycle)?;
+        self.augment(&cycle, leaving.delta);
+        let out_arc = self.pred[leaving.node];
+        let (oa, ob) = self.ends(out_arc);
+        for v in [oa, ob] {
+            if let Some(k) = self.tree_arcs[v].iter().position(|&e| e == out_arc) {
+                self.tree_arcs[v].swap_remove(k);
+            }
+        }
+        self.basic[out_arc as usize] = false;
+        self.basic[in_arc as usize] = true;
+        self.tree_arcs[cycle.first].push(in_arc);
+        self.tree_arcs[cycle.second].push(in_arc);
+        // The subtree below the leaving arc contains `first` when that arc
+        // is on the first side, else `second`; it hangs on the other end.
+        if leaving.on_second_side {
+            self.rehang(cycle.second, cycle.first, in_arc);
+        } else {
+            self.rehang(cycle.first, cycle.second, in_arc);
+        }
+        Some(())
+    }
+
+    /// Pivot until no arc has a negative reduced cost; returns the number
+    /// of pivots.
+    fn optimize(&mut self) -> Result<usize, TransportError> {
+        let (real, nodes) = (self.real_arcs(), self.nodes());
+        // Reduced costs above −tolerance count as optimal: potentials are sums
+        // of up to `nodes` costs of size ≤ artificial_cost.
+        let tolerance = 1e-12 * self.artificial_cost * nodes as f64;
+        let block = ((real as f64).sqrt().ceil() as usize).clamp(16, real.max(16));
+        let max_pivots = 200 * (real + nodes) + 10_000;
+        let mut next = 0usize;
+        let mut pivots = 0usize;
+        while let Some(in_arc) = self.entering_arc(&mut next, block, tolerance) {
+            pivots += 1;
+            if pivots > max_pivots {
+                return Err(TransportError::NoConvergence(pivots));
+            }
+            // Unbounded cannot happen: no directed cycle exists in this
+            // network. Treat as a solver failure rather than loop.
+            self.pivot(in_arc)
+                .ok_or(TransportError::NoConvergence(pivots))?;
+        }
+        Ok(pivots)
+    }
+
+    /// The plan of the optimal tree's flows (masses back to total 1).
+    fn plan(&self, pivots: usize) -> Result<TransportPlan, TransportError> {
+        let real = self.real_arcs();
+        if self.flow[real..].iter().any(|&f| f != 0) {
+            // Equal integer totals make the problem feasible; artificial flow
+            // left means the costs defeated the simplex.
+            return Err(TransportError::NoConvergence(pivots));
+        }
+        let scale = MASS_UNITS as f64;
+        let mut total = 0.0;
+        let mut flows = Vec::new();
+        for (a, &f) in self.flow[..real].iter().enumerate() {
+            if f > 0 {
+                let mass = f as f64 / scale;
+                total += mass * self.cost[a];
+                flows.push(((a / self.m) as u32, (a % self.m) as u32, mass));
+            }
+        }
+        Ok(TransportPlan {
+            cost: total,
+            flows,
+            pivots,
+        })
     }
 }
 
@@ -207,208 +519,11 @@ pub fn optimal_transport(
     if cost.iter().any(|c| !c.is_finite()) {
         return Err(TransportError::InvalidCost);
     }
-    let supply = integer_masses(rows, "row")?;
-    let demand = integer_masses(columns, "column")?;
-
-    let nodes = n + m + 1;
-    let root = n + m;
-    let max_cost = cost.iter().fold(0.0f64, |a, &c| a.max(c.abs()));
-    // Any tree path has fewer than `nodes` arcs, so one artificial arc
-    // costs more than every real path: artificial flow is driven out.
-    let artificial_cost = (max_cost + 1.0) * nodes as f64;
-    let real = n * m;
-    let mut art_ends = Vec::with_capacity(n + m);
-    let mut flow = vec![0i64; real + n + m];
-    for (i, &s) in supply.iter().enumerate() {
-        // Positive supply flows up to the root; a zero-supply row gets an
-        // arc pointing away from the root (strong feasibility).
-        art_ends.push(if s > 0 { (i, root) } else { (root, i) });
-        flow[real + i] = s;
-    }
-    for (j, &d) in demand.iter().enumerate() {
-        art_ends.push((root, n + j));
-        flow[real + n + j] = d;
-    }
-    let mut net = Network {
-        n,
-        m,
-        cost,
-        artificial_cost,
-        art_ends,
-        flow,
-        basic: vec![false; real + n + m],
-        tree_arcs: vec![Vec::new(); nodes],
-        parent: vec![root; nodes],
-        pred: vec![u32::MAX; nodes],
-        pred_up: vec![false; nodes],
-        depth: vec![0; nodes],
-        potential: vec![0.0; nodes],
-    };
-    for v in 0..n + m {
-        let e = (real + v) as u32;
-        net.basic[e as usize] = true;
-        net.tree_arcs[v].push(e);
-        net.tree_arcs[root].push(e);
-        let (s, _) = net.ends(e);
-        net.parent[v] = root;
-        net.pred[v] = e;
-        net.pred_up[v] = s == v;
-        net.depth[v] = 1;
-        net.potential[v] = if s == v {
-            -artificial_cost
-        } else {
-            artificial_cost
-        };
-    }
-
-    // Reduced costs above −tolerance count as optimal: potentials are sums
-    // of up to `nodes` costs of size ≤ artificial_cost.
-    let tolerance = 1e-12 * artificial_cost * nodes as f64;
-    let block = ((real as f64).sqrt().ceil() as usize).clamp(16, real.max(16));
-    let max_pivots = 200 * (real + nodes) + 10_000;
-    let mut next = 0usize;
-    let mut pivots = 0usize;
-    loop {
-        // Entering arc: block search, most negative reduced cost in the
-        // first block that has one.
-        let mut entering: Option<(usize, f64)> = None;
-        let mut scanned = 0usize;
-        let mut in_block = 0usize;
-        while scanned < real {
-            let a = next;
-            next += 1;
-            if next == real {
-                next = 0;
-            }
-            scanned += 1;
-            in_block += 1;
-            if !net.basic[a] {
-                let rc = net.reduced_cost(a);
-                if rc < -tolerance && entering.is_none_or(|(_, best)| rc < best) {
-                    entering = Some((a, rc));
-                }
-            }
-            if in_block == block {
-                if entering.is_some() {
-                    break;
-                }
-                in_block = 0;
-            }
-        }
-        let Some((in_arc, _)) = entering else {
-            break;
-        };
-        pivots += 1;
-        if pivots > max_pivots {
-            return Err(TransportError::NoConvergence(pivots));
-        }
-        let in_arc = in_arc as u32;
-        let (first, second) = net.ends(in_arc);
-        // The cycle: in_arc, then second up to the join, then down to first.
-        let join = {
-            let (mut u, mut v) = (first, second);
-            while u != v {
-                if net.depth[u] >= net.depth[v] {
-                    u = net.parent[u];
-                } else {
-                    v = net.parent[v];
-                }
-            }
-            u
-        };
-        // Leaving arc (strongly feasible rule): the last blocking arc met
-        // going around the cycle from the join in the flow's direction —
-        // strict comparison on the first side, non-strict on the second.
-        let mut delta = i64::MAX;
-        let mut leaving: Option<usize> = None;
-        let mut u = first;
-        while u != join {
-            // Flow runs parent → u here: it decreases on arcs u → parent.
-            if net.pred_up[u] {
-                let d = net.flow[net.pred[u] as usize];
-                if d < delta {
-                    delta = d;
-                    leaving = Some(u);
-                }
-            }
-            u = net.parent[u];
-        }
-        let mut leaving_second = false;
-        let mut u = second;
-        while u != join {
-            // Flow runs u → parent: it decreases on arcs parent → u.
-            if !net.pred_up[u] {
-                let d = net.flow[net.pred[u] as usize];
-                if d <= delta {
-                    delta = d;
-                    leaving = Some(u);
-                    leaving_second = true;
-                }
-            }
-            u = net.parent[u];
-        }
-        let Some(out_node) = leaving else {
-            // Unbounded cannot happen: no directed cycle exists in this
-            // network. Treat as a solver failure rather than loop.
-            return Err(TransportError::NoConvergence(pivots));
-        };
-        // Push delta around the cycle.
-        if delta > 0 {
-            net.flow[in_arc as usize] += delta;
-            let mut u = first;
-            while u != join {
-                let e = net.pred[u] as usize;
-                net.flow[e] += if net.pred_up[u] { -delta } else { delta };
-                u = net.parent[u];
-            }
-            let mut u = second;
-            while u != join {
-                let e = net.pred[u] as usize;
-                net.flow[e] += if net.pred_up[u] { delta } else { -delta };
-                u = net.parent[u];
-            }
-        }
-        // Swap the arcs in the basis and re-hang the cut-off subtree.
-        let out_arc = net.pred[out_node];
-        let (oa, ob) = net.ends(out_arc);
-        for v in [oa, ob] {
-            if let Some(k) = net.tree_arcs[v].iter().position(|&e| e == out_arc) {
-                net.tree_arcs[v].swap_remove(k);
-            }
-        }
-        net.basic[out_arc as usize] = false;
-        net.basic[in_arc as usize] = true;
-        net.tree_arcs[first].push(in_arc);
-        net.tree_arcs[second].push(in_arc);
-        // The subtree below out_node contains `first` when the leaving arc
-        // is on the first side, else `second`; it hangs on the other end.
-        if leaving_second {
-            net.rehang(second, first, in_arc);
-        } else {
-            net.rehang(first, second, in_arc);
-        }
-    }
-
-    if net.flow[real..].iter().any(|&f| f != 0) {
-        // Equal integer totals make the problem feasible; artificial flow
-        // left means the costs defeated the simplex.
-        return Err(TransportError::NoConvergence(pivots));
-    }
-    let scale = MASS_UNITS as f64;
-    let mut total = 0.0;
-    let mut flows = Vec::new();
-    for (a, &f) in net.flow[..real].iter().enumerate() {
-        if f > 0 {
-            let mass = f as f64 / scale;
-            total += mass * cost[a];
-            flows.push(((a / m) as u32, (a % m) as u32, mass));
-        }
-    }
-    Ok(TransportPlan {
-        cost: total,
-        flows,
-        pivots,
-    })
+    let supply = integer_masses(rows, Marginal::Rows)?;
+    let demand = integer_masses(columns, Marginal::Columns)?;
+    let mut net = Network::initial_feasible_tree(&supply, &demand, cost);
+    let pivots = net.optimize()?;
+    net.plan(pivots)
 }
 
 #[cfg(test)]
@@ -659,13 +774,20 @@ mod tests {
             optimal_transport(&[1.0], &[1.0], &[1.0, 2.0]),
             Err(TransportError::CostShape { .. })
         ));
-        assert!(matches!(
-            optimal_transport(&[-1.0, 2.0], &[1.0], &[1.0, 2.0]),
-            Err(TransportError::InvalidMass(_))
-        ));
+        assert_eq!(
+            optimal_transport(&[1.0], &[2.0, -1.0], &[1.0, 2.0]),
+            Err(TransportError::InvalidMass {
+                side: Marginal::Columns,
+                index: 1,
+                mass: -1.0
+            })
+        );
         assert!(matches!(
             optimal_transport(&[0.0], &[1.0], &[1.0]),
-            Err(TransportError::InvalidMass(_))
+            Err(TransportError::NoMass {
+                side: Marginal::Rows,
+                ..
+            })
         ));
         assert!(matches!(
             optimal_transport(&[1.0], &[1.0], &[f64::NAN]),

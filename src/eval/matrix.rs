@@ -1,7 +1,7 @@
 //! Distance matrices: computation over prepared surfaces and CSV files.
 
 use super::{csv_field, split_csv_line};
-use crate::cp::{compare, CpParams, Prepared};
+use crate::cp::{compare, CompareParams, Prepared};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -152,10 +152,10 @@ impl DistanceMatrix {
 /// threads.
 pub fn distance_matrix(
     prepared: &[Prepared],
-    params: &CpParams,
+    params: &CompareParams,
     progress: impl Fn(usize) + Sync,
 ) -> DistanceMatrix {
-    let names = prepared.iter().map(|p| p.name.clone()).collect();
+    let names = prepared.iter().map(|p| p.name().to_string()).collect();
     pairwise_matrix(
         names,
         |i, j| Ok(compare(&prepared[i], &prepared[j], params).distance),

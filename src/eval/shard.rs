@@ -17,7 +17,7 @@
 //! unsharded computation writes.
 
 use super::{csv_field, split_csv_line, DistanceMatrix};
-use crate::cp::{compare, CpParams, Prepared};
+use crate::cp::{compare, CompareParams, Prepared};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -289,7 +289,7 @@ pub fn compute_shard<E: Send>(
     names: &[String],
     shard: Shard,
     prepare: impl Fn(usize) -> Result<Prepared, E> + Sync,
-    params: &CpParams,
+    params: &CompareParams,
     progress: impl Fn(usize) + Sync,
 ) -> Result<ShardFile, E> {
     let pairs = shard_pairs(names.len(), shard);

@@ -9,7 +9,7 @@
 //! and the minimum is taken over rotations (proper only unless reflections
 //! are allowed). The result is in `[0, 2]`.
 
-use crate::cp::procrustes::{Handedness, Moments};
+use crate::cp::{Handedness, Moments};
 
 /// Why two landmark sets cannot be compared.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

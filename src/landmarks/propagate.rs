@@ -79,13 +79,13 @@ impl Surface {
     /// vertices normalized) with the prepared triangles (whose corner order
     /// the correspondence's barycentric coordinates follow).
     pub fn from_prepared(ps: &PreparedSurface) -> Result<Self, PropagateError> {
-        let (prepared, cleaned) = (ps.prepared.vertices.len(), ps.cleaned.vertices.len());
+        let (prepared, cleaned) = (ps.prepared.vertices().len(), ps.cleaned.vertices.len());
         if prepared != cleaned {
             return Err(PropagateError::Inconsistent { prepared, cleaned });
         }
         Self::new(Mesh::new(
             ps.cleaned.vertices.clone(),
-            ps.prepared.faces.clone(),
+            ps.prepared.faces().to_vec(),
         ))
     }
 
@@ -94,12 +94,13 @@ impl Surface {
     /// vertices scaled and translated back (`v · scale + centroid`), with
     /// the prepared triangles.
     pub fn from_normalized(p: &Prepared) -> Result<Self, PropagateError> {
+        let (scale, centroid) = (p.scale(), p.centroid());
         let vertices = p
-            .vertices
+            .vertices()
             .iter()
-            .map(|v| [0, 1, 2].map(|d| v[d] * p.scale + p.centroid[d]))
+            .map(|v| [0, 1, 2].map(|d| v[d] * scale + centroid[d]))
             .collect();
-        Self::new(Mesh::new(vertices, p.faces.clone()))
+        Self::new(Mesh::new(vertices, p.faces().to_vec()))
     }
 
     /// The mesh.

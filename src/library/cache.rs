@@ -92,9 +92,12 @@ impl Cache {
     }
 
     /// The key of a surface with content hash `content_hash` prepared with
-    /// `settings`.
+    /// `settings`: only what preparation reads (cleaning and the cP
+    /// preparation parameters), so changing a comparison setting keeps
+    /// every entry.
     pub fn key(content_hash: &str, settings: &Settings) -> String {
-        let params = serde_json::to_string(settings).unwrap_or_default();
+        let params =
+            serde_json::to_string(&(&settings.clean, &settings.cp.prepare)).unwrap_or_default();
         let mut h = Sha256::new();
         h.update(CACHE_FORMAT.to_le_bytes());
         h.update(content_hash.as_bytes());
@@ -184,7 +187,8 @@ fn is_older_than(path: &Path, age: std::time::Duration) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::synth;
+    use crate::library::{build, Library};
+    use crate::mesh::synth::{self, write_synthetic_library, LibrarySpec};
 
     #[test]
     fn concurrent_puts_of_one_entry_leave_it_readable_and_no_temporary_file() {
@@ -220,5 +224,35 @@ mod tests {
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
             .collect();
         assert_eq!(names, [format!("r.{key}.{EXTENSION}")]);
+    }
+
+
+    #[test]
+    fn only_preparation_settings_key_the_cache() {
+        let dir = tempfile::tempdir().unwrap();
+        let spec = LibrarySpec {
+            per_genus: 1,
+            target_vertices: 1200,
+            ..LibrarySpec::default()
+        };
+        write_synthetic_library(&dir.path().join("lib"), &spec).unwrap();
+        let library = Library::open(&dir.path().join("lib"), None).unwrap();
+        let cache = Cache::open(&dir.path().join("cache")).unwrap();
+        let n = library.members.len();
+        let mut settings = Settings::default();
+        let first = build(&library, &cache, &settings, |_| {}).unwrap();
+        assert!(first.failures.is_empty(), "{:?}", first.failures);
+        assert_eq!((first.prepared, first.reused), (n, 0));
+        // Comparison settings: every entry is still a hit.
+        settings.cp.compare.descent_steps += 3;
+        settings.cp.compare.angles += 1;
+        settings.cp.compare.reflections = false;
+        let second = build(&library, &cache, &settings, |_| {}).unwrap();
+        assert_eq!((second.prepared, second.reused, second.removed), (0, n, 0));
+        // A preparation setting: every surface is prepared again, and the
+        // old entries go.
+        settings.cp.prepare.samples += 10;
+        let third = build(&library, &cache, &settings, |_| {}).unwrap();
+        assert_eq!((third.prepared, third.reused, third.removed), (n, 0, n));
     }
 }

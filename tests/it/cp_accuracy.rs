@@ -23,7 +23,7 @@ fn leave_one_out_on_real_teeth() {
     let prepared = prepare_teeth(&dir, &names, &params);
     println!("prepared {} in {:.1?}", prepared.len(), t0.elapsed());
     let t0 = std::time::Instant::now();
-    let m = distance_matrix(&prepared, &params, |_| {});
+    let m = distance_matrix(&prepared, &params.compare, |_| {});
     println!("matrix in {:.1?}", t0.elapsed());
     if let Ok(out) = std::env::var("CP_MATRIX_OUT") {
         m.write_csv(std::path::Path::new(&out))

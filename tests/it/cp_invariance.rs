@@ -51,19 +51,24 @@ fn rigid_motions_scalings_and_mirrors_are_at_distance_zero() {
     let mut worst_mirror: f64 = 0.0;
     for name in names.iter().step_by(12).take(10) {
         let mesh = crate::support::cp::load_tooth(&dir, name);
-        let a = cp::prepare(&mesh, &params).expect("prepare");
-        let b = cp::prepare(&transformed(&mesh, &mut rng), &params).expect("prepare");
-        let c = cp::compare(&a, &b, &params);
+        let a = cp::prepare(&mesh, &params.prepare).expect("prepare");
+        let b = cp::prepare(&transformed(&mesh, &mut rng), &params.prepare).expect("prepare");
+        let c = cp::compare(&a, &b, &params.compare);
         assert!(!c.reflected, "{name}: rigid copy matched as a mirror image");
         worst_rigid = worst_rigid.max(c.distance);
-        let mir = cp::prepare(&transformed(&mirrored(&mesh), &mut rng), &params).expect("prepare");
-        let c = cp::compare(&a, &mir, &params);
+        let mir = cp::prepare(&transformed(&mirrored(&mesh), &mut rng), &params.prepare)
+            .expect("prepare");
+        let c = cp::compare(&a, &mir, &params.compare);
         assert!(c.reflected, "{name}: mirror image not matched as reflected");
         worst_mirror = worst_mirror.max(c.distance);
         // A mirror image is also found when the mirrored copy's faces are
         // wound the other way (orientation is made canonical).
         let raw = Mesh::new(mirrored(&mesh).vertices, mesh.faces.clone());
-        let c = cp::compare(&a, &cp::prepare(&raw, &params).expect("prepare"), &params);
+        let c = cp::compare(
+            &a,
+            &cp::prepare(&raw, &params.prepare).expect("prepare"),
+            &params.compare,
+        );
         assert!(c.reflected && c.distance < 1e-3, "{name}: {}", c.distance);
     }
     println!("worst d(S, R(S)) = {worst_rigid:.2e}, worst d(S, mirror(S)) = {worst_mirror:.2e}");
@@ -78,21 +83,25 @@ fn distance_is_symmetric_and_positive_between_different_teeth() {
     };
     let params = CpParams::default();
     let names = crate::support::cp::tooth_names(&dir);
-    let a =
-        cp::prepare(&crate::support::cp::load_tooth(&dir, &names[2]), &params).expect("prepare");
-    let b =
-        cp::prepare(&crate::support::cp::load_tooth(&dir, &names[40]), &params).expect("prepare");
-    let ab = cp::compare(&a, &b, &params);
-    let ba = cp::compare(&b, &a, &params);
+    let a = cp::prepare(
+        &crate::support::cp::load_tooth(&dir, &names[2]),
+        &params.prepare,
+    )
+    .expect("prepare");
+    let b = cp::prepare(
+        &crate::support::cp::load_tooth(&dir, &names[40]),
+        &params.prepare,
+    )
+    .expect("prepare");
+    let ab = cp::compare(&a, &b, &params.compare);
+    let ba = cp::compare(&b, &a, &params.compare);
     assert_eq!(ab.distance, ba.distance);
     assert!(ab.distance > 0.01 && ab.distance.is_finite());
-    assert_eq!(ab.forward.correspondence.len(), a.vertices.len());
-    assert_eq!(ab.backward.correspondence.len(), b.vertices.len());
-    assert!(ab
-        .forward
-        .correspondence
-        .iter()
-        .all(|(f, l)| (*f as usize) < b.faces.len() && (l.iter().sum::<f64>() - 1.0).abs() < 1e-9));
+    assert_eq!(ab.forward.correspondence.len(), a.vertices().len());
+    assert_eq!(ab.backward.correspondence.len(), b.vertices().len());
+    assert!(ab.forward.correspondence.iter().all(
+        |(f, l)| (*f as usize) < b.faces().len() && (l.iter().sum::<f64>() - 1.0).abs() < 1e-9
+    ));
 }
 
 /// The surface again, with no vertex in common: refined, then brought back
@@ -116,7 +125,9 @@ fn remeshing_moves_a_tooth_less_than_a_quarter_of_the_nearest_neighbour_distance
     let names = crate::support::cp::tooth_names(&dir);
     let prepared: Vec<_> = names
         .par_iter()
-        .map(|n| cp::prepare(&crate::support::cp::load_tooth(&dir, n), &params).expect("prepare"))
+        .map(|n| {
+            cp::prepare(&crate::support::cp::load_tooth(&dir, n), &params.prepare).expect("prepare")
+        })
         .collect();
     // The library's median nearest-neighbour distance, from twelve teeth
     // spread over it (each against all 115 others).
@@ -126,7 +137,7 @@ fn remeshing_moves_a_tooth_less_than_a_quarter_of_the_nearest_neighbour_distance
             (0..names.len())
                 .into_par_iter()
                 .filter(|&j| j != i)
-                .map(|j| cp::compare(&prepared[i], &prepared[j], &params).distance)
+                .map(|j| cp::compare(&prepared[i], &prepared[j], &params.compare).distance)
                 .reduce(|| f64::INFINITY, f64::min)
         })
         .collect();
@@ -140,8 +151,8 @@ fn remeshing_moves_a_tooth_less_than_a_quarter_of_the_nearest_neighbour_distance
         .par_iter()
         .map(|&i| {
             let mesh = crate::support::cp::load_tooth(&dir, &names[i]);
-            let other = cp::prepare(&remeshed(&mesh), &params).expect("prepare");
-            let d = cp::compare(&prepared[i], &other, &params).distance;
+            let other = cp::prepare(&remeshed(&mesh), &params.prepare).expect("prepare");
+            let d = cp::compare(&prepared[i], &other, &params.compare).distance;
             println!("{}: d(S, remeshed S) = {d:.5}", names[i]);
             d
         })

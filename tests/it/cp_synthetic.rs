@@ -8,15 +8,19 @@ use morphoid::mesh::synth::{self, CROWN_GENERA};
 fn rigid_copies_and_mirror_images_are_at_distance_zero() {
     let params = CpParams::default();
     let m = synth::crown(&CROWN_GENERA[1], 3, 2000);
-    let a = cp::prepare(&m, &params).expect("prepare");
+    let a = cp::prepare(&m, &params.prepare).expect("prepare");
     let moved = synth::transform::scale(&synth::transform::rigid_motion(&m, 5), 3.0);
-    let c = cp::compare(&a, &cp::prepare(&moved, &params).expect("prepare"), &params);
+    let c = cp::compare(
+        &a,
+        &cp::prepare(&moved, &params.prepare).expect("prepare"),
+        &params.compare,
+    );
     assert!(c.distance < 1e-3 && !c.reflected, "{}", c.distance);
     let mirrored = synth::transform::mirror(&m);
     let c = cp::compare(
         &a,
-        &cp::prepare(&mirrored, &params).expect("prepare"),
-        &params,
+        &cp::prepare(&mirrored, &params.prepare).expect("prepare"),
+        &params.compare,
     );
     assert!(c.distance < 1e-3 && c.reflected, "{}", c.distance);
 }
@@ -29,18 +33,18 @@ fn matrix_is_symmetric_deterministic_and_separates_genera() {
     for (g, genus) in CROWN_GENERA.iter().enumerate().take(3) {
         for k in 0..3u64 {
             let mesh = synth::crown(genus, 100 + k, 1500);
-            let mut p = cp::prepare(&mesh, &params).expect("prepare");
-            p.name = format!("g{g}s{k}");
-            labels.push_str(&format!("{},{}\n", p.name, genus.name));
+            let mut p = cp::prepare(&mesh, &params.prepare).expect("prepare");
+            p.set_name(format!("g{g}s{k}"));
+            labels.push_str(&format!("{},{}\n", p.name(), genus.name));
             prepared.push(p);
         }
     }
-    let m = distance_matrix(&prepared, &params, |_| {});
+    let m = distance_matrix(&prepared, &params.compare, |_| {});
     let single = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
         .expect("pool")
-        .install(|| distance_matrix(&prepared, &params, |_| {}));
+        .install(|| distance_matrix(&prepared, &params.compare, |_| {}));
     assert_eq!(m, single);
     for i in 0..m.names.len() {
         assert_eq!(m.values[i][i], 0.0);
@@ -63,14 +67,14 @@ fn matrix_is_symmetric_deterministic_and_separates_genera() {
 #[test]
 fn the_final_descent_lowers_the_distance_of_different_crowns() {
     let params = CpParams::default();
-    let searched_only = CpParams {
-        descent_steps: 0,
-        ..params.clone()
-    };
-    let a = cp::prepare(&synth::crown(&CROWN_GENERA[0], 1, 2000), &params).expect("prepare");
-    let b = cp::prepare(&synth::crown(&CROWN_GENERA[2], 2, 2000), &params).expect("prepare");
-    let searched = cp::compare(&a, &b, &searched_only);
-    let descended = cp::compare(&a, &b, &params);
+    let mut searched_only = params.clone();
+    searched_only.compare.descent_steps = 0;
+    let a =
+        cp::prepare(&synth::crown(&CROWN_GENERA[0], 1, 2000), &params.prepare).expect("prepare");
+    let b =
+        cp::prepare(&synth::crown(&CROWN_GENERA[2], 2, 2000), &params.prepare).expect("prepare");
+    let searched = cp::compare(&a, &b, &searched_only.compare);
+    let descended = cp::compare(&a, &b, &params.compare);
     // The descent starts from the searched maps and keeps only steps that
     // lower the residual.
     assert!(descended.distance <= searched.distance);
@@ -89,5 +93,5 @@ fn the_final_descent_lowers_the_distance_of_different_crowns() {
     assert_eq!(down.distance, descended.distance);
     assert_eq!(kept.distance, kept_before.distance);
     // A surface is still at distance zero from itself.
-    assert!(cp::compare(&a, &a, &params).distance < 1e-6);
+    assert!(cp::compare(&a, &a, &params.compare).distance < 1e-6);
 }

@@ -80,6 +80,13 @@ fn check_config_accepts_the_example_and_names_wrong_keys_and_values() {
     assert!(!ok && text.contains("settle_secs"), "{text}");
     let (ok, text) = check("[watch]\nsettle_seconds = -3\n", &[]);
     assert!(!ok && text.contains("settle_seconds"), "{text}");
+    let (ok, text) = check("[cp]\nwarp_width = 0\n", &[]);
+    assert!(
+        !ok && text.contains("[cp] warp_width = 0: must be"),
+        "{text}"
+    );
+    let (ok, text) = check("[cp]\ndescent_steps = 0\n", &["--print"]);
+    assert!(ok && text.contains("descent_steps = 0"), "{text}");
     let (ok, text) = check(
         "[serial]\nport = \"/dev/ttyUSB0\"\nbaud = 9600\ntrigger = \"^SCAN (\"\n",
         &[],

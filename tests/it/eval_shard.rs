@@ -29,7 +29,7 @@ fn three_shards_merge_to_the_unsharded_matrix() {
         .iter()
         .map(|f| prepare_file(f, &settings).unwrap().prepared)
         .collect();
-    let full: DistanceMatrix = distance_matrix(&prepared, &settings.cp, |_| {});
+    let full: DistanceMatrix = distance_matrix(&prepared, &settings.cp.compare, |_| {});
 
     let out = tempfile::tempdir().unwrap();
     let mut paths = Vec::new();
@@ -44,7 +44,7 @@ fn three_shards_merge_to_the_unsharded_matrix() {
                 calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 prepare_file(&files[k], &settings).map(|p| p.prepared)
             },
-            &settings.cp,
+            &settings.cp.compare,
             |_| {},
         )
         .unwrap();

@@ -21,12 +21,12 @@ const SCALE: f64 = 1000.0;
 /// then random points inside random triangles (seeded).
 fn choose_landmarks(s: &PreparedSurface, seed: u64) -> Landmarks {
     let mut lm = Landmarks::default();
-    for (k, &v) in s.prepared.features.iter().take(5).enumerate() {
+    for (k, &v) in s.prepared.features().iter().take(5).enumerate() {
         lm.push(s.cleaned.vertices[v as usize], Some(format!("cusp{k}")));
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     while lm.len() < 10 {
-        let f = s.prepared.faces[rng.gen_range(0..s.prepared.faces.len())];
+        let f = s.prepared.faces()[rng.gen_range(0..s.prepared.faces().len())];
         let (u, v): (f64, f64) = (rng.gen(), rng.gen());
         let (u, v) = if u + v > 1.0 {
             (1.0 - u, 1.0 - v)
@@ -85,7 +85,7 @@ fn self_propagation(mesh: &Mesh, seed: u64, mirrored: bool) -> (f64, f64) {
     let motion = RigidMotion::random(seed, 3.0 * SCALE * bbox_diagonal(&source.cleaned));
     let copy = moved_copy(&source.cleaned, &motion, mirrored);
     let target = pipeline::prepare_mesh(&copy, "target", &settings).expect("copy prepares");
-    let map = cp::compare_directed(&source.prepared, &target.prepared, &settings.cp);
+    let map = cp::compare_directed(&source.prepared, &target.prepared, &settings.cp.compare);
     assert_eq!(map.reflected, mirrored);
     let (s, t) = (
         Surface::from_prepared(&source).unwrap(),
@@ -130,8 +130,8 @@ fn synthetic_crown_through_an_intermediate() {
     let b =
         pipeline::prepare_mesh(&moved_copy(&source.cleaned, &m1, false), "b", &settings).unwrap();
     let c = pipeline::prepare_mesh(&moved_copy(&b.cleaned, &m2, false), "c", &settings).unwrap();
-    let ab = cp::compare_directed(&source.prepared, &b.prepared, &settings.cp);
-    let bc = cp::compare_directed(&b.prepared, &c.prepared, &settings.cp);
+    let ab = cp::compare_directed(&source.prepared, &b.prepared, &settings.cp.compare);
+    let bc = cp::compare_directed(&b.prepared, &c.prepared, &settings.cp.compare);
     let surfaces: Vec<Surface> = [&source, &b, &c]
         .iter()
         .map(|s| Surface::from_prepared(s).unwrap())
@@ -347,7 +347,7 @@ fn real_teeth_of_one_genus_cusps_and_round_trips() {
             pipeline::prepare_mesh(&m, n, &settings).expect("tooth prepares")
         };
         let (sa, sb) = (load(a), load(b));
-        let c = cp::compare(&sa.prepared, &sb.prepared, &settings.cp);
+        let c = cp::compare(&sa.prepared, &sb.prepared, &settings.cp.compare);
         let (ta, tb) = (
             Surface::from_prepared(&sa).unwrap(),
             Surface::from_prepared(&sb).unwrap(),
@@ -364,12 +364,12 @@ fn real_teeth_of_one_genus_cusps_and_round_trips() {
             .map(|(p, q)| norm(sub(*p, *q)) / da)
             .collect();
         // The first landmarks are A's cusp tips (features).
-        let cusps = sa.prepared.features.len().min(5);
+        let cusps = sa.prepared.features().len().min(5);
         let cusp: Vec<f64> = there.landmarks.points[..cusps]
             .iter()
             .map(|p| {
                 sb.prepared
-                    .features
+                    .features()
                     .iter()
                     .map(|&v| norm(sub(*p, sb.cleaned.vertices[v as usize])) / db)
                     .fold(f64::INFINITY, f64::min)
