@@ -19,7 +19,6 @@
 
 pub mod distance;
 pub mod features;
-pub mod graph;
 pub mod locate;
 pub mod mobius;
 pub mod moser;

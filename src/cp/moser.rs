@@ -16,7 +16,7 @@
 use super::locate::{LocateGrid, Location, NO_TRIANGLE};
 use super::prepare::Prepared;
 use crate::conformal::{cotangent_edge_weights, shifted_stiffness, SpdFactor};
-use crate::mesh::synth::unit_disk;
+use crate::mesh::unit_disk;
 use std::borrow::Cow;
 use std::sync::OnceLock;
 

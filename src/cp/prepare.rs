@@ -2,12 +2,12 @@
 //! conformal factor, features, samples and the point-location grid.
 
 use super::features::{local_maxima, smooth_vertex_function};
-use super::graph::{breadth_first_tree, graph_distance, vertex_adjacency};
 use super::locate::LocateGrid;
 use super::moser::disk_measure;
 use super::samples::farthest_point_samples;
 use crate::conformal::{self, conformal_factor, hyperbolic_density};
 use crate::mesh::{self, Mesh};
+use crate::mesh::{breadth_first_tree, graph_distance, vertex_adjacency};
 use serde::{Deserialize, Serialize};
 
 /// Parameters of the cP engine (the `[cp]` configuration section).
