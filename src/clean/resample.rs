@@ -2,8 +2,8 @@
 
 use super::closest::TriangleGrid;
 use crate::mesh::{
-    boundary_vertices, cross, dot, edge_face_map, norm, sub, subdivide_midpoint, triangle_normal2,
-    Mesh,
+    boundary_vertices, cross, dot, edge_face_map, edge_key, norm, sub, subdivide_midpoint,
+    triangle_normal2, EdgeKey, Mesh,
 };
 use rustc_hash::FxHashMap as HashMap;
 
@@ -95,11 +95,6 @@ const EAR_ANGLE: f64 = 10.0 * std::f64::consts::PI / 180.0;
 /// No face.
 const NONE: u32 = u32::MAX;
 
-#[inline]
-fn key(a: u32, b: u32) -> u64 {
-    ((a.min(b) as u64) << 32) | a.max(b) as u64
-}
-
 fn angle_at(p: [f64; 3], q: [f64; 3], r: [f64; 3]) -> f64 {
     // Angle at p in triangle pqr.
     let (u, v) = (sub(q, p), sub(r, p));
@@ -116,7 +111,7 @@ fn angle_at(p: [f64; 3], q: [f64; 3], r: [f64; 3]) -> f64 {
 pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
     let ef = edge_face_map(mesh);
     let mut faces = mesh.faces.clone();
-    let mut e2f: HashMap<u64, [u32; 2]> =
+    let mut e2f: HashMap<EdgeKey, [u32; 2]> =
         HashMap::with_capacity_and_hasher(ef.len(), Default::default());
     let mut degree = vec![0u32; mesh.vertices.len()];
     for e in 0..ef.len() {
@@ -127,7 +122,7 @@ pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
         // Boundary edges are kept with NONE as second face: they must block
         // flips that would create them again, but are never flipped.
         let second = if fs.len() == 2 { fs[1] } else { NONE };
-        e2f.insert(key(a, b), [fs[0], second]);
+        e2f.insert(edge_key(a, b), [fs[0], second]);
     }
     let cos_max = max_dihedral.cos();
     let v = &mesh.vertices;
@@ -136,7 +131,7 @@ pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
         .iter()
         .rev()
         .copied()
-        .filter(|&(a, b)| e2f.get(&key(a, b)).is_some_and(|fs| fs[1] != NONE))
+        .filter(|&(a, b)| e2f.get(&edge_key(a, b)).is_some_and(|fs| fs[1] != NONE))
         .collect();
     let mut flips = 0usize;
     let budget = 20 * ef.len() + 16;
@@ -146,7 +141,7 @@ pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
         if steps > budget {
             break;
         }
-        let Some(&[f, g]) = e2f.get(&key(x, y)) else {
+        let Some(&[f, g]) = e2f.get(&edge_key(x, y)) else {
             continue;
         };
         if g == NONE {
@@ -167,7 +162,7 @@ pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
             continue;
         };
         if c == d
-            || e2f.contains_key(&key(c, d))
+            || e2f.contains_key(&edge_key(c, d))
             || degree[a as usize] <= 3
             || degree[b as usize] <= 3
         {
@@ -200,9 +195,9 @@ pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
         }
         faces[f as usize] = [a, d, c];
         faces[g as usize] = [d, b, c];
-        e2f.remove(&key(a, b));
-        e2f.insert(key(c, d), [f, g]);
-        for (e, from, to) in [(key(a, d), g, f), (key(b, c), f, g)] {
+        e2f.remove(&edge_key(a, b));
+        e2f.insert(edge_key(c, d), [f, g]);
+        for (e, from, to) in [(edge_key(a, d), g, f), (edge_key(b, c), f, g)] {
             if let Some(fs) = e2f.get_mut(&e) {
                 for s in fs.iter_mut() {
                     if *s == from {

@@ -5,7 +5,7 @@
 
 use super::laplacian::{sum_by_edge, EdgeWeights};
 use super::FlattenError;
-use crate::mesh::{edge_face_map, norm, sub, Mesh};
+use crate::mesh::{edge_face_map, edge_key, norm, sub, Mesh};
 
 /// A triangulation of the input's vertices by intrinsic triangles: face
 /// corners plus the length of each half-edge `3f + k` (from corner `k` to
@@ -210,7 +210,7 @@ impl IntrinsicMesh {
                 if i == j {
                     continue;
                 }
-                w.push(((i.min(j), i.max(j)), 0.5 * opposite_cot(self, 3 * f + k)));
+                w.push((edge_key(i, j), 0.5 * opposite_cot(self, 3 * f + k)));
             }
         }
         sum_by_edge(w)

@@ -1,6 +1,6 @@
 //! The cotangent Laplacian.
 
-use crate::mesh::{cross, dot, norm, sub, Mesh};
+use crate::mesh::{cross, dot, edge_key, norm, sub, Mesh};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 
 /// Symmetric edge weights `((i, j), w)` with `i < j`, sorted by edge.
@@ -37,7 +37,7 @@ pub fn cotangent_edge_weights(mesh: &Mesh) -> EdgeWeights {
         for k in 0..3 {
             let (i, j) = (f[(k + 1) % 3], f[(k + 2) % 3]);
             let c = cot_at(p[k], p[(k + 1) % 3], p[(k + 2) % 3]).unwrap_or(0.0);
-            w.push(((i.min(j), i.max(j)), 0.5 * c));
+            w.push((edge_key(i, j), 0.5 * c));
         }
     }
     sum_by_edge(w)

@@ -15,6 +15,12 @@ use super::{norm, sub, Mesh};
 /// An undirected edge, smaller index first.
 pub type EdgeKey = (u32, u32);
 
+/// The undirected edge `a`–`b` (either direction).
+#[inline]
+pub fn edge_key(a: u32, b: u32) -> EdgeKey {
+    (a.min(b), a.max(b))
+}
+
 /// Marks a triangle edge with no triangle on its other side (see
 /// [`triangle_adjacency`]).
 pub const NO_TRIANGLE: u32 = u32::MAX;
@@ -41,12 +47,10 @@ impl EdgeMap {
     pub fn new(faces: &[[u32; 3]]) -> Self {
         // Sorting (edge key, half-edge) pairs groups each edge's half-edges
         // in increasing order, hence its faces too.
-        let mut list: Vec<(u64, u32)> = Vec::with_capacity(faces.len() * 3);
+        let mut list: Vec<(EdgeKey, u32)> = Vec::with_capacity(faces.len() * 3);
         for (fi, f) in faces.iter().enumerate() {
             for k in 0..3 {
-                let (a, b) = (f[k], f[(k + 1) % 3]);
-                let key = (u64::from(a.min(b)) << 32) | u64::from(a.max(b));
-                list.push((key, (3 * fi + k) as u32));
+                list.push((edge_key(f[k], f[(k + 1) % 3]), (3 * fi + k) as u32));
             }
         }
         list.sort_unstable();
@@ -59,7 +63,7 @@ impl EdgeMap {
         for (i, &(key, h)) in list.iter().enumerate() {
             if i == 0 || list[i - 1].0 != key {
                 out.offsets.push(out.half_edges.len());
-                out.edges.push(((key >> 32) as u32, key as u32));
+                out.edges.push(key);
             }
             out.half_edges.push(h);
             out.faces.push(h / 3);
@@ -100,7 +104,7 @@ impl EdgeMap {
 
     /// Index of the edge `a`–`b` (either direction), if present.
     pub fn find(&self, a: u32, b: u32) -> Option<usize> {
-        self.edges.binary_search(&(a.min(b), a.max(b))).ok()
+        self.edges.binary_search(&edge_key(a, b)).ok()
     }
 
     /// Every edge with its faces, in edge order.
