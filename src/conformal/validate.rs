@@ -131,6 +131,53 @@ mod tests {
     }
 
     #[test]
+    fn touching_loops_and_holes_are_rejected() {
+        // A second hexagon fan whose leftmost rim vertex is the first fan's
+        // vertex 1 at (1, 0, 0): two disks touching at one boundary vertex.
+        let mut m = fan(false);
+        let centre = m.vertices.len() as u32;
+        m.vertices.push([2.0, 0.0, 0.0]);
+        let rim: Vec<u32> = (0..6)
+            .map(|k| {
+                if k == 3 {
+                    return 1;
+                }
+                let t = k as f64 * std::f64::consts::PI / 3.0;
+                m.vertices.push([2.0 + t.cos(), t.sin(), 0.0]);
+                m.vertices.len() as u32 - 1
+            })
+            .collect();
+        m.faces
+            .extend((0..6).map(|k| [centre, rim[k], rim[(k + 1) % 6]]));
+        assert!(matches!(
+            check_disk_topology(&m),
+            Err(FlattenError::NonManifold { reason }) if reason.contains("touch at vertex 1")
+        ));
+        // An annulus between two hexagons: two loops, χ = 0.
+        let mut v = vec![];
+        let mut f = vec![];
+        for ring in 0..2u32 {
+            for k in 0..6u32 {
+                let t = k as f64 * std::f64::consts::PI / 3.0;
+                let r = 1.0 + ring as f64;
+                v.push([r * t.cos(), r * t.sin(), 0.0]);
+                let (a, b) = (k, (k + 1) % 6);
+                if ring == 0 {
+                    f.push([a, a + 6, b + 6]);
+                    f.push([a, b + 6, b]);
+                }
+            }
+        }
+        assert_eq!(
+            check_disk_topology(&Mesh::new(v, f)),
+            Err(FlattenError::NotDisk {
+                boundary_loops: 2,
+                euler_characteristic: 0
+            })
+        );
+    }
+
+    #[test]
     fn inconsistent_orientation_is_rejected() {
         let mut m = fan(false);
         m.faces[2] = [m.faces[2][0], m.faces[2][2], m.faces[2][1]];
