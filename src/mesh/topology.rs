@@ -46,11 +46,13 @@ impl EdgeMap {
     /// The edge map of `faces`.
     pub fn new(faces: &[[u32; 3]]) -> Self {
         // Sorting (edge key, half-edge) pairs groups each edge's half-edges
-        // in increasing order, hence its faces too.
-        let mut list: Vec<(EdgeKey, u32)> = Vec::with_capacity(faces.len() * 3);
+        // in increasing order, hence its faces too. The key is packed into
+        // one integer: the same order, and a much faster sort.
+        let mut list: Vec<(u64, u32)> = Vec::with_capacity(faces.len() * 3);
         for (fi, f) in faces.iter().enumerate() {
             for k in 0..3 {
-                list.push((edge_key(f[k], f[(k + 1) % 3]), (3 * fi + k) as u32));
+                let (a, b) = edge_key(f[k], f[(k + 1) % 3]);
+                list.push(((u64::from(a) << 32) | u64::from(b), (3 * fi + k) as u32));
             }
         }
         list.sort_unstable();
@@ -63,7 +65,7 @@ impl EdgeMap {
         for (i, &(key, h)) in list.iter().enumerate() {
             if i == 0 || list[i - 1].0 != key {
                 out.offsets.push(out.half_edges.len());
-                out.edges.push(key);
+                out.edges.push(((key >> 32) as u32, key as u32));
             }
             out.half_edges.push(h);
             out.faces.push(h / 3);
