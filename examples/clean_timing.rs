@@ -3,7 +3,8 @@
 //!
 //! `cargo run --release --example clean_timing [TOOTH.ply]`
 
-use morphoid::clean::{clean, resample::subdivide_midpoint, CleanOptions};
+use morphoid::clean::{clean, CleanOptions};
+use morphoid::mesh::subdivide_midpoint;
 use morphoid::mesh::{dot, norm, sub, Mesh};
 use std::path::Path;
 use std::time::Instant;
@@ -50,7 +51,7 @@ fn main() {
             std::process::exit(1);
         }
     };
-    let dense = subdivide_midpoint(&subdivide_midpoint(&tooth));
+    let dense = subdivide_midpoint(&tooth, 2);
     let opts = CleanOptions::default();
     let (a0, a1, ob) = angles(&tooth);
     println!(

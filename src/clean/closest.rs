@@ -1,8 +1,8 @@
 //! Closest point on a triangle mesh, accelerated with a uniform grid of
 //! triangle buckets.
 
-use super::adjacency::FxHashMap as HashMap;
 use crate::mesh::{dot, norm, sub, Mesh};
+use rustc_hash::FxHashMap as HashMap;
 
 /// The closest point of `p` on the triangle `abc` (Ericson, Real-Time
 /// Collision Detection, 5.1.5: Voronoi regions of the vertices and edges).

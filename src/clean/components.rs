@@ -1,6 +1,6 @@
 //! Connected components.
 
-use super::adjacency::UnionFind;
+use super::union_find::UnionFind;
 use crate::mesh::{face_areas, Mesh};
 
 /// Label of the connected component (faces linked through shared vertices)

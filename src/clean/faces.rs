@@ -1,6 +1,6 @@
 //! Degenerate, duplicate and unreferenced elements.
 
-use super::adjacency::UnionFind;
+use super::union_find::UnionFind;
 use crate::mesh::{norm, sub, triangle_area, Mesh};
 
 /// Remove faces with a repeated vertex index and collapse zero-area faces

@@ -1,34 +1,11 @@
-//! Boundary loops, hole filling and the disk-type test.
+//! Hole filling.
 
-use super::adjacency::boundary_loops_sorted;
-use crate::mesh::{norm, sub, Mesh};
+use crate::mesh::{boundary_loops_by_length, Mesh};
 
-/// Length of a closed vertex loop.
-pub fn loop_length(mesh: &Mesh, lp: &[u32]) -> f64 {
-    (0..lp.len())
-        .map(|i| {
-            norm(sub(
-                mesh.vertices[lp[i] as usize],
-                mesh.vertices[lp[(i + 1) % lp.len()] as usize],
-            ))
-        })
-        .sum()
-}
-
-/// Boundary loops of an oriented manifold mesh, longest (by length) first;
-/// ties keep the order of [`boundary_loops_sorted`].
-pub fn boundary_loops_by_length(mesh: &Mesh) -> Vec<Vec<u32>> {
-    let mut loops: Vec<(f64, Vec<u32>)> = boundary_loops_sorted(&mesh.faces)
-        .into_iter()
-        .map(|l| (loop_length(mesh, &l), l))
-        .collect();
-    loops.sort_by(|a, b| b.0.total_cmp(&a.0));
-    loops.into_iter().map(|(_, l)| l).collect()
-}
-
-/// Fill every boundary loop except the longest: a triangle for a 3-loop,
-/// otherwise a fan around a new vertex at the loop's centroid, oriented
-/// like the surrounding faces. Expects a consistently oriented manifold
+/// Fill every boundary loop except the longest (by geometric length; the
+/// others are filled longest first, see [`boundary_loops_by_length`]): a
+/// triangle for a 3-loop, otherwise a fan around a new vertex at the loop's
+/// centroid, oriented like the surrounding faces. Expects a consistently oriented manifold
 /// mesh. Returns the mesh and the number of holes filled.
 pub fn fill_holes_except_longest(mesh: &Mesh) -> (Mesh, usize) {
     let loops = boundary_loops_by_length(mesh);
@@ -58,13 +35,6 @@ pub fn fill_holes_except_longest(mesh: &Mesh) -> (Mesh, usize) {
         filled += 1;
     }
     (out, filled)
-}
-
-/// Number of handles (genus) of a connected orientable surface with Euler
-/// characteristic `chi` and `boundaries` boundary loops:
-/// χ = 2 − 2g − b.
-pub fn handle_count(chi: i64, boundaries: usize) -> i64 {
-    (2 - chi - boundaries as i64) / 2
 }
 
 #[cfg(test)]
@@ -115,7 +85,5 @@ mod tests {
                 assert!(dir.insert((t[k], t[(k + 1) % 3])));
             }
         }
-        assert_eq!(handle_count(1, 1), 0);
-        assert_eq!(handle_count(-1, 1), 1);
     }
 }

@@ -1,7 +1,8 @@
 //! Repair of non-manifold edges and vertices.
 
-use super::adjacency::{has_directed_edge, EdgeFaces, UnionFind};
-use crate::mesh::Mesh;
+use super::union_find::UnionFind;
+use crate::mesh::{edge_face_map, has_directed_edge, Mesh};
+use rustc_hash::FxHashMap;
 
 /// Make every edge have at most two faces. On an edge with more, the first
 /// face (lowest index) is kept together with the first later face that runs
@@ -11,7 +12,7 @@ use crate::mesh::Mesh;
 ///
 /// Returns the mesh and the number of non-manifold edges repaired.
 pub fn repair_nonmanifold_edges(mesh: &Mesh) -> (Mesh, usize) {
-    let ef = EdgeFaces::new(&mesh.faces);
+    let ef = edge_face_map(mesh);
     let mut removed = vec![false; mesh.faces.len()];
     let mut repaired = 0;
     for e in 0..ef.len() {
@@ -25,7 +26,7 @@ pub fn repair_nonmanifold_edges(mesh: &Mesh) -> (Mesh, usize) {
             continue;
         }
         repaired += 1;
-        let (a, b) = ef.edges[e];
+        let (a, b) = ef.edge(e);
         let first = live[0];
         let dir = has_directed_edge(mesh.faces[first as usize], a, b);
         let partner = live[1..]
@@ -55,7 +56,7 @@ pub fn repair_nonmanifold_edges(mesh: &Mesh) -> (Mesh, usize) {
 ///
 /// Returns the mesh and the number of vertices that were split.
 pub fn split_nonmanifold_vertices(mesh: &Mesh) -> (Mesh, usize) {
-    let ef = EdgeFaces::new(&mesh.faces);
+    let ef = edge_face_map(mesh);
     // Corner c = 3·face + k.
     let corner = |f: u32, v: u32| -> Option<u32> {
         let fc = mesh.faces[f as usize];
@@ -67,7 +68,7 @@ pub fn split_nonmanifold_vertices(mesh: &Mesh) -> (Mesh, usize) {
         if fs.len() != 2 {
             continue;
         }
-        let (a, b) = ef.edges[e];
+        let (a, b) = ef.edge(e);
         for v in [a, b] {
             if let (Some(c0), Some(c1)) = (corner(fs[0], v), corner(fs[1], v)) {
                 uf.union(c0, c1);
@@ -78,7 +79,7 @@ pub fn split_nonmanifold_vertices(mesh: &Mesh) -> (Mesh, usize) {
     let mut faces = mesh.faces.clone();
     // The fan root that owns each vertex; corners are visited in order.
     let mut owner = vec![u32::MAX; mesh.vertices.len()];
-    let mut copies: super::adjacency::FxHashMap<u32, u32> = Default::default();
+    let mut copies: FxHashMap<u32, u32> = Default::default();
     let mut split = vec![false; mesh.vertices.len()];
     for fi in 0..faces.len() {
         for k in 0..3 {

@@ -9,8 +9,9 @@
 //! 4. the largest connected component by area is kept ([`components`]);
 //! 5. non-manifold edges and vertices are repaired ([`manifold`]);
 //! 6. face orientation is made consistent ([`orient`]);
-//! 7. all boundary loops but the longest are filled ([`holes`]); the
-//!    surface must then be a disk (one loop, Euler characteristic 1);
+//! 7. all boundary loops but the longest (by geometric length) are filled
+//!    ([`holes`]); the surface must then be a disk (one loop, Euler
+//!    characteristic 1);
 //! 8. the orientation is chosen so that normals point outward
 //!    ([`orient::normals_point_outward`]: the vector area points from the
 //!    boundary loop towards the body of the surface, e.g. out of a tooth
@@ -21,7 +22,6 @@
 // Coordinate loops `for d in 0..3` read more clearly than zipped iterators.
 #![allow(clippy::needless_range_loop)]
 
-pub mod adjacency;
 pub mod closest;
 pub mod cloud;
 pub mod components;
@@ -30,17 +30,13 @@ pub mod holes;
 pub mod manifold;
 pub mod orient;
 pub mod resample;
+mod union_find;
 pub mod weld;
 
-use crate::mesh::{bbox_diagonal, surface_area, Mesh};
-
-fn boundary_loops(m: &Mesh) -> Vec<Vec<u32>> {
-    adjacency::boundary_loops_sorted(&m.faces)
-}
-
-fn euler_characteristic(m: &Mesh) -> i64 {
-    adjacency::euler_characteristic_sorted(m.vertices.len(), &m.faces)
-}
+use crate::mesh::{
+    bbox_diagonal, boundary_loops, euler_characteristic, genus, longest_boundary_loop,
+    surface_area, Mesh,
+};
 
 /// Parameters of the cleaning pipeline.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -213,15 +209,15 @@ fn make_disk(m: &Mesh, report: &mut CleanReport) -> Result<Mesh, CleanError> {
     report.filled_holes += filled;
     let chi = euler_characteristic(&m9);
     if chi != 1 {
-        let handles = holes::handle_count(chi, 1);
+        let handles = genus(chi, 1);
         return Err(if handles > 0 {
             CleanError::Handles(handles, chi)
         } else {
             CleanError::NotDisk(chi)
         });
     }
-    let outer = holes::boundary_loops_by_length(&m9);
-    if orient::normals_point_outward(&m9, outer.first().map_or(&[], |l| l)) {
+    let outer = longest_boundary_loop(&m9).unwrap_or_default();
+    if orient::normals_point_outward(&m9, &outer) {
         Ok(m9)
     } else {
         report.reversed_orientation = !report.reversed_orientation;

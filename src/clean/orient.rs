@@ -1,7 +1,6 @@
 //! Consistent face orientation and the choice of the outward side.
 
-use super::adjacency::{has_directed_edge, EdgeFaces};
-use crate::mesh::{dot, triangle_normal2, Mesh};
+use crate::mesh::{dot, edge_face_map, has_directed_edge, triangle_normal2, Mesh};
 use std::collections::VecDeque;
 
 /// Orientation could not be made consistent.
@@ -18,7 +17,7 @@ pub struct NonOrientable;
 /// for a Möbius-type surface.
 pub fn orient_faces_consistently(mesh: &Mesh) -> Result<(Mesh, usize), NonOrientable> {
     let n = mesh.faces.len();
-    let ef = EdgeFaces::new(&mesh.faces);
+    let ef = edge_face_map(mesh);
     // Neighbour lists as (face, same_direction) via each face's edges.
     // At most three neighbours per face (one per edge).
     let mut nbrs: Vec<[(u32, bool); 3]> = vec![[(u32::MAX, false); 3]; n];
@@ -32,7 +31,7 @@ pub fn orient_faces_consistently(mesh: &Mesh) -> Result<(Mesh, usize), NonOrient
         if fs.len() != 2 {
             continue;
         }
-        let (a, b) = ef.edges[e];
+        let (a, b) = ef.edge(e);
         let d0 = has_directed_edge(mesh.faces[fs[0] as usize], a, b);
         let d1 = has_directed_edge(mesh.faces[fs[1] as usize], a, b);
         let same = d0 == d1;

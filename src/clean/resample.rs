@@ -1,31 +1,11 @@
 //! Resampling to the working resolution and triangle-quality improvement.
 
-use super::adjacency::EdgeFaces;
-use super::adjacency::FxHashMap as HashMap;
 use super::closest::TriangleGrid;
-use crate::mesh::{cross, dot, norm, sub, triangle_normal2, Mesh};
-
-/// Midpoint subdivision: every edge gets a vertex at its midpoint and every
-/// triangle becomes four. The surface (as a point set) is unchanged.
-pub fn subdivide_midpoint(mesh: &Mesh) -> Mesh {
-    let ef = EdgeFaces::new(&mesh.faces);
-    let base = mesh.vertices.len() as u32;
-    let mut vertices = mesh.vertices.clone();
-    for &(a, b) in &ef.edges {
-        let (p, q) = (mesh.vertices[a as usize], mesh.vertices[b as usize]);
-        vertices.push([0, 1, 2].map(|d| 0.5 * (p[d] + q[d])));
-    }
-    let mid = |a: u32, b: u32| base + ef.find(a, b).unwrap_or(0) as u32;
-    let mut faces = Vec::with_capacity(mesh.faces.len() * 4);
-    for f in &mesh.faces {
-        let (ab, bc, ca) = (mid(f[0], f[1]), mid(f[1], f[2]), mid(f[2], f[0]));
-        faces.push([f[0], ab, ca]);
-        faces.push([ab, f[1], bc]);
-        faces.push([ca, bc, f[2]]);
-        faces.push([ab, bc, ca]);
-    }
-    Mesh::new(vertices, faces)
-}
+use crate::mesh::{
+    boundary_vertices, cross, dot, edge_face_map, edge_key, norm, sub, subdivide_midpoint,
+    triangle_normal2, EdgeKey, Mesh,
+};
+use rustc_hash::FxHashMap as HashMap;
 
 /// Vertex positions in single precision for the simplifier, with copies of
 /// one position (left by splitting non-manifold vertices) moved 1 % of the
@@ -115,11 +95,6 @@ const EAR_ANGLE: f64 = 10.0 * std::f64::consts::PI / 180.0;
 /// No face.
 const NONE: u32 = u32::MAX;
 
-#[inline]
-fn key(a: u32, b: u32) -> u64 {
-    ((a.min(b) as u64) << 32) | a.max(b) as u64
-}
-
 fn angle_at(p: [f64; 3], q: [f64; 3], r: [f64; 3]) -> f64 {
     // Angle at p in triangle pqr.
     let (u, v) = (sub(q, p), sub(r, p));
@@ -134,29 +109,29 @@ fn angle_at(p: [f64; 3], q: [f64; 3], r: [f64; 3]) -> f64 {
 /// the edge (a cap) is flipped whatever the dihedral angle. Returns the mesh
 /// and the flip count.
 pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
-    let ef = EdgeFaces::new(&mesh.faces);
+    let ef = edge_face_map(mesh);
     let mut faces = mesh.faces.clone();
-    let mut e2f: HashMap<u64, [u32; 2]> =
+    let mut e2f: HashMap<EdgeKey, [u32; 2]> =
         HashMap::with_capacity_and_hasher(ef.len(), Default::default());
     let mut degree = vec![0u32; mesh.vertices.len()];
     for e in 0..ef.len() {
-        let (a, b) = ef.edges[e];
+        let (a, b) = ef.edge(e);
         degree[a as usize] += 1;
         degree[b as usize] += 1;
         let fs = ef.faces_of(e);
         // Boundary edges are kept with NONE as second face: they must block
         // flips that would create them again, but are never flipped.
         let second = if fs.len() == 2 { fs[1] } else { NONE };
-        e2f.insert(key(a, b), [fs[0], second]);
+        e2f.insert(edge_key(a, b), [fs[0], second]);
     }
     let cos_max = max_dihedral.cos();
     let v = &mesh.vertices;
     let mut stack: Vec<(u32, u32)> = ef
-        .edges
+        .edges()
         .iter()
         .rev()
         .copied()
-        .filter(|&(a, b)| e2f.get(&key(a, b)).is_some_and(|fs| fs[1] != NONE))
+        .filter(|&(a, b)| e2f.get(&edge_key(a, b)).is_some_and(|fs| fs[1] != NONE))
         .collect();
     let mut flips = 0usize;
     let budget = 20 * ef.len() + 16;
@@ -166,7 +141,7 @@ pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
         if steps > budget {
             break;
         }
-        let Some(&[f, g]) = e2f.get(&key(x, y)) else {
+        let Some(&[f, g]) = e2f.get(&edge_key(x, y)) else {
             continue;
         };
         if g == NONE {
@@ -187,7 +162,7 @@ pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
             continue;
         };
         if c == d
-            || e2f.contains_key(&key(c, d))
+            || e2f.contains_key(&edge_key(c, d))
             || degree[a as usize] <= 3
             || degree[b as usize] <= 3
         {
@@ -220,9 +195,9 @@ pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
         }
         faces[f as usize] = [a, d, c];
         faces[g as usize] = [d, b, c];
-        e2f.remove(&key(a, b));
-        e2f.insert(key(c, d), [f, g]);
-        for (e, from, to) in [(key(a, d), g, f), (key(b, c), f, g)] {
+        e2f.remove(&edge_key(a, b));
+        e2f.insert(edge_key(c, d), [f, g]);
+        for (e, from, to) in [(edge_key(a, d), g, f), (edge_key(b, c), f, g)] {
             if let Some(fs) = e2f.get_mut(&e) {
                 for s in fs.iter_mut() {
                     if *s == from {
@@ -241,20 +216,6 @@ pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
     (Mesh::new(mesh.vertices.clone(), faces), flips)
 }
 
-/// Boundary vertices (on an edge with one face).
-pub fn boundary_vertices(mesh: &Mesh) -> Vec<bool> {
-    let ef = EdgeFaces::new(&mesh.faces);
-    let mut on = vec![false; mesh.vertices.len()];
-    for e in 0..ef.len() {
-        if ef.faces_of(e).len() == 1 {
-            let (a, b) = ef.edges[e];
-            on[a as usize] = true;
-            on[b as usize] = true;
-        }
-    }
-    on
-}
-
 /// The surface that relaxed vertices are projected back onto: its
 /// triangles (for interior vertices) and its boundary segments (for
 /// boundary vertices, which thereby stay on the original boundary).
@@ -268,11 +229,11 @@ impl SurfaceReference {
     /// Reference of `mesh`; `None` without faces.
     pub fn new(mesh: &Mesh) -> Option<Self> {
         let grid = TriangleGrid::new(mesh)?;
-        let ef = EdgeFaces::new(&mesh.faces);
+        let ef = edge_face_map(mesh);
         let boundary = (0..ef.len())
             .filter(|&e| ef.faces_of(e).len() == 1)
             .map(|e| {
-                let (a, b) = ef.edges[e];
+                let (a, b) = ef.edge(e);
                 [mesh.vertices[a as usize], mesh.vertices[b as usize]]
             })
             .collect();
@@ -320,10 +281,10 @@ pub fn relax_tangential(mesh: &Mesh, reference: &SurfaceReference, lambda: f64) 
     let v = &mesh.vertices;
     // Boundary neighbours (u32::MAX = none); a third one marks a pinch.
     let mut bnbr = vec![[u32::MAX; 3]; n];
-    let ef = EdgeFaces::new(&mesh.faces);
+    let ef = edge_face_map(mesh);
     for e in 0..ef.len() {
         if ef.faces_of(e).len() == 1 {
-            let (a, b) = ef.edges[e];
+            let (a, b) = ef.edge(e);
             for (x, y) in [(a, b), (b, a)] {
                 if let Some(slot) = bnbr[x as usize].iter_mut().find(|s| **s == u32::MAX) {
                     *slot = y;
@@ -409,7 +370,7 @@ pub fn resample_to_vertex_count(mesh: &Mesh, target_vertices: usize) -> Mesh {
     let hi = (1.1 * target_vertices as f64) as usize;
     let mut guard = 0;
     while m.vertices.len() < lo && guard < 8 && !m.faces.is_empty() {
-        m = subdivide_midpoint(&m);
+        m = subdivide_midpoint(&m, 1);
         guard += 1;
     }
     if m.vertices.len() > hi {
@@ -442,7 +403,7 @@ pub fn remove_boundary_caps(mesh: &Mesh) -> (Mesh, usize) {
 }
 
 fn remove_boundary_slivers_once(mesh: &Mesh) -> (Mesh, usize) {
-    let ef = EdgeFaces::new(&mesh.faces);
+    let ef = edge_face_map(mesh);
     let mut on_boundary = boundary_vertices(mesh);
     let mut boundary_edges = vec![0u8; mesh.faces.len()];
     for e in 0..ef.len() {
@@ -458,7 +419,7 @@ fn remove_boundary_slivers_once(mesh: &Mesh) -> (Mesh, usize) {
             continue;
         }
         let fi = fs[0] as usize;
-        let (a, b) = ef.edges[e];
+        let (a, b) = ef.edge(e);
         let f = mesh.faces[fi];
         let Some(&c) = f.iter().find(|&&x| x != a && x != b) else {
             continue;
@@ -539,16 +500,6 @@ mod tests {
     }
 
     #[test]
-    fn subdivision_keeps_area_and_topology() {
-        let m = grid(3);
-        let s = subdivide_midpoint(&m);
-        assert_eq!(s.faces.len(), 4 * m.faces.len());
-        assert_eq!(s.vertices.len(), 49);
-        assert!((surface_area(&s) - surface_area(&m)).abs() < 1e-12);
-        assert_eq!(euler_characteristic(&s), 1);
-    }
-
-    #[test]
     fn obtuse_pair_is_flipped() {
         // A flat rhombus split along its long diagonal: opposite angles > 90°.
         let m = Mesh::new(
@@ -589,7 +540,7 @@ mod tests {
 
     #[test]
     fn decimation_hits_the_target() {
-        let m = subdivide_midpoint(&subdivide_midpoint(&grid(20)));
+        let m = subdivide_midpoint(&grid(20), 2);
         let d = decimate_to_vertex_count(&m, 1000);
         let nv = d.vertices.len() as f64;
         assert!((nv - 1000.0).abs() < 100.0, "{nv}");

@@ -1,7 +1,7 @@
 //! Welding of duplicate vertices.
 
-use super::adjacency::FxHashMap as HashMap;
 use crate::mesh::{sub, Mesh};
+use rustc_hash::FxHashMap as HashMap;
 
 /// Merge vertices closer than `tolerance` (Euclidean), scanning vertices in
 /// order: each vertex maps to the first earlier kept vertex within the

@@ -1,12 +1,12 @@
 //! The conformal factor: how much area the flattening shrinks or expands.
 
 use super::quality::signed_area_2d;
-use crate::mesh::{triangle_area, Mesh};
+use crate::mesh::{triangle_area, vertex_adjacency, Mesh};
 
 /// Conformal factor `f` at each vertex: surface area over disk area of the
 /// faces around it (so that `f dx dy` is the surface's area element), then
 /// lightly smoothed: one step averaging `log f` half with the mean over the
-/// neighbouring vertices.
+/// vertex's one-ring ([`vertex_adjacency`]).
 ///
 /// Vertices whose star has no positive disk area (or no face) get the
 /// global ratio (surface area / disk area); the result is always finite and
@@ -15,7 +15,6 @@ pub fn conformal_factor(mesh: &Mesh, uv: &[[f64; 2]]) -> Vec<f64> {
     let n = mesh.vertices.len();
     let mut surf = vec![0.0; n];
     let mut disk = vec![0.0; n];
-    let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); n];
     let (mut surf_total, mut disk_total) = (0.0, 0.0);
     for f in &mesh.faces {
         let idx = f.map(|v| v as usize);
@@ -36,8 +35,6 @@ pub fn conformal_factor(mesh: &Mesh, uv: &[[f64; 2]]) -> Vec<f64> {
         for k in 0..3 {
             surf[idx[k]] += a3;
             disk[idx[k]] += a2;
-            neighbours[idx[k]].push(f[(k + 1) % 3]);
-            neighbours[idx[k]].push(f[(k + 2) % 3]);
         }
     }
     let global = if surf_total > 0.0 && disk_total > 0.0 {
@@ -57,12 +54,10 @@ pub fn conformal_factor(mesh: &Mesh, uv: &[[f64; 2]]) -> Vec<f64> {
             }
         })
         .collect();
-    neighbours
-        .iter_mut()
+    vertex_adjacency(mesh)
+        .iter()
         .enumerate()
         .map(|(v, nb)| {
-            nb.sort_unstable();
-            nb.dedup();
             if nb.is_empty() {
                 return log_f[v].exp();
             }

@@ -6,9 +6,7 @@ use super::laplacian::{cotangent_edge_weights, csc_from_columns, EdgeWeights};
 use super::quality::{flipped_triangles, signed_area_2d};
 use super::validate::check_disk_topology;
 use super::FlattenError;
-use crate::mesh::{norm, sub, Mesh};
-use std::cmp::Ordering;
-use std::collections::BinaryHeap;
+use crate::mesh::{graph_distance, norm, sub, Mesh};
 
 /// A surface flattened onto the closed unit disk.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -319,29 +317,7 @@ fn positive_weights(mut weights: EdgeWeights, relative_floor: f64) -> EdgeWeight
 /// by the smallest index, so the choice does not change under rigid motions
 /// and scaling. `None` when every vertex is on the boundary.
 pub fn central_vertex(mesh: &Mesh, boundary: &[u32]) -> Option<u32> {
-    let n = mesh.vertices.len();
-    let adj = vertex_adjacency(mesh);
-    let mut dist = vec![f64::INFINITY; n];
-    let mut heap = BinaryHeap::new();
-    for &b in boundary {
-        if let Some(d) = dist.get_mut(b as usize) {
-            *d = 0.0;
-            heap.push(HeapItem(0.0, b));
-        }
-    }
-    while let Some(HeapItem(d, v)) = heap.pop() {
-        let v = v as usize;
-        if d > dist[v] {
-            continue;
-        }
-        for &u in &adj[v] {
-            let nd = d + norm(sub(mesh.vertices[v], mesh.vertices[u as usize]));
-            if nd < dist[u as usize] {
-                dist[u as usize] = nd;
-                heap.push(HeapItem(nd, u));
-            }
-        }
-    }
+    let dist = graph_distance(mesh, boundary);
     let max = dist
         .iter()
         .copied()
@@ -353,49 +329,6 @@ pub fn central_vertex(mesh: &Mesh, boundary: &[u32]) -> Option<u32> {
     dist.iter()
         .position(|&d| d.is_finite() && d >= max * (1.0 - 1e-9))
         .map(|v| v as u32)
-}
-
-/// Min-heap entry (distance, vertex) for Dijkstra.
-struct HeapItem(f64, u32);
-
-impl PartialEq for HeapItem {
-    fn eq(&self, other: &Self) -> bool {
-        self.cmp(other) == Ordering::Equal
-    }
-}
-impl Eq for HeapItem {}
-impl PartialOrd for HeapItem {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
-    }
-}
-impl Ord for HeapItem {
-    fn cmp(&self, other: &Self) -> Ordering {
-        other
-            .0
-            .total_cmp(&self.0)
-            .then_with(|| other.1.cmp(&self.1))
-    }
-}
-
-/// Sorted, deduplicated neighbour lists (indices assumed valid).
-fn vertex_adjacency(mesh: &Mesh) -> Vec<Vec<u32>> {
-    let n = mesh.vertices.len();
-    let mut adj: Vec<Vec<u32>> = vec![Vec::new(); n];
-    for f in &mesh.faces {
-        for k in 0..3 {
-            let (a, b) = (f[k], f[(k + 1) % 3]);
-            if (a as usize) < n && (b as usize) < n {
-                adj[a as usize].push(b);
-                adj[b as usize].push(a);
-            }
-        }
-    }
-    for l in adj.iter_mut() {
-        l.sort_unstable();
-        l.dedup();
-    }
-    adj
 }
 
 /// Disk coordinates from symmetric positive edge weights: boundary angles

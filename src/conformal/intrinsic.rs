@@ -3,9 +3,9 @@
 //! Delaunay. The cotangent weights of the result are non-negative, and its
 //! Laplacian discretizes the same piecewise-flat surface as the input.
 
-use super::laplacian::{half_edges_by_edge, sum_by_edge, EdgeWeights};
+use super::laplacian::{sum_by_edge, EdgeWeights};
 use super::FlattenError;
-use crate::mesh::{norm, sub, Mesh};
+use crate::mesh::{edge_face_map, edge_key, norm, sub, Mesh};
 
 /// A triangulation of the input's vertices by intrinsic triangles: face
 /// corners plus the length of each half-edge `3f + k` (from corner `k` to
@@ -77,29 +77,23 @@ impl IntrinsicMesh {
         let mut twin = vec![None; 3 * nf];
         let mut degree = vec![0u32; nv];
         let mut min_degree = vec![3u32; nv];
-        let half = half_edges_by_edge(&mesh.faces);
-        let mut i = 0;
-        while i < half.len() {
-            let mut j = i + 1;
-            while j < half.len() && half[j].0 == half[i].0 {
-                j += 1;
-            }
-            let (a, b) = (
-                (half[i].0 >> 32) as usize,
-                (half[i].0 & 0xffff_ffff) as usize,
-            );
+        let edges = edge_face_map(mesh);
+        for e in 0..edges.len() {
+            let (a, b) = edges.edge(e);
+            let (a, b) = (a as usize, b as usize);
             degree[a] += 1;
             degree[b] += 1;
-            let (h0, h1) = (half[i].1 as usize, half[(i + 1).min(j - 1)].1 as usize);
-            let start = |h: usize| mesh.faces[h / 3][h % 3];
-            if j - i == 2 && start(h0) != start(h1) {
-                twin[h0] = Some(h1);
-                twin[h1] = Some(h0);
-            } else {
-                min_degree[a] = 2;
-                min_degree[b] = 2;
+            let start = |h: u32| mesh.faces[h as usize / 3][h as usize % 3];
+            match *edges.half_edges_of(e) {
+                [h0, h1] if start(h0) != start(h1) => {
+                    twin[h0 as usize] = Some(h1 as usize);
+                    twin[h1 as usize] = Some(h0 as usize);
+                }
+                _ => {
+                    min_degree[a] = 2;
+                    min_degree[b] = 2;
+                }
             }
-            i = j;
         }
         Self {
             faces: mesh.faces.clone(),
@@ -216,7 +210,7 @@ impl IntrinsicMesh {
                 if i == j {
                     continue;
                 }
-                w.push(((i.min(j), i.max(j)), 0.5 * opposite_cot(self, 3 * f + k)));
+                w.push((edge_key(i, j), 0.5 * opposite_cot(self, 3 * f + k)));
             }
         }
         sum_by_edge(w)

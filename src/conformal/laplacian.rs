@@ -1,6 +1,6 @@
 //! The cotangent Laplacian.
 
-use crate::mesh::{cross, dot, norm, sub, Mesh};
+use crate::mesh::{cross, dot, edge_key, norm, sub, Mesh};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 
 /// Symmetric edge weights `((i, j), w)` with `i < j`, sorted by edge.
@@ -37,7 +37,7 @@ pub fn cotangent_edge_weights(mesh: &Mesh) -> EdgeWeights {
         for k in 0..3 {
             let (i, j) = (f[(k + 1) % 3], f[(k + 2) % 3]);
             let c = cot_at(p[k], p[(k + 1) % 3], p[(k + 2) % 3]).unwrap_or(0.0);
-            w.push(((i.min(j), i.max(j)), 0.5 * c));
+            w.push((edge_key(i, j), 0.5 * c));
         }
     }
     sum_by_edge(w)
@@ -56,23 +56,6 @@ pub(crate) fn sum_by_edge(mut entries: EdgeWeights) -> EdgeWeights {
         }
     }
     out
-}
-
-/// Half-edge `3f + k` runs from corner `k` to corner `k + 1` of face `f`.
-/// Returns all half-edges as `(undirected edge key, half-edge)`, sorted, so
-/// that the half-edges of each edge are adjacent. Faces must have valid
-/// indices.
-pub(crate) fn half_edges_by_edge(faces: &[[u32; 3]]) -> Vec<(u64, u32)> {
-    let mut h: Vec<(u64, u32)> = Vec::with_capacity(3 * faces.len());
-    for (f, face) in faces.iter().enumerate() {
-        for k in 0..3 {
-            let (a, b) = (face[k], face[(k + 1) % 3]);
-            let key = (u64::from(a.min(b)) << 32) | u64::from(a.max(b));
-            h.push((key, (3 * f + k) as u32));
-        }
-    }
-    h.sort_unstable();
-    h
 }
 
 /// The weighted graph Laplacian of symmetric edge weights: `L_ij = w_ij`,

@@ -1,14 +1,14 @@
 //! Checks that a mesh is a clean, consistently oriented topological disk.
 
-use super::laplacian::half_edges_by_edge;
 use super::FlattenError;
-use crate::mesh::Mesh;
+use crate::mesh::{boundary_loops, edge_face_map, euler_characteristic, half_edge_ends, Mesh};
 
 /// Check that `mesh` is a clean, consistently oriented, disk-type surface
 /// with at least one interior vertex, and return its boundary loop.
 ///
 /// The loop follows the boundary half-edges, so with counter-clockwise faces
-/// the surface lies to the left of it.
+/// the surface lies to the left of it, and starts at its smallest vertex
+/// (see [`boundary_loops`]).
 pub fn check_disk_topology(mesh: &Mesh) -> Result<Vec<u32>, FlattenError> {
     let n = mesh.vertices.len();
     if mesh.faces.is_empty() || n == 0 {
@@ -45,35 +45,21 @@ pub fn check_disk_topology(mesh: &Mesh) -> Result<Vec<u32>, FlattenError> {
 
     // Half-edges grouped by undirected edge: one is a boundary edge, two
     // must run in opposite directions, more is not a manifold.
-    let half = half_edges_by_edge(&mesh.faces);
-    let ends = |h: u32| {
-        let (f, k) = (h as usize / 3, h as usize % 3);
-        let face = mesh.faces[f];
-        (face[k], face[(k + 1) % 3])
-    };
-    let mut next = vec![u32::MAX; n];
-    let mut boundary_edges: Vec<(u32, u32)> = Vec::new();
-    let mut edge_count = 0usize;
-    let mut i = 0;
-    while i < half.len() {
-        let mut j = i + 1;
-        while j < half.len() && half[j].0 == half[i].0 {
-            j += 1;
-        }
-        edge_count += 1;
-        let (a, b) = ends(half[i].1);
-        match j - i {
+    let edges = edge_face_map(mesh);
+    let mut leaves_boundary = vec![false; n];
+    for e in 0..edges.len() {
+        let half = edges.half_edges_of(e);
+        let (a, b) = half_edge_ends(&mesh.faces, half[0]);
+        match half.len() {
             1 => {
-                if next[a as usize] != u32::MAX {
+                if std::mem::replace(&mut leaves_boundary[a as usize], true) {
                     return Err(FlattenError::NonManifold {
                         reason: format!("boundary loops touch at vertex {a}"),
                     });
                 }
-                next[a as usize] = b;
-                boundary_edges.push((a, b));
             }
             2 => {
-                if ends(half[i + 1].1) == (a, b) {
+                if half_edge_ends(&mesh.faces, half[1]) == (a, b) {
                     return Err(FlattenError::InconsistentOrientation { a, b });
                 }
             }
@@ -83,61 +69,29 @@ pub fn check_disk_topology(mesh: &Mesh) -> Result<Vec<u32>, FlattenError> {
                 })
             }
         }
-        i = j;
     }
-    boundary_edges.sort_unstable();
-    let mut loops: Vec<Vec<u32>> = Vec::new();
-    let mut visited = vec![false; n];
-    for &(start, _) in &boundary_edges {
-        if visited[start as usize] {
-            continue;
-        }
-        let mut lp = Vec::new();
-        let mut cur = start;
-        loop {
-            if std::mem::replace(&mut visited[cur as usize], true) {
-                break;
-            }
-            lp.push(cur);
-            match next[cur as usize] {
-                u32::MAX => {
-                    return Err(FlattenError::NonManifold {
-                        reason: format!("boundary is not closed at vertex {cur}"),
-                    })
-                }
-                nx => cur = nx,
-            }
-        }
-        if cur != start {
-            return Err(FlattenError::NonManifold {
-                reason: format!("boundary loop through vertex {cur} is not simple"),
-            });
-        }
-        loops.push(lp);
-    }
-    let euler = n as i64 - edge_count as i64 + mesh.faces.len() as i64;
+    // Now every edge has one or two faces, consistently oriented, and at most
+    // one boundary half-edge leaves each vertex. Around a vertex, its faces
+    // bring as many half-edges in as out and interior edges pair them, so as
+    // many boundary half-edges enter it as leave it: the boundary is a set
+    // of disjoint simple loops.
+    let mut loops = boundary_loops(mesh);
+    let euler = euler_characteristic(mesh);
     if loops.len() != 1 || euler != 1 {
         return Err(FlattenError::NotDisk {
             boundary_loops: loops.len(),
             euler_characteristic: euler,
         });
     }
+    // The loop starts at its smallest vertex index: independent of any
+    // rigid motion of the input.
     let boundary = loops.pop().unwrap_or_default();
     if boundary.len() >= n {
         return Err(FlattenError::Degenerate {
             reason: "no interior vertex".into(),
         });
     }
-    // Start the loop at its smallest vertex index: independent of hashing and
-    // of any rigid motion of the input.
-    let start = boundary
-        .iter()
-        .enumerate()
-        .min_by_key(|&(_, &v)| v)
-        .map_or(0, |(i, _)| i);
-    let mut rotated = boundary[start..].to_vec();
-    rotated.extend_from_slice(&boundary[..start]);
-    Ok(rotated)
+    Ok(boundary)
 }
 
 #[cfg(test)]
@@ -174,6 +128,53 @@ mod tests {
                 euler_characteristic: 2
             })
         ));
+    }
+
+    #[test]
+    fn touching_loops_and_holes_are_rejected() {
+        // A second hexagon fan whose leftmost rim vertex is the first fan's
+        // vertex 1 at (1, 0, 0): two disks touching at one boundary vertex.
+        let mut m = fan(false);
+        let centre = m.vertices.len() as u32;
+        m.vertices.push([2.0, 0.0, 0.0]);
+        let rim: Vec<u32> = (0..6)
+            .map(|k| {
+                if k == 3 {
+                    return 1;
+                }
+                let t = k as f64 * std::f64::consts::PI / 3.0;
+                m.vertices.push([2.0 + t.cos(), t.sin(), 0.0]);
+                m.vertices.len() as u32 - 1
+            })
+            .collect();
+        m.faces
+            .extend((0..6).map(|k| [centre, rim[k], rim[(k + 1) % 6]]));
+        assert!(matches!(
+            check_disk_topology(&m),
+            Err(FlattenError::NonManifold { reason }) if reason.contains("touch at vertex 1")
+        ));
+        // An annulus between two hexagons: two loops, χ = 0.
+        let mut v = vec![];
+        let mut f = vec![];
+        for ring in 0..2u32 {
+            for k in 0..6u32 {
+                let t = k as f64 * std::f64::consts::PI / 3.0;
+                let r = 1.0 + ring as f64;
+                v.push([r * t.cos(), r * t.sin(), 0.0]);
+                let (a, b) = (k, (k + 1) % 6);
+                if ring == 0 {
+                    f.push([a, a + 6, b + 6]);
+                    f.push([a, b + 6, b]);
+                }
+            }
+        }
+        assert_eq!(
+            check_disk_topology(&Mesh::new(v, f)),
+            Err(FlattenError::NotDisk {
+                boundary_loops: 2,
+                euler_characteristic: 0
+            })
+        );
     }
 
     #[test]

@@ -4,6 +4,8 @@
 //! triangle, a walk across triangle edges that touches only a few
 //! triangles (the grid's lists are too large to stay in cache).
 
+use crate::mesh::triangle_adjacency;
+pub use crate::mesh::NO_TRIANGLE;
 use serde::{Deserialize, Serialize};
 
 /// A point located in a triangulation: the triangle and the barycentric
@@ -48,9 +50,6 @@ pub struct RimEdge {
     /// The corner of that triangle opposite the edge.
     pub corner: u8,
 }
-
-/// Marks a triangle edge with no triangle on its other side.
-pub const NO_TRIANGLE: u32 = u32::MAX;
 
 /// How far outside a triangle (in barycentric coordinates) a point may lie
 /// and still count as inside it, clamped onto its edge. Rounding puts a
@@ -111,38 +110,6 @@ fn rim_edges(uv: &[[f64; 2]], faces: &[[u32; 3]], adjacency: &[[u32; 3]]) -> (Ve
         return (Vec::new(), f64::INFINITY);
     }
     (rim, radius)
-}
-
-/// The triangle across the edge opposite each corner of each triangle:
-/// `adjacency[f][k]` shares the edge `(faces[f][k+1], faces[f][k+2])` with
-/// `f`, or is [`NO_TRIANGLE`] when that edge is on the boundary or is
-/// shared by more than two triangles.
-pub fn triangle_adjacency(faces: &[[u32; 3]]) -> Vec<[u32; 3]> {
-    // (edge key, triangle, corner), sorted so that a shared edge's two
-    // entries are neighbours.
-    let mut edges: Vec<((u32, u32), u32, u8)> = Vec::with_capacity(3 * faces.len());
-    for (fi, f) in faces.iter().enumerate() {
-        for k in 0..3u8 {
-            let (a, b) = (f[(k as usize + 1) % 3], f[(k as usize + 2) % 3]);
-            edges.push(((a.min(b), a.max(b)), fi as u32, k));
-        }
-    }
-    edges.sort_unstable();
-    let mut adjacency = vec![[NO_TRIANGLE; 3]; faces.len()];
-    let mut i = 0;
-    while i < edges.len() {
-        let mut j = i + 1;
-        while j < edges.len() && edges[j].0 == edges[i].0 {
-            j += 1;
-        }
-        if j - i == 2 {
-            let ((_, f, k), (_, g, l)) = ((edges[i]), (edges[i + 1]));
-            adjacency[f as usize][k as usize] = g;
-            adjacency[g as usize][l as usize] = f;
-        }
-        i = j;
-    }
-    adjacency
 }
 
 /// Barycentric coordinates of `p` in the triangle `abc` (unclamped); `None`

@@ -27,7 +27,6 @@ mod descent;
 mod error;
 mod evaluate;
 mod features;
-mod graph;
 mod locate;
 mod mobius;
 mod moser;

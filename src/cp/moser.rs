@@ -15,7 +15,7 @@
 
 use super::locate::{LocateGrid, Location, NO_TRIANGLE};
 use crate::conformal::{cotangent_edge_weights, shifted_stiffness, SpdFactor};
-use crate::mesh::synth::unit_disk;
+use crate::mesh::unit_disk;
 use std::sync::OnceLock;
 
 /// Time steps of the flow integration (midpoint rule) for a map that is

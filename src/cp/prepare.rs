@@ -3,14 +3,13 @@
 
 use super::error::CpError;
 use super::features::{local_maxima, smooth_vertex_function};
-use super::graph::{breadth_first_tree, graph_distance, vertex_adjacency};
 use super::locate::LocateGrid;
 use super::moser::disk_measure;
 use super::params::PrepareParams;
 use super::prepared::Prepared;
 use super::samples::farthest_point_samples;
 use crate::conformal::{self, conformal_factor, hyperbolic_density};
-use crate::mesh::{self, Mesh};
+use crate::mesh::{self, breadth_first_tree, graph_distance, vertex_adjacency, Mesh};
 
 /// Signed volume of the surface closed by a cone from its boundary
 /// centroid (the cone itself contributes nothing from its apex).

@@ -3,7 +3,7 @@
 use crate::mesh::Mesh;
 use std::collections::BinaryHeap;
 
-use super::graph::HeapItem;
+use crate::mesh::HeapItem;
 
 /// Samples: vertex indices and the area of their (graph-)Voronoi cells.
 #[derive(Debug, Clone, PartialEq)]
@@ -118,7 +118,7 @@ mod tests {
     #[test]
     fn samples_are_spread_and_weights_sum_to_area() {
         let m = grid(20);
-        let adj = super::super::graph::vertex_adjacency(&m);
+        let adj = crate::mesh::vertex_adjacency(&m);
         let areas = crate::mesh::vertex_areas(&m);
         let s = farthest_point_samples(&m, &adj, &areas, &[220], 30);
         assert_eq!(s.vertices.len(), 30);

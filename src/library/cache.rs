@@ -226,7 +226,6 @@ mod tests {
         assert_eq!(names, [format!("r.{key}.{EXTENSION}")]);
     }
 
-
     #[test]
     fn only_preparation_settings_key_the_cache() {
         let dir = tempfile::tempdir().unwrap();

@@ -1,12 +1,32 @@
 //! Triangle meshes: the plain data type every stage shares, its elementary
-//! geometry and topology, and (in submodules) reading/writing and the
-//! synthetic surface generator.
+//! geometry, and in submodules:
+//! - `topology`: the one definition of each combinatorial concept (the
+//!   edge map, boundary loops and the longest one, the Euler
+//!   characteristic, the genus, vertex and triangle adjacency);
+//! - `graph`: edge-path distances and breadth-first orders;
+//! - `subdivide`: midpoint subdivision;
+//! - `disk`: the triangulated unit disk;
+//! - [`io`]: reading and writing files;
+//! - [`synth`]: the synthetic surface generator (tests and the demo only;
+//!   nothing numerical depends on it).
 
+mod disk;
+mod graph;
 pub mod io;
+mod subdivide;
 pub mod synth;
 mod topology;
 
-pub use topology::{boundary_loops, edge_face_map, euler_characteristic, EdgeKey};
+pub use disk::unit_disk;
+pub(crate) use graph::HeapItem;
+pub use graph::{breadth_first_tree, graph_distance};
+pub use subdivide::subdivide_midpoint;
+pub use topology::{
+    boundary_loop_length, boundary_loops, boundary_loops_by_length, boundary_vertices,
+    edge_face_map, edge_key, euler_characteristic, genus, longest_boundary_loop,
+    triangle_adjacency, vertex_adjacency, EdgeKey, EdgeMap, NO_TRIANGLE,
+};
+pub(crate) use topology::{half_edge_ends, has_directed_edge};
 
 /// A triangle mesh (or, with no faces, a point cloud).
 ///

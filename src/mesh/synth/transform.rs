@@ -2,11 +2,11 @@
 //! inputs: every function returns a new mesh and is deterministic for a
 //! given seed.
 
+pub use crate::mesh::subdivide_midpoint;
 use crate::mesh::{bbox_diagonal, norm, sub, Mesh};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use std::collections::HashMap;
 use std::f64::consts::TAU;
 
 /// A rotation (orthonormal, determinant +1) followed by a translation.
@@ -215,38 +215,6 @@ fn random_unit_vector(rng: &mut ChaCha8Rng) -> [f64; 3] {
     [r * a.cos(), r * a.sin(), z]
 }
 
-/// Split every triangle into four at its edge midpoints, `levels` times
-/// (each level multiplies the face count by 4). Original vertices keep
-/// their indices; orientation is preserved.
-pub fn subdivide_midpoint(mesh: &Mesh, levels: u32) -> Mesh {
-    let mut m = mesh.clone();
-    for _ in 0..levels {
-        let mut vertices = m.vertices.clone();
-        let mut midpoint: HashMap<(u32, u32), u32> = HashMap::new();
-        let mut mid = |a: u32, b: u32, vertices: &mut Vec<[f64; 3]>| -> u32 {
-            let key = if a < b { (a, b) } else { (b, a) };
-            *midpoint.entry(key).or_insert_with(|| {
-                let (p, q) = (vertices[a as usize], vertices[b as usize]);
-                vertices.push([
-                    0.5 * (p[0] + q[0]),
-                    0.5 * (p[1] + q[1]),
-                    0.5 * (p[2] + q[2]),
-                ]);
-                (vertices.len() - 1) as u32
-            })
-        };
-        let mut faces = Vec::with_capacity(4 * m.faces.len());
-        for &[a, b, c] in &m.faces {
-            let ab = mid(a, b, &mut vertices);
-            let bc = mid(b, c, &mut vertices);
-            let ca = mid(c, a, &mut vertices);
-            faces.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
-        }
-        m = Mesh::new(vertices, faces);
-    }
-    m
-}
-
 /// Remove the faces whose centroid lies within `radius` of `centre`, and
 /// the vertices no face uses any more. A centre well inside a disk-type
 /// surface makes a hole (a second boundary loop).
@@ -388,17 +356,6 @@ mod tests {
         let flipped = m.faces.iter().zip(&f.faces).filter(|(a, b)| a != b).count();
         assert_eq!(flipped, (0.1 * m.faces.len() as f64).round() as usize);
         assert_eq!(f, flip_faces(&m, 0.1, 4));
-    }
-
-    #[test]
-    fn subdivision_quadruples_and_stays_a_disk() {
-        let m = unit_disk(100);
-        let s = subdivide_midpoint(&m, 2);
-        assert_eq!(s.faces.len(), 16 * m.faces.len());
-        assert_eq!(euler_characteristic(&s), 1);
-        assert_eq!(boundary_loops(&s).len(), 1);
-        assert!((surface_area(&s) - surface_area(&m)).abs() < 1e-12);
-        assert_eq!(&s.vertices[..m.vertices.len()], &m.vertices[..]);
     }
 
     #[test]

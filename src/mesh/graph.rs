@@ -1,9 +1,11 @@
-//! Graph distances along mesh edges and vertex adjacency.
+//! Distances and traversal orders along the edges of a mesh.
 
-use crate::mesh::Mesh;
+use super::{norm, sub, vertex_adjacency, Mesh};
 use std::collections::BinaryHeap;
 
-/// Geodesic (edge-path) distance from the sources to every vertex.
+/// Edge-path (graph-geodesic) distance from the nearest of `sources` to
+/// every vertex, along edges weighted by their Euclidean length (Dijkstra).
+/// Unreachable vertices get infinity; out-of-range sources are ignored.
 pub fn graph_distance(mesh: &Mesh, sources: &[u32]) -> Vec<f64> {
     let n = mesh.vertices.len();
     let adj = vertex_adjacency(mesh);
@@ -20,10 +22,7 @@ pub fn graph_distance(mesh: &Mesh, sources: &[u32]) -> Vec<f64> {
             continue;
         }
         for &u in &adj[v as usize] {
-            let nd = d + crate::mesh::norm(crate::mesh::sub(
-                mesh.vertices[v as usize],
-                mesh.vertices[u as usize],
-            ));
+            let nd = d + norm(sub(mesh.vertices[v as usize], mesh.vertices[u as usize]));
             if nd < dist[u as usize] {
                 dist[u as usize] = nd;
                 heap.push(HeapItem(nd, u));
@@ -31,25 +30,6 @@ pub fn graph_distance(mesh: &Mesh, sources: &[u32]) -> Vec<f64> {
         }
     }
     dist
-}
-
-/// Sorted neighbour lists of every vertex.
-pub fn vertex_adjacency(mesh: &Mesh) -> Vec<Vec<u32>> {
-    let mut adj: Vec<Vec<u32>> = vec![Vec::new(); mesh.vertices.len()];
-    for f in &mesh.faces {
-        for k in 0..3 {
-            let (a, b) = (f[k] as usize, f[(k + 1) % 3] as usize);
-            if a < adj.len() && b < adj.len() {
-                adj[a].push(b as u32);
-                adj[b].push(a as u32);
-            }
-        }
-    }
-    for a in &mut adj {
-        a.sort_unstable();
-        a.dedup();
-    }
-    adj
 }
 
 /// A breadth-first spanning forest of the graph `adjacency`: every vertex
@@ -83,7 +63,8 @@ pub fn breadth_first_tree(adjacency: &[Vec<u32>]) -> Vec<[u32; 2]> {
     order
 }
 
-/// Min-heap entry (distance, vertex), ties by vertex index.
+/// Min-heap entry (distance, vertex) for Dijkstra: the smallest distance
+/// pops first, ties by the smallest vertex.
 #[derive(PartialEq)]
 pub(crate) struct HeapItem(pub f64, pub u32);
 impl Eq for HeapItem {}
@@ -101,6 +82,24 @@ impl Ord for HeapItem {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn distances_follow_the_shortest_edge_path() {
+        // A unit square split along 0–2: 0 → 2 is one diagonal edge, 1 → 3
+        // must go round.
+        let m = Mesh::new(
+            vec![[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]],
+            vec![[0, 1, 2], [0, 2, 3]],
+        );
+        let d = graph_distance(&m, &[0]);
+        assert_eq!(d, vec![0.0, 1.0, 2f64.sqrt(), 1.0]);
+        assert_eq!(graph_distance(&m, &[1])[3], 2.0);
+        assert_eq!(graph_distance(&m, &[1, 3]), vec![1.0, 0.0, 1.0, 0.0]);
+        // An unused vertex is unreachable; a missing source is ignored.
+        let mut lone = m.clone();
+        lone.vertices.push([5., 5., 5.]);
+        assert_eq!(graph_distance(&lone, &[0, 99])[4], f64::INFINITY);
+    }
 
     #[test]
     fn the_breadth_first_tree_visits_each_vertex_after_a_neighbour() {
