@@ -11,11 +11,12 @@
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use morphoid::classify::{self, Classifier};
+use morphoid::hash::content_hash;
 use morphoid::library::{BuildOutcome, Cache, Library};
 use morphoid::mesh::synth::{self, LibrarySpec, RigidMotion};
 use morphoid::mesh::{io, Mesh};
 use morphoid::pipeline::Settings;
-use morphoid::store::{content_hash, Enqueued, ScanStatus, Store};
+use morphoid::store::{Enqueued, ScanStatus, Store};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -55,7 +56,7 @@ fn timed_build(
     let secs = t.elapsed().as_secs_f64();
     eprintln!(
         "library build: {} references ({} prepared, {} from the cache, {} failed) in {secs:.2} s",
-        classifier.references.len(),
+        classifier.references().len(),
         outcome.prepared,
         outcome.reused,
         outcome.failures.len()
@@ -100,7 +101,7 @@ fn bench(c: &mut Criterion) {
     let mut seed = 0u64;
     let mut group = c.benchmark_group("classify");
     group.sample_size(10);
-    let name = format!("new scan vs {} references", classifier.references.len());
+    let name = format!("new scan vs {} references", classifier.references().len());
     bench_identify(
         &mut group,
         &name,
@@ -112,8 +113,9 @@ fn bench(c: &mut Criterion) {
     );
     // The same without the final descent of each comparison, to show its
     // cost (the references' preparation does not depend on it).
-    let mut searched_only = classifier.clone();
-    searched_only.settings.cp.compare.descent_steps = 0;
+    let mut settings = classifier.settings().clone();
+    settings.cp.compare.descent_steps = 0;
+    let searched_only = classifier.clone().with_settings(settings);
     bench_identify(
         &mut group,
         &format!("{name}, without final descent"),

@@ -3,19 +3,23 @@
 //! the daemon. [`Classifier`] holds the prepared references and their
 //! landmarks (loaded once); [`run_job`] identifies one queued scan, carries
 //! the nearest reference's landmarks onto it, records the outcome in the
-//! store in one transaction and, with a results folder, writes the result
-//! files ([`write_results`]).
+//! store in one transaction and, with a results folder ([`ResultFiles`]),
+//! writes the result files.
+
+mod files;
+
+pub use files::{result_name, ResultFiles, ResultsError};
 
 use crate::cp;
 use crate::eval::Labels;
 use crate::landmarks::{self, Landmarks, PropagateError, Surface};
-use crate::library::{self, BuildOutcome, Cache, CacheError, CachedReference, Library};
+use crate::library::{
+    self, BuildOutcome, Cache, CacheError, CachedReference, DistanceRow, LandmarkPoint, Library,
+    ScanLandmarks, ScanOutcome,
+};
 use crate::mesh::io::{self, Format, LoadError};
 use crate::pipeline::{self, PipelineError, PreparedSurface, Settings};
-use crate::store::{
-    self, DistanceRow, Job, LandmarkPoint, ScanLandmarks, ScanOutcome, ScanRecord, ScanStatus,
-    Store, StoreError,
-};
+use crate::store::{self, Job, ScanStatus, Store, StoreError};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -27,39 +31,18 @@ pub const NEAREST: usize = store::DEFAULT_NEAREST;
 /// A prepared library, ready to identify scans.
 #[derive(Debug, Clone)]
 pub struct Classifier {
-    /// The prepared references, by name.
-    pub references: Vec<CachedReference>,
+    /// The prepared references, in library order.
+    references: Vec<CachedReference>,
     /// Their labels at the configured ranks.
-    pub labels: Labels,
+    labels: Labels,
     /// Preparation and engine settings (the same for scans and references).
-    pub settings: Settings,
+    settings: Settings,
     /// Landmarks of the references that have them, by reference name, in
     /// each reference file's coordinates.
-    pub landmarks: BTreeMap<String, Landmarks>,
-    /// Where [`run_job`] writes `<stem>.json` and `<stem>.fcsv` for each
-    /// scan (`None`: no result files).
-    pub results_dir: Option<PathBuf>,
-}
-
-/// Why the result files of a scan could not be written.
-#[derive(Debug, thiserror::Error)]
-pub enum ResultsError {
-    /// A file or the folder could not be written.
-    #[error("{path}: {source}")]
-    Io {
-        /// The file or folder.
-        path: PathBuf,
-        /// The I/O error.
-        source: std::io::Error,
-    },
-    /// The record could not be turned into JSON.
-    #[error("cannot encode the result of {scan} as JSON: {source}")]
-    Json {
-        /// The scan.
-        scan: String,
-        /// serde_json's error.
-        source: serde_json::Error,
-    },
+    landmarks: BTreeMap<String, Landmarks>,
+    /// Where [`run_job`] writes the result files of each scan (`None`:
+    /// nowhere).
+    results: Option<ResultFiles>,
 }
 
 /// Why a scan could not be identified; the message names the file.
@@ -82,30 +65,62 @@ pub enum ClassifyError {
 }
 
 impl Classifier {
+    /// A classifier of `references` (prepared with `settings`) labelled by
+    /// `labels`, without landmarks or result files.
+    pub fn new(references: Vec<CachedReference>, labels: Labels, settings: Settings) -> Self {
+        Classifier {
+            references,
+            labels,
+            settings,
+            landmarks: BTreeMap::new(),
+            results: None,
+        }
+    }
+
     /// Prepare (or take from the cache) every reference of `library`.
     /// References that fail are left out and reported in the outcome.
+    /// The prepared references and their landmarks move into the
+    /// classifier: the outcome comes back without them (a prepared library
+    /// is large, and one copy is enough), holding what the build reports.
     pub fn build(
         library: &Library,
         cache: &Cache,
         settings: &Settings,
         progress: impl Fn(&str) + Sync,
     ) -> Result<(Self, BuildOutcome), CacheError> {
-        let outcome = library::build(library, cache, settings, progress)?;
+        let mut outcome = library::build(library, cache, settings, progress)?;
         let classifier = Classifier {
-            references: outcome.references.clone(),
+            references: std::mem::take(&mut outcome.references),
             labels: library.labels.clone(),
             settings: settings.clone(),
-            landmarks: outcome.landmarks.by_name.clone(),
-            results_dir: None,
+            landmarks: std::mem::take(&mut outcome.landmarks.by_name),
+            results: None,
         };
         Ok((classifier, outcome))
     }
 
-    /// The same classifier writing result files into `dir` (`None`: none);
-    /// see [`write_results`].
-    pub fn with_results_dir(mut self, dir: Option<PathBuf>) -> Self {
-        self.results_dir = dir;
+    /// The same classifier writing result files (`None`: none).
+    pub fn with_result_files(mut self, results: Option<ResultFiles>) -> Self {
+        self.results = results;
         self
+    }
+
+    /// The same references compared under other settings. The preparation
+    /// settings must stay those the references were prepared with; only
+    /// the comparison may differ.
+    pub fn with_settings(mut self, settings: Settings) -> Self {
+        self.settings = settings;
+        self
+    }
+
+    /// The prepared references, in library order.
+    pub fn references(&self) -> &[CachedReference] {
+        &self.references
+    }
+
+    /// The settings scans are prepared and compared with.
+    pub fn settings(&self) -> &Settings {
+        &self.settings
     }
 
     /// Record the references in the store (names, content, labels, state),
@@ -283,7 +298,7 @@ impl Classifier {
 /// result (landmarks included), or `error` with the message. Returns the
 /// final status; only a database failure is an error (the job then stays
 /// `running` and is requeued at the next start). With a results folder
-/// ([`Classifier::with_results_dir`]), the recorded result is then written
+/// ([`Classifier::with_result_files`]), the recorded result is then written
 /// there; a failure to write it is logged and does not change the status
 /// (the database holds the result).
 pub fn run_job(
@@ -306,10 +321,10 @@ pub fn run_job(
             ScanStatus::Error
         }
     };
-    if let Some(dir) = &classifier.results_dir {
+    if let Some(files) = &classifier.results {
         match store.scan(job.scan_id, NEAREST) {
             Ok(Some(record)) => {
-                if let Err(e) = write_results(dir, &record) {
+                if let Err(e) = files.write(&record) {
                     tracing::error!(scan = %job.path, "result files not written: {e}");
                 }
             }
@@ -320,78 +335,33 @@ pub fn run_job(
     Ok(status)
 }
 
-/// The file stem result files of `record` are named after.
-fn result_stem(record: &ScanRecord) -> String {
-    Path::new(&record.path)
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .filter(|s| !s.is_empty())
-        .unwrap_or_else(|| format!("scan-{}", record.id))
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::synth::{self, LibrarySpec};
 
-/// Write the result files of a recorded scan into `dir` (created if
-/// needed): `<stem>.json`, the `classify --json` line, and, when landmarks
-/// were carried onto the scan, `<stem>.fcsv` (3D Slicer markups, in the
-/// scan file's coordinates); a stale `<stem>.fcsv` of an earlier result
-/// without landmarks is removed. Each file is written to a temporary name,
-/// synced and renamed, so a reader never sees half a file. Returns the
-/// files written.
-pub fn write_results(dir: &Path, record: &ScanRecord) -> Result<Vec<PathBuf>, ResultsError> {
-    let io_err = |path: &Path| {
-        let path = path.to_path_buf();
-        move |source| ResultsError::Io { path, source }
-    };
-    std::fs::create_dir_all(dir).map_err(io_err(dir))?;
-    let stem = result_stem(record);
-    let mut json = serde_json::to_string(record).map_err(|source| ResultsError::Json {
-        scan: record.path.clone(),
-        source,
-    })?;
-    json.push('\n');
-    let json_path = dir.join(format!("{stem}.json"));
-    write_atomic(&json_path, json.as_bytes()).map_err(io_err(&json_path))?;
-    let mut written = vec![json_path];
-    let fcsv_path = dir.join(format!("{stem}.fcsv"));
-    match &record.landmarks {
-        Some(lm) if !lm.points.is_empty() => {
-            let mut points = Landmarks::default();
-            for p in &lm.points {
-                points.push([p.x, p.y, p.z], p.label.clone());
-            }
-            let text = landmarks::format(&points, landmarks::Format::Fcsv);
-            write_atomic(&fcsv_path, text.as_bytes()).map_err(io_err(&fcsv_path))?;
-            written.push(fcsv_path);
-        }
-        _ => match std::fs::remove_file(&fcsv_path) {
-            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
-                return Err(ResultsError::Io {
-                    path: fcsv_path,
-                    source: e,
-                })
-            }
-            _ => {}
-        },
+    #[test]
+    fn build_moves_the_prepared_library_into_the_classifier() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("library");
+        let spec = LibrarySpec {
+            per_genus: 1,
+            target_vertices: 600,
+            seed: 5,
+            random_pose: false,
+        };
+        synth::write_synthetic_library(&dir, &spec).unwrap();
+        let library = Library::open(&dir, None).unwrap();
+        let cache = Cache::open(&tmp.path().join("cache")).unwrap();
+        let mut settings = Settings::default();
+        settings.clean.target_vertices = 600;
+        let (classifier, outcome) = Classifier::build(&library, &cache, &settings, |_| {}).unwrap();
+        let n = library.members.len();
+        assert_eq!((classifier.references().len(), outcome.prepared), (n, n));
+        // One copy of the prepared references, the classifier's: the
+        // report a caller keeps must not hold a second one.
+        assert!(outcome.references.is_empty());
+        assert!(outcome.landmarks.by_name.is_empty());
+        assert!(outcome.failures.is_empty());
     }
-    Ok(written)
-}
-
-/// Write `bytes` to `path` through a temporary file in the same folder,
-/// synced before the rename.
-fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    use std::io::Write as _;
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = path.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
 }

@@ -2,20 +2,28 @@
 //! distance.
 //!
 //! The library is layered; each layer only uses the ones above it:
+//! - [`hash`], [`atomic_write`]: content hashes and atomic file replacement;
 //! - [`mesh`]: the triangle-mesh type, file formats, synthetic surfaces;
 //! - [`clean`]: turn a raw scan into a clean disk-type surface;
 //! - [`conformal`]: normalization and conformal flattening to the unit disk;
 //! - [`cp`]: prepared surfaces and the continuous Procrustes distance;
 //! - [`cwn`]: the conformal Wasserstein neighbourhood dissimilarity distance;
+//! - [`pipeline`]: one file or mesh to one prepared surface;
+//! - [`config`]: the TOML configuration;
 //! - [`eval`]: distance matrices and leave-one-out classification;
 //! - [`landmarks`]: landmark files and their propagation between surfaces;
+//! - [`library`]: the reference library folder, its cache of prepared
+//!   references, and identification (nearest taxon per rank);
 //! - [`store`]: the SQLite record of references, scans, results and distances;
+//! - [`classify`]: one scan through preparation, comparison, identification
+//!   and the store;
 //! - [`daemon`]: the export-folder watcher and job loop behind `morphoid run`.
 //!
 //! See `ARCHITECTURE.md` at the repository root for the data flow.
 
 #![forbid(unsafe_code)]
 
+pub mod atomic_write;
 pub mod classify;
 pub mod clean;
 pub mod config;
@@ -24,6 +32,7 @@ pub mod cp;
 pub mod cwn;
 pub mod daemon;
 pub mod eval;
+pub mod hash;
 pub mod landmarks;
 pub mod library;
 pub mod mesh;

@@ -23,7 +23,7 @@ fn check_runtime(config: &Config) -> Result<()> {
     if let Some(s) = &config.serial {
         regex::Regex::new(&s.trigger)
             .with_context(|| format!("serial.trigger {:?} is not a valid regex", s.trigger))?;
-        if !morphoid::daemon::serial::is_standard_baud(s.baud) {
+        if !morphoid::daemon::is_standard_baud(s.baud) {
             bail!("serial.baud {} is not a standard baud rate", s.baud);
         }
     }

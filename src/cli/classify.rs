@@ -3,8 +3,9 @@
 
 use super::common::{open_cache, open_library, progress_bar, ConfigArgs};
 use anyhow::{Context, Result};
-use morphoid::classify::{self, Classifier, NEAREST};
-use morphoid::store::{content_hash, Enqueued, ScanRecord, ScanStatus, Store};
+use morphoid::classify::{self, Classifier, ResultFiles, NEAREST};
+use morphoid::hash::content_hash;
+use morphoid::store::{Enqueued, ScanRecord, ScanStatus, Store};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -19,10 +20,11 @@ pub struct Args {
     /// Print one JSON object per scan on stdout.
     #[arg(long)]
     json: bool,
-    /// Write `<stem>.json` (the JSON line) for each scan into DIR and, when
-    /// the nearest reference has landmarks, `<stem>.fcsv` (the landmarks
-    /// carried onto the scan). Default: `[results] dir` of the
-    /// configuration, if any.
+    /// Write `<name>.json` (the JSON line) for each scan into DIR and, when
+    /// the nearest reference has landmarks, `<name>.fcsv` (the landmarks
+    /// carried onto the scan); `<name>` is the scan's path relative to the
+    /// export folder (`[watch] dir`) or as given, extension included.
+    /// Default: `[results] dir` of the configuration, if any.
     #[arg(long, value_name = "DIR")]
     out_dir: Option<PathBuf>,
 }
@@ -41,7 +43,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
         .register(&mut store, &built)
         .with_context(|| format!("recording the references in {}", db.display()))?;
 
-    let out_dir = args.out_dir.clone().or_else(|| config.results.dir.clone());
+    let results = args
+        .out_dir
+        .clone()
+        .or_else(|| config.results.dir.clone())
+        .map(|dir| ResultFiles::new(dir, Some(config.watch.dir.clone())));
     let mut all_ok = true;
     for scan in &args.scans {
         let record = identify_one(&mut store, &classifier, scan);
@@ -71,8 +77,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
         } else {
             println!("{}", summary(&record));
         }
-        if let Some(dir) = &out_dir {
-            if let Err(e) = classify::write_results(dir, &record) {
+        if let Some(files) = &results {
+            if let Err(e) = files.write(&record) {
                 all_ok = false;
                 eprintln!("morphoid: error: {}: result files: {e}", scan.display());
             }

@@ -2,8 +2,8 @@
 
 use super::common::{open_cache, open_library, progress_bar, ConfigArgs};
 use anyhow::Result;
+use morphoid::hash::content_hash;
 use morphoid::library::{self, Cache};
-use morphoid::store::content_hash;
 use std::process::ExitCode;
 use std::time::Instant;
 

@@ -4,7 +4,7 @@ use super::common::{open_cache, open_library, ConfigArgs};
 use anyhow::Result;
 use morphoid::classify::Classifier;
 use morphoid::config::Config;
-use morphoid::daemon::{self, Loader};
+use morphoid::daemon::{self, LoadError, Loader};
 use morphoid::library::BuildOutcome;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -20,20 +20,25 @@ pub struct Args {
 }
 
 impl Loader for Args {
-    fn config(&self) -> Result<Config, String> {
-        let mut config = self.config.load().map_err(|e| format!("{e:#}"))?;
+    fn config(&self) -> Result<Config, LoadError> {
+        let mut config = self
+            .config
+            .load()
+            .map_err(|e| LoadError::Config(e.into()))?;
         if let Some(dir) = &self.watch {
             config.watch.dir = dir.clone();
         }
         Ok(config)
     }
 
-    fn library(&self, config: &Config) -> Result<(Classifier, BuildOutcome), String> {
-        let lib = open_library(config).map_err(|e| format!("{e:#}"))?;
-        let cache = open_cache(config).map_err(|e| format!("{e:#}"))?;
-        Classifier::build(&lib, &cache, &config.settings(), |_| {})
-            .map(|(c, o)| (c.with_results_dir(config.results.dir.clone()), o))
-            .map_err(|e| e.to_string())
+    fn library(&self, config: &Config) -> Result<(Classifier, BuildOutcome), LoadError> {
+        let failed = |source: anyhow::Error| LoadError::Library {
+            dir: config.library.dir.clone(),
+            source: source.into(),
+        };
+        let lib = open_library(config).map_err(failed)?;
+        let cache = open_cache(config).map_err(failed)?;
+        Classifier::build(&lib, &cache, &config.settings(), |_| {}).map_err(|e| failed(e.into()))
     }
 }
 

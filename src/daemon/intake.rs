@@ -7,8 +7,9 @@
 
 use super::glob;
 use super::settle::Stamp;
+use crate::hash::content_hash_file;
 use crate::mesh::io::Format;
-use crate::store::{content_hash_file, Enqueued, Store, StoreError};
+use crate::store::{Enqueued, Store, StoreError};
 use std::path::{Path, PathBuf};
 
 /// What decides whether a path is a candidate: the export folder and the

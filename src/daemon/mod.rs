@@ -6,25 +6,29 @@
 //!
 //! The control loop runs on a current-thread tokio runtime: one `select!`
 //! over the signals, the folder watcher's events, serial trigger lines and
-//! a few timers (settle checks, the safety rescan, watchdog and status).
-//! Everything slow is elsewhere: hashing a settled file runs on the
-//! blocking pool, identification on the worker thread ([`worker`]), the
-//! serial port on its own thread ([`serial`]). Only SIGHUP's reload builds
-//! the library on the loop (prepared references come from the cache), as
-//! nothing else can usefully happen meanwhile.
+//! a few timers (settle checks, the safety rescan, watchdog and status),
+//! each kind of event handled by its own method of the running `Daemon`. Everything
+//! slow is elsewhere: hashing a settled file runs on the blocking pool,
+//! identification on the worker thread (`worker`), the serial port on its
+//! own thread (`serial`). Only SIGHUP's reload builds the library on the
+//! loop (prepared references come from the cache), as nothing else can
+//! usefully happen meanwhile.
 //!
-//! Modules: [`watch`] (notify watcher, rescans, polling fallback),
-//! [`settle`] (when a file is complete), [`intake`] (which files become
-//! jobs), [`glob`] (`watch.ignore`), [`worker`], [`serial`].
+//! Modules: `watch` (notify watcher, rescans, polling fallback), `settle`
+//! (when a file is complete), `intake` (which files become jobs), `glob`
+//! (`watch.ignore`), `worker`, `serial`.
 
-pub mod glob;
-pub mod intake;
-pub mod serial;
-pub mod settle;
-pub mod watch;
-pub mod worker;
+mod glob;
+mod intake;
+mod serial;
+mod settle;
+mod watch;
+mod worker;
 
-use crate::classify::Classifier;
+pub use serial::{is_standard_baud, BACKOFF_MAX};
+pub use worker::MAX_ATTEMPTS;
+
+use crate::classify::{Classifier, ResultFiles};
 use crate::config::Config;
 use crate::library::BuildOutcome;
 use crate::store::{now_ms, utc_day_start_ms, Store, StoreError};
@@ -33,13 +37,11 @@ use sd_notify::NotifyState;
 use serial::SerialTrigger;
 use std::path::PathBuf;
 use std::time::Duration;
-use tokio::signal::unix::{signal, SignalKind};
-use tokio::sync::mpsc::{self, UnboundedSender};
-use tokio::time::{interval, interval_at, sleep, Instant, MissedTickBehavior};
+use tokio::signal::unix::{signal, Signal, SignalKind};
+use tokio::sync::mpsc::{self, UnboundedReceiver, UnboundedSender};
+use tokio::time::{interval, interval_at, sleep, Instant, Interval, MissedTickBehavior};
 use watch::FolderWatch;
 use worker::Worker;
-
-pub use worker::MAX_ATTEMPTS;
 
 /// A job running longer than this is taken as hung: watchdog pings stop,
 /// so systemd restarts the daemon (and [`MAX_ATTEMPTS`] ends the loop).
@@ -52,7 +54,7 @@ pub const STOP_GRACE: Duration = Duration::from_secs(7);
 const STATUS_INTERVAL: Duration = Duration::from_secs(2);
 
 /// The stop grace period: `$MORPHOID_STOP_GRACE` or [`STOP_GRACE`].
-pub fn stop_grace() -> Duration {
+fn stop_grace() -> Duration {
     std::env::var("MORPHOID_STOP_GRACE")
         .ok()
         .and_then(|v| v.trim().parse::<f64>().ok())
@@ -61,12 +63,32 @@ pub fn stop_grace() -> Duration {
         .unwrap_or(STOP_GRACE)
 }
 
+/// Any error a [`Loader`] reports, with its chain of causes.
+pub type BoxError = Box<dyn std::error::Error + Send + Sync + 'static>;
+
+/// Why a [`Loader`] could not load the configuration or the library.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    /// The configuration could not be read.
+    #[error("cannot load the configuration")]
+    Config(#[source] BoxError),
+    /// The reference library could not be opened or prepared.
+    #[error("cannot load the library {}", dir.display())]
+    Library {
+        /// The configured library folder.
+        dir: PathBuf,
+        /// Why.
+        #[source]
+        source: BoxError,
+    },
+}
+
 /// Why the daemon could not start (or reload).
 #[derive(Debug, thiserror::Error)]
 pub enum DaemonError {
     /// The configuration or the library could not be loaded.
-    #[error("{0}")]
-    Load(String),
+    #[error(transparent)]
+    Load(#[from] LoadError),
     /// The database failed.
     #[error(transparent)]
     Store(#[from] StoreError),
@@ -75,7 +97,7 @@ pub enum DaemonError {
     Trigger(#[from] regex::Error),
     /// Signal handlers could not be installed.
     #[error("cannot install signal handlers: {0}")]
-    Signals(std::io::Error),
+    Signals(#[source] std::io::Error),
     /// The async runtime or a thread could not be started.
     #[error("cannot start the {what}: {source}")]
     Start {
@@ -90,9 +112,22 @@ pub enum DaemonError {
 /// SIGHUP) and the prepared library for a configuration.
 pub trait Loader {
     /// The current configuration, with any command-line overrides.
-    fn config(&self) -> Result<Config, String>;
-    /// The classifier of the configured library (cached references).
-    fn library(&self, config: &Config) -> Result<(Classifier, BuildOutcome), String>;
+    fn config(&self) -> Result<Config, LoadError>;
+    /// The classifier of the configured library (cached references) and
+    /// the report of its build.
+    fn library(&self, config: &Config) -> Result<(Classifier, BuildOutcome), LoadError>;
+}
+
+/// `e` and its causes, `: `-separated, for one log line.
+fn chain(e: &dyn std::error::Error) -> String {
+    let mut out = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        out.push_str(": ");
+        out.push_str(&c.to_string());
+        cause = c.source();
+    }
+    out
 }
 
 /// Send a state change to the service manager, if there is one (the
@@ -122,46 +157,350 @@ pub fn run(loader: &dyn Loader) -> Result<(), DaemonError> {
     result
 }
 
-/// Hash and queue settled files (hashing on the blocking pool: a large
-/// file takes a while to read); wakes the worker when something is new.
-async fn take(store: &mut Store, folder: &mut FolderWatch, ready: Vec<PathBuf>, worker: &Worker) {
-    let mut new = false;
-    for path in ready {
-        let p = path.clone();
-        let hashed = match tokio::task::spawn_blocking(move || intake::hash(&p)).await {
-            Ok(h) => h,
-            Err(e) => {
-                tracing::error!("{}: hashing failed: {e}", path.display());
-                folder.release(&path);
-                continue;
-            }
-        };
-        let queued = hashed.and_then(|(hash, size)| intake::enqueue(store, &path, &hash, size));
-        match queued {
-            Ok(Some(_)) => new = true,
-            Ok(None) => {}
-            Err(e) => {
-                tracing::warn!("{e}");
-                folder.release(&path);
-            }
-        }
-    }
-    if new {
-        worker.wake();
+/// The signals the daemon acts on.
+struct Signals {
+    term: Signal,
+    int: Signal,
+    hup: Signal,
+}
+
+impl Signals {
+    fn install() -> Result<Self, DaemonError> {
+        let on = |kind| signal(kind).map_err(DaemonError::Signals);
+        Ok(Signals {
+            term: on(SignalKind::terminate())?,
+            int: on(SignalKind::interrupt())?,
+            hup: on(SignalKind::hangup())?,
+        })
     }
 }
 
-/// [`reload`], with watchdog pings from a helper thread meanwhile: the
+/// The periodic wake-ups of the control loop.
+struct Timers {
+    /// Watchdog pings and the status line.
+    house: Interval,
+    /// Settle checks of files seen changing.
+    settle: Interval,
+    /// The full listing of the folder, in case events were lost.
+    rescan: Interval,
+}
+
+impl Timers {
+    fn start(watchdog: Option<Duration>) -> Self {
+        let house_period = watchdog.map_or(Duration::from_millis(500), |w| {
+            w.clamp(Duration::from_millis(10), Duration::from_millis(500))
+        });
+        let mut timers = Timers {
+            house: interval(house_period),
+            settle: interval(watch::POLL_INTERVAL),
+            rescan: interval_at(
+                Instant::now() + watch::RESCAN_INTERVAL,
+                watch::RESCAN_INTERVAL,
+            ),
+        };
+        for t in [&mut timers.house, &mut timers.settle, &mut timers.rescan] {
+            t.set_missed_tick_behavior(MissedTickBehavior::Delay);
+        }
+        timers
+    }
+}
+
+async fn control_loop(loader: &dyn Loader) -> Result<(), DaemonError> {
+    // Installed first, so a signal during the library load is not lost.
+    let mut signals = Signals::install()?;
+    let mut daemon = Daemon::start(loader).await?;
+    notify(&[NotifyState::Ready]);
+    let mut timers = Timers::start(daemon.watchdog);
+    loop {
+        tokio::select! {
+            // Signals first: a stop must not wait behind a busy folder.
+            biased;
+            _ = signals.term.recv() => break,
+            _ = signals.int.recv() => break,
+            _ = signals.hup.recv() => daemon.on_reload().await,
+            Some(line) = daemon.serial_rx.recv() => daemon.on_trigger(line).await,
+            Some(event) = daemon.folder.event() => daemon.on_folder_event(event).await,
+            _ = timers.settle.tick() => {
+                let ready = daemon.folder.tick();
+                daemon.queue(ready).await;
+            }
+            _ = timers.rescan.tick() => {
+                let ready = daemon.folder.safety_rescan();
+                daemon.queue(ready).await;
+            }
+            _ = timers.house.tick() => daemon.on_housekeeping(),
+        }
+    }
+    daemon.stop().await;
+    Ok(())
+}
+
+/// The running daemon: what the control loop's handlers share.
+struct Daemon<'a> {
+    loader: &'a dyn Loader,
+    config: Config,
+    /// The control loop's connection (the worker has its own).
+    store: Store,
+    worker: Worker,
+    folder: FolderWatch,
+    serial: Option<SerialTrigger>,
+    serial_tx: UnboundedSender<String>,
+    serial_rx: UnboundedReceiver<String>,
+    references: usize,
+    /// Half of systemd's watchdog period, when it has one.
+    watchdog: Option<Duration>,
+    last_ping: Instant,
+    hang_logged: bool,
+    last_status: String,
+    last_status_at: Option<Instant>,
+}
+
+impl<'a> Daemon<'a> {
+    /// Load the configuration and the library, recover the queue, start
+    /// the worker, the serial trigger and the folder watch, and queue the
+    /// files that arrived while the daemon was down.
+    async fn start(loader: &'a dyn Loader) -> Result<Daemon<'a>, DaemonError> {
+        let config = loader.config()?;
+        let trigger = compile_trigger(&config)?;
+        let db = config.database.path.clone();
+        let mut store = Store::open(&db)?;
+        let requeued = store.requeue_running()?;
+        if requeued > 0 {
+            tracing::info!("{requeued} scan(s) left running by an earlier run are pending again");
+        }
+        let classifier = load_library(loader, &config, &mut store)?;
+        let references = classifier.references().len();
+        tracing::info!(
+            "library {} loaded: {references} references; watching {}",
+            config.library.dir.display(),
+            config.watch.dir.display()
+        );
+        let worker = Worker::spawn(
+            Store::open(&db)?,
+            classifier,
+            config.watch.quarantine.clone(),
+        )
+        .map_err(|source| DaemonError::Start {
+            what: "worker thread",
+            source,
+        })?;
+        let (serial_tx, serial_rx) = mpsc::unbounded_channel::<String>();
+        let serial = start_serial(&config, trigger.as_ref(), &serial_tx);
+        let folder = FolderWatch::start(&config.watch);
+        let mut daemon = Daemon {
+            loader,
+            config,
+            store,
+            worker,
+            folder,
+            serial,
+            serial_tx,
+            serial_rx,
+            references,
+            watchdog: sd_notify::watchdog_enabled().map(|d| d / 2),
+            last_ping: Instant::now(),
+            hang_logged: false,
+            last_status: String::new(),
+            last_status_at: None,
+        };
+        // Files that arrived while the daemon was down.
+        let ready = daemon.folder.rescan(false);
+        daemon.queue(ready).await;
+        daemon.worker.wake();
+        Ok(daemon)
+    }
+
+    /// Hash and queue settled files (hashing on the blocking pool: a large
+    /// file takes a while to read); wakes the worker when something is new.
+    async fn queue(&mut self, ready: Vec<PathBuf>) {
+        let mut new = false;
+        for path in ready {
+            let p = path.clone();
+            let hashed = match tokio::task::spawn_blocking(move || intake::hash(&p)).await {
+                Ok(h) => h,
+                Err(e) => {
+                    tracing::error!("{}: hashing failed: {e}", path.display());
+                    self.folder.release(&path);
+                    continue;
+                }
+            };
+            let queued = hashed
+                .and_then(|(hash, size)| intake::enqueue(&mut self.store, &path, &hash, size));
+            match queued {
+                Ok(Some(_)) => new = true,
+                Ok(None) => {}
+                Err(e) => {
+                    tracing::warn!("{e}");
+                    self.folder.release(&path);
+                }
+            }
+        }
+        if new {
+            self.worker.wake();
+        }
+    }
+
+    /// SIGHUP: re-read the configuration, load its library and hand it to
+    /// the worker; restart what the new configuration changes. On failure
+    /// the previous setup stays.
+    async fn on_reload(&mut self) {
+        tracing::info!("reloading the configuration and the library");
+        notify(&[NotifyState::Reloading]);
+        let reloaded = with_watchdog_pings(self.watchdog, || reload(self.loader, &mut self.store));
+        match reloaded {
+            Ok((config, classifier, trigger)) => {
+                self.references = classifier.references().len();
+                self.worker
+                    .reload(classifier, config.watch.quarantine.clone());
+                if config.serial != self.config.serial {
+                    // Dropping the old trigger stops its thread.
+                    drop(self.serial.take());
+                    self.serial = start_serial(&config, trigger.as_ref(), &self.serial_tx);
+                }
+                if config.database.path != self.config.database.path {
+                    tracing::warn!("database.path changes only at restart");
+                }
+                if config.watch != self.config.watch {
+                    self.folder = FolderWatch::start(&config.watch);
+                }
+                self.config = config;
+                tracing::info!("reloaded: {} references", self.references);
+                let ready = self.folder.rescan(false);
+                self.queue(ready).await;
+            }
+            Err(e) => tracing::error!("reload failed, keeping the previous setup: {}", chain(&e)),
+        }
+        notify(&[NotifyState::Ready]);
+        self.last_status_at = None;
+    }
+
+    /// A serial trigger line: the scanner has finished writing. A file the
+    /// line names is taken first, then everything settled in the folder.
+    async fn on_trigger(&mut self, line: String) {
+        let mut lines = vec![line];
+        while let Ok(more) = self.serial_rx.try_recv() {
+            lines.push(more);
+        }
+        let mut ready = Vec::new();
+        for line in &lines {
+            if let Some(file) = intake::named_file(line, self.folder.dir()) {
+                if self.folder.force_file(&file) {
+                    ready.push(file);
+                }
+            }
+        }
+        self.queue(ready).await;
+        let ready = self.folder.rescan(true);
+        self.queue(ready).await;
+    }
+
+    /// A batch of watcher events.
+    async fn on_folder_event(&mut self, event: notify::Result<notify::Event>) {
+        let out = self.folder.handle(event);
+        let mut ready = out.ready;
+        if out.rescan {
+            ready.extend(self.folder.rescan(false));
+        }
+        self.queue(ready).await;
+    }
+
+    /// The watchdog ping (withheld while a job looks hung) and the STATUS
+    /// line (sent when it changes).
+    fn on_housekeeping(&mut self) {
+        if let Some(every) = self.watchdog {
+            let hung = self
+                .worker
+                .progress()
+                .running_for()
+                .is_some_and(|d| d > JOB_HANG_LIMIT);
+            if hung && !self.hang_logged {
+                tracing::error!(
+                    "the current job looks hung; letting the watchdog restart the daemon"
+                );
+                self.hang_logged = true;
+            }
+            if !hung && self.last_ping.elapsed() >= every {
+                notify(&[NotifyState::Watchdog]);
+                self.last_ping = Instant::now();
+            }
+        }
+        if self
+            .last_status_at
+            .is_none_or(|t| t.elapsed() >= STATUS_INTERVAL)
+        {
+            let status = status_line(
+                &self.store,
+                self.references,
+                self.worker.progress().current(),
+            );
+            if status != self.last_status {
+                notify(&[NotifyState::Status(&status)]);
+                self.last_status = status;
+            }
+            self.last_status_at = Some(Instant::now());
+        }
+    }
+
+    /// Stop: the worker finishes its job within the grace period, or the
+    /// job goes back to the queue.
+    async fn stop(mut self) {
+        tracing::info!("stopping");
+        notify(&[NotifyState::Stopping]);
+        self.worker.request_stop();
+        drop(self.serial.take());
+        let deadline = Instant::now() + stop_grace();
+        while !self.worker.is_finished() && Instant::now() < deadline {
+            sleep(Duration::from_millis(50)).await;
+        }
+        if !self.worker.is_finished() {
+            if let Some(id) = self.worker.progress().current() {
+                match self.store.abandon(id) {
+                    Ok(()) => {
+                        tracing::info!("scan {id} abandoned; it is pending for the next start")
+                    }
+                    Err(e) => tracing::warn!("scan {id} could not be abandoned: {e}"),
+                }
+            }
+        }
+    }
+}
+
+/// The classifier of `config`'s library, its references recorded in the
+/// store and its result files set up. The build report is logged and
+/// dropped here: the daemon keeps only the classifier.
+fn load_library(
+    loader: &dyn Loader,
+    config: &Config,
+    store: &mut Store,
+) -> Result<Classifier, DaemonError> {
+    let (classifier, outcome) = loader.library(config)?;
+    classifier.register(store, &outcome)?;
+    let results = config
+        .results
+        .dir
+        .clone()
+        .map(|dir| ResultFiles::new(dir, Some(config.watch.dir.clone())));
+    Ok(classifier.with_result_files(results))
+}
+
+/// Re-read the configuration and load its library (SIGHUP).
+fn reload(
+    loader: &dyn Loader,
+    store: &mut Store,
+) -> Result<(Config, Classifier, Option<Regex>), DaemonError> {
+    let config = loader.config()?;
+    let trigger = compile_trigger(&config)?;
+    let classifier = load_library(loader, &config, store)?;
+    Ok((config, classifier, trigger))
+}
+
+/// Run `work`, pinging the watchdog from a helper thread meanwhile: a
 /// reload blocks the control loop, and preparing references that are not
 /// in the cache yet (new ones, or changed parameters) can take longer
 /// than `WatchdogSec=`; a reload is slow, not hung.
-fn reload_pinging(
-    loader: &dyn Loader,
-    store: &mut Store,
-    watchdog: Option<Duration>,
-) -> Result<(Config, Classifier, Option<Regex>), String> {
+fn with_watchdog_pings<T>(watchdog: Option<Duration>, work: impl FnOnce() -> T) -> T {
     let Some(every) = watchdog else {
-        return reload(loader, store);
+        return work();
     };
     let done = std::sync::atomic::AtomicBool::new(false);
     std::thread::scope(|scope| {
@@ -180,7 +519,7 @@ fn reload_pinging(
         if let Err(e) = pinger {
             tracing::warn!("cannot start the watchdog thread for the reload: {e}");
         }
-        let result = reload(loader, store);
+        let result = work();
         done.store(true, std::sync::atomic::Ordering::SeqCst);
         result
     })
@@ -201,197 +540,11 @@ fn start_serial(
     }
 }
 
-async fn control_loop(loader: &dyn Loader) -> Result<(), DaemonError> {
-    // Installed first, so a signal during the library load is not lost.
-    let mut sigterm = signal(SignalKind::terminate()).map_err(DaemonError::Signals)?;
-    let mut sigint = signal(SignalKind::interrupt()).map_err(DaemonError::Signals)?;
-    let mut sighup = signal(SignalKind::hangup()).map_err(DaemonError::Signals)?;
-
-    let mut config = loader.config().map_err(DaemonError::Load)?;
-    let trigger = compile_trigger(&config)?;
-    let db = config.database.path.clone();
-    let mut store = Store::open(&db)?;
-    let requeued = store.requeue_running()?;
-    if requeued > 0 {
-        tracing::info!("{requeued} scan(s) left running by an earlier run are pending again");
-    }
-    let (classifier, outcome) = loader.library(&config).map_err(DaemonError::Load)?;
-    classifier.register(&mut store, &outcome)?;
-    let mut n_refs = classifier.references.len();
-    tracing::info!(
-        "library {} loaded: {n_refs} references; watching {}",
-        config.library.dir.display(),
-        config.watch.dir.display()
-    );
-    let worker_store = Store::open(&db)?;
-    let mut worker = Worker::spawn(worker_store, classifier, config.watch.quarantine.clone())
-        .map_err(|source| DaemonError::Start {
-            what: "worker thread",
-            source,
-        })?;
-
-    let (serial_tx, mut serial_rx) = mpsc::unbounded_channel::<String>();
-    let mut serial = start_serial(&config, trigger.as_ref(), &serial_tx);
-
-    let mut folder = FolderWatch::start(&config.watch);
-    // Files that arrived while the daemon was down.
-    let ready = folder.rescan(false);
-    take(&mut store, &mut folder, ready, &worker).await;
-    worker.wake();
-
-    notify(&[NotifyState::Ready]);
-    let watchdog = sd_notify::watchdog_enabled().map(|d| d / 2);
-    let house_period = watchdog.map_or(Duration::from_millis(500), |w| {
-        w.clamp(Duration::from_millis(10), Duration::from_millis(500))
-    });
-    let mut house = interval(house_period);
-    let mut settle_tick = interval(watch::POLL_INTERVAL);
-    let start = Instant::now();
-    let mut rescan_tick = interval_at(start + watch::RESCAN_INTERVAL, watch::RESCAN_INTERVAL);
-    for t in [&mut house, &mut settle_tick, &mut rescan_tick] {
-        t.set_missed_tick_behavior(MissedTickBehavior::Delay);
-    }
-    let mut last_ping = start;
-    let mut last_status = String::new();
-    let mut last_status_at: Option<Instant> = None;
-    let mut hang_logged = false;
-
-    loop {
-        tokio::select! {
-            // Signals first: a stop must not wait behind a busy folder.
-            biased;
-            _ = sigterm.recv() => break,
-            _ = sigint.recv() => break,
-            _ = sighup.recv() => {
-                tracing::info!("reloading the configuration and the library");
-                notify(&[NotifyState::Reloading]);
-                match reload_pinging(loader, &mut store, watchdog) {
-                    Ok((c, classifier, t)) => {
-                        n_refs = classifier.references.len();
-                        worker.reload(classifier, c.watch.quarantine.clone());
-                        if c.serial != config.serial {
-                            // Dropping the old trigger stops its thread.
-                            drop(serial.take());
-                            serial = start_serial(&c, t.as_ref(), &serial_tx);
-                        }
-                        if c.database.path != config.database.path {
-                            tracing::warn!("database.path changes only at restart");
-                        }
-                        if c.watch != config.watch {
-                            folder = FolderWatch::start(&c.watch);
-                        }
-                        config = c;
-                        tracing::info!("reloaded: {n_refs} references");
-                        let ready = folder.rescan(false);
-                        take(&mut store, &mut folder, ready, &worker).await;
-                    }
-                    Err(e) => tracing::error!("reload failed, keeping the previous setup: {e}"),
-                }
-                notify(&[NotifyState::Ready]);
-                last_status_at = None;
-            }
-            Some(line) = serial_rx.recv() => {
-                // A trigger says the scanner has finished writing: a file
-                // the line names first, then everything in the folder.
-                let mut lines = vec![line];
-                while let Ok(more) = serial_rx.try_recv() {
-                    lines.push(more);
-                }
-                let mut ready = Vec::new();
-                for line in &lines {
-                    if let Some(file) = intake::named_file(line, folder.dir()) {
-                        if folder.force_file(&file) {
-                            ready.push(file);
-                        }
-                    }
-                }
-                take(&mut store, &mut folder, ready, &worker).await;
-                let ready = folder.rescan(true);
-                take(&mut store, &mut folder, ready, &worker).await;
-            }
-            Some(event) = folder.event() => {
-                let out = folder.handle(event);
-                let mut ready = out.ready;
-                if out.rescan {
-                    ready.extend(folder.rescan(false));
-                }
-                take(&mut store, &mut folder, ready, &worker).await;
-            }
-            _ = settle_tick.tick() => {
-                let ready = folder.tick();
-                take(&mut store, &mut folder, ready, &worker).await;
-            }
-            _ = rescan_tick.tick() => {
-                let ready = folder.safety_rescan();
-                take(&mut store, &mut folder, ready, &worker).await;
-            }
-            _ = house.tick() => {
-                if let Some(every) = watchdog {
-                    let hung = worker
-                        .progress()
-                        .running_for()
-                        .is_some_and(|d| d > JOB_HANG_LIMIT);
-                    if hung && !hang_logged {
-                        tracing::error!(
-                            "the current job looks hung; letting the watchdog restart the daemon"
-                        );
-                        hang_logged = true;
-                    }
-                    if !hung && last_ping.elapsed() >= every {
-                        notify(&[NotifyState::Watchdog]);
-                        last_ping = Instant::now();
-                    }
-                }
-                if last_status_at.is_none_or(|t| t.elapsed() >= STATUS_INTERVAL) {
-                    let status = status_line(&store, n_refs, worker.progress().current());
-                    if status != last_status {
-                        notify(&[NotifyState::Status(&status)]);
-                        last_status = status;
-                    }
-                    last_status_at = Some(Instant::now());
-                }
-            }
-        }
-    }
-
-    tracing::info!("stopping");
-    notify(&[NotifyState::Stopping]);
-    worker.request_stop();
-    drop(serial);
-    let deadline = Instant::now() + stop_grace();
-    while !worker.is_finished() && Instant::now() < deadline {
-        sleep(Duration::from_millis(50)).await;
-    }
-    if !worker.is_finished() {
-        if let Some(id) = worker.progress().current() {
-            match store.abandon(id) {
-                Ok(()) => tracing::info!("scan {id} abandoned; it is pending for the next start"),
-                Err(e) => tracing::warn!("scan {id} could not be abandoned: {e}"),
-            }
-        }
-    }
-    Ok(())
-}
-
 fn compile_trigger(config: &Config) -> Result<Option<Regex>, DaemonError> {
     Ok(match &config.serial {
         Some(s) => Some(Regex::new(&s.trigger)?),
         None => None,
     })
-}
-
-/// Re-read the configuration and load its library (SIGHUP).
-fn reload(
-    loader: &dyn Loader,
-    store: &mut Store,
-) -> Result<(Config, Classifier, Option<Regex>), String> {
-    let config = loader.config()?;
-    let trigger = compile_trigger(&config).map_err(|e| e.to_string())?;
-    let (classifier, outcome) = loader.library(&config)?;
-    classifier
-        .register(store, &outcome)
-        .map_err(|e| e.to_string())?;
-    Ok((config, classifier, trigger))
 }
 
 /// "idle, 116 references, 42 scans today" (or "identifying …").
@@ -410,4 +563,19 @@ fn status_line(store: &Store, n_refs: usize, current: Option<i64>) -> String {
         String::new()
     };
     format!("{state}, {n_refs} references, {today} scans today{queue}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_logged_error_shows_its_causes() {
+        let inner = std::io::Error::other("permission denied");
+        let e = LoadError::Library {
+            dir: PathBuf::from("/lib"),
+            source: Box::new(inner),
+        };
+        assert_eq!(chain(&e), "cannot load the library /lib: permission denied");
+    }
 }

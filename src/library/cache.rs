@@ -3,8 +3,10 @@
 //! restart or a new scan never prepares a reference twice, and a changed
 //! file or changed settings are prepared again.
 
+use crate::atomic_write::{write_atomic, AtomicWriteError};
 use crate::clean::CleanReport;
 use crate::cp::Prepared;
+use crate::hash::hex;
 use crate::pipeline::Settings;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
@@ -18,9 +20,9 @@ const CACHE_FORMAT: u32 = 2;
 /// Extension of cache entries.
 const EXTENSION: &str = "prep";
 
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
+/// A temporary file older than this was left by a process that died
+/// while writing it; younger ones may be another process's write.
+const STALE_TEMPORARY: std::time::Duration = std::time::Duration::from_secs(600);
 
 /// Why the cache cannot be used.
 #[derive(Debug, thiserror::Error)]
@@ -33,6 +35,9 @@ pub enum CacheError {
         /// The I/O error.
         source: std::io::Error,
     },
+    /// An entry cannot be written.
+    #[error(transparent)]
+    Write(#[from] AtomicWriteError),
     /// An entry cannot be encoded.
     #[error("cannot encode the prepared form of `{name}`: {message}")]
     Encode {
@@ -130,7 +135,8 @@ impl Cache {
         Some(entry.reference)
     }
 
-    /// Store an entry under `key`, atomically (write, then rename).
+    /// Store an entry under `key`, atomically: processes sharing the cache
+    /// may write the same entry at once.
     pub fn put(&self, key: &str, reference: &CachedReference) -> Result<(), CacheError> {
         let entry = Entry {
             format: CACHE_FORMAT,
@@ -141,18 +147,11 @@ impl Cache {
             name: reference.name.clone(),
             message: e.to_string(),
         })?;
-        let path = self.path_of(&reference.name, key);
-        let tmp = path.with_extension("tmp");
-        let io = |source| CacheError::Io {
-            path: path.clone(),
-            source,
-        };
-        std::fs::write(&tmp, bytes).map_err(io)?;
-        std::fs::rename(&tmp, &path).map_err(io)
+        Ok(write_atomic(&self.path_of(&reference.name, key), &bytes)?)
     }
 
-    /// Delete every entry whose (name, key) is not in `keep`; returns how
-    /// many were deleted.
+    /// Delete every entry whose (name, key) is not in `keep`, and the
+    /// temporary files of writes that died; returns how many were deleted.
     pub fn retain(&self, keep: &HashSet<(String, String)>) -> Result<usize, CacheError> {
         let io = |source| CacheError::Io {
             path: self.dir.clone(),
@@ -162,10 +161,12 @@ impl Cache {
         let mut removed = 0;
         for entry in std::fs::read_dir(&self.dir).map_err(io)? {
             let path = entry.map_err(io)?.path();
-            let ours = path
-                .extension()
-                .is_some_and(|e| e == EXTENSION || e == "tmp");
-            if ours && !wanted.contains(&path) {
+            let stale = match path.extension() {
+                Some(e) if e == EXTENSION => !wanted.contains(&path),
+                Some(e) if e == "tmp" => is_older_than(&path, STALE_TEMPORARY),
+                _ => false,
+            };
+            if stale {
                 std::fs::remove_file(&path).map_err(io)?;
                 removed += 1;
             }
@@ -174,11 +175,56 @@ impl Cache {
     }
 }
 
+/// Whether the file at `path` was last modified more than `age` ago.
+fn is_older_than(path: &Path, age: std::time::Duration) -> bool {
+    std::fs::metadata(path)
+        .and_then(|m| m.modified())
+        .ok()
+        .and_then(|t| t.elapsed().ok())
+        .is_some_and(|elapsed| elapsed > age)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::library::{build, Library};
-    use crate::mesh::synth::{write_synthetic_library, LibrarySpec};
+    use crate::mesh::synth::{self, write_synthetic_library, LibrarySpec};
+
+    #[test]
+    fn concurrent_puts_of_one_entry_leave_it_readable_and_no_temporary_file() {
+        let mut settings = Settings::default();
+        settings.clean.target_vertices = 800;
+        let mesh = synth::crown(&synth::CROWN_GENERA[0], 1, 800);
+        let surface = crate::pipeline::prepare_mesh(&mesh, "r", &settings).unwrap();
+        let reference = CachedReference {
+            name: "r".into(),
+            content_hash: crate::hash::content_hash(b"r"),
+            prepared: surface.prepared,
+            cleaning: surface.cleaning,
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let key = Cache::key(&reference.content_hash, &settings);
+        std::thread::scope(|s| {
+            for _ in 0..8 {
+                // One `Cache` per thread, as two processes would have.
+                let cache = Cache::open(dir.path()).unwrap();
+                let (key, reference) = (&key, &reference);
+                s.spawn(move || {
+                    for _ in 0..4 {
+                        cache.put(key, reference).unwrap();
+                    }
+                });
+            }
+        });
+        let cache = Cache::open(dir.path()).unwrap();
+        let hit = cache.get("r", &key).expect("a whole entry");
+        assert_eq!(hit.content_hash, reference.content_hash);
+        let names: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(names, [format!("r.{key}.{EXTENSION}")]);
+    }
 
     #[test]
     fn only_preparation_settings_key_the_cache() {

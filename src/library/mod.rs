@@ -11,13 +11,16 @@ mod cache;
 mod identify;
 
 pub use cache::{Cache, CacheError, CachedReference};
-pub use identify::{identify, Identification};
+pub use identify::{
+    identify, DistanceRow, Identification, LandmarkPoint, Nearest, RankResult, ScanLandmarks,
+    ScanOutcome,
+};
 
 use crate::eval::{Labels, LabelsError};
+use crate::hash::content_hash;
 use crate::landmarks::LibraryLandmarks;
 use crate::mesh::io::{self, Format};
 use crate::pipeline::{self, Settings};
-use crate::store::content_hash;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, HashSet};
 use std::path::{Path, PathBuf};

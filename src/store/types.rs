@@ -1,5 +1,6 @@
 //! Plain data that goes into and comes out of the store.
 
+use crate::library::{Nearest, RankResult, ScanLandmarks};
 use serde::ser::{SerializeMap, Serializer};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -153,87 +154,6 @@ impl Enqueued {
             Enqueued::New(id) | Enqueued::Existing(id, _) => id,
         }
     }
-}
-
-/// Nearest taxon at one rank.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct RankResult {
-    /// Rank name (`genus`, …).
-    pub rank: String,
-    /// The nearest reference's taxon at this rank.
-    pub taxon: String,
-    /// Name of the nearest reference with a known taxon at this rank.
-    pub reference: String,
-    /// Its distance.
-    pub distance: f64,
-    /// The nearest other taxon at this rank, if any.
-    pub runner_up: Option<String>,
-    /// Distance to the runner-up minus `distance`.
-    pub margin: Option<f64>,
-}
-
-/// Distance between the scan and one reference.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct DistanceRow {
-    /// Reference name.
-    pub reference: String,
-    /// d(scan, reference).
-    pub forward: f64,
-    /// d(reference, scan).
-    pub backward: f64,
-    /// The reported distance (the smaller direction).
-    pub distance: f64,
-    /// Whether the best map reverses orientation (mirror image).
-    pub reflected: bool,
-}
-
-/// A reference and its distance, for the `nearest` list.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Nearest {
-    /// Reference name.
-    pub reference: String,
-    /// Reported distance.
-    pub distance: f64,
-}
-
-/// One landmark carried onto a scan, in the scan file's coordinates.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct LandmarkPoint {
-    /// The label of the reference's landmark, if it had one.
-    pub label: Option<String>,
-    /// x coordinate.
-    pub x: f64,
-    /// y coordinate.
-    pub y: f64,
-    /// z coordinate.
-    pub z: f64,
-}
-
-/// The landmarks of a reference carried onto a scan through the cP
-/// correspondence, in the order of the reference's landmark file.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct ScanLandmarks {
-    /// The reference whose landmarks were carried over.
-    pub reference: String,
-    /// The landmarks on the scan.
-    pub points: Vec<LandmarkPoint>,
-}
-
-/// Everything an identification produced, written by `complete` in one
-/// transaction. The store does no arithmetic on it.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct ScanOutcome {
-    /// Nearest taxon per rank, broadest rank first.
-    pub ranks: Vec<RankResult>,
-    /// Distances to every reference compared.
-    pub distances: Vec<DistanceRow>,
-    /// The cleaning report, as JSON.
-    pub cleaning: serde_json::Value,
-    /// Milliseconds per stage (`load`, `clean`, `flatten`, `compare`, …).
-    pub timings_ms: BTreeMap<String, f64>,
-    /// The nearest reference's landmarks carried onto the scan, when that
-    /// reference has landmarks.
-    pub landmarks: Option<ScanLandmarks>,
 }
 
 /// A scan as recorded, with its result if it has one. Serializes to the

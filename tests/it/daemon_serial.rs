@@ -1,7 +1,7 @@
 //! A pseudo-terminal pair stands in for the scanner's serial line.
 
 use crate::support::daemon::*;
-use morphoid::daemon::serial::BACKOFF_MAX;
+use morphoid::daemon::BACKOFF_MAX;
 use morphoid::store::ScanStatus;
 use std::fs::File;
 use std::io::Write;

@@ -50,13 +50,7 @@ fn held_out_teeth_are_identified_to_genus() {
         })
         .collect();
     assert_eq!(references.len(), 106);
-    let classifier = Classifier {
-        references,
-        labels: labels.clone(),
-        settings: settings.clone(),
-        landmarks: Default::default(),
-        results_dir: None,
-    };
+    let classifier = Classifier::new(references, labels.clone(), settings.clone());
 
     let tmp = tempfile::tempdir().unwrap();
     let mut correct = 0;

@@ -2,7 +2,7 @@
 //! library whose references have landmark files (every format), a rigidly
 //! moved, remeshed, rescaled copy of one reference identified, and the
 //! nearest reference's landmarks carried onto it: in the JSON, in the
-//! database, in `results --json` and as `<stem>.fcsv` in the results
+//! database, in `results --json` and as `<name>.fcsv` in the results
 //! folder. Also `matrix --method landmarks` and the Mantel test between
 //! the cP and the landmark matrices.
 
@@ -29,7 +29,8 @@ struct Setup {
 
 /// A library of 2 crowns per configuration (10), 1500 vertices, random
 /// poses and scales, with landmark files for all; a config keeping the
-/// cache and the database in the temporary folder.
+/// cache and the database in the temporary folder, which is also the
+/// export folder result files are named from.
 fn setup() -> Setup {
     let tmp = tempfile::tempdir().unwrap();
     let root = tmp.path().to_path_buf();
@@ -48,8 +49,9 @@ fn setup() -> Setup {
     std::fs::write(
         &config,
         format!(
-            "[library]\ndir = {:?}\nranks = [\"order\", \"family\", \"genus\"]\ncache = {:?}\n\
+            "[watch]\ndir = {:?}\n[library]\ndir = {:?}\nranks = [\"order\", \"family\", \"genus\"]\ncache = {:?}\n\
              [database]\npath = {:?}\n[clean]\ntarget_vertices = 1500\n",
+            root,
             lib,
             root.join("cache"),
             db
@@ -131,10 +133,10 @@ fn classify_carries_the_nearest_references_landmarks() {
     assert!(on.iter().all(|&d| d < 0.01 * diag), "{on:?}");
 
     // The results folder: the JSON line and the Slicer markups.
-    let json_file = std::fs::read_to_string(out_dir.join("scan_a.json")).unwrap();
+    let json_file = std::fs::read_to_string(out_dir.join("scan_a.ply.json")).unwrap();
     let from_file: serde_json::Value = serde_json::from_str(&json_file).unwrap();
     assert_eq!(&from_file, v);
-    let fcsv = landmarks::read(&out_dir.join("scan_a.fcsv"), Some(10)).unwrap();
+    let fcsv = landmarks::read(&out_dir.join("scan_a.ply.fcsv"), Some(10)).unwrap();
     assert_eq!(fcsv.points, points);
     assert_eq!(fcsv.label(0), Some("L1"));
     let leftovers: Vec<_> = std::fs::read_dir(&out_dir)
@@ -212,7 +214,7 @@ fn classify_carries_the_nearest_references_landmarks() {
     let (copy_b, _) = moved_copy(&io::load(&second.path).unwrap().mesh, 72);
     let scan_b = s.root.join("scan_b.ply");
     io::save(&scan_b, &copy_b).unwrap();
-    std::fs::remove_file(out_dir.join("scan_a.fcsv")).unwrap();
+    std::fs::remove_file(out_dir.join("scan_a.ply.fcsv")).unwrap();
     let o = morphoid(
         &["classify", "--json", "--out-dir"],
         &[&out_dir, Path::new("--config"), &s.config, &scan, &scan_b],
@@ -226,12 +228,12 @@ fn classify_carries_the_nearest_references_landmarks() {
     assert!(err.contains("more than one landmark file"), "{err}");
     let lines = json_lines(&o);
     assert_eq!(json_landmarks(&lines[0]).0, points);
-    assert!(out_dir.join("scan_a.fcsv").is_file());
+    assert!(out_dir.join("scan_a.ply.fcsv").is_file());
     assert_eq!(lines[1]["status"], "ok");
     assert_eq!(lines[1]["nearest"][0]["reference"], second.name.as_str());
     assert!(lines[1].get("landmarks").is_none(), "{}", lines[1]);
-    assert!(out_dir.join("scan_b.json").is_file());
-    assert!(!out_dir.join("scan_b.fcsv").exists());
+    assert!(out_dir.join("scan_b.ply.json").is_file());
+    assert!(!out_dir.join("scan_b.ply.fcsv").exists());
 
     // `library build` names each unusable landmark file and fails.
     let o = morphoid(&["library", "build", "--config"], &[&s.config]);

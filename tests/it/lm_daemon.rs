@@ -1,6 +1,7 @@
 //! `morphoid run` with `[results] dir`: a scan dropped into the export
-//! folder gets `<stem>.json` and, since its nearest reference has
-//! landmarks, `<stem>.fcsv` with those landmarks carried onto it.
+//! folder gets `<name>.json` and, since its nearest reference has
+//! landmarks, `<name>.fcsv` with those landmarks carried onto it (`<name>`:
+//! the path in the export folder, `tooth_7.ply`).
 
 use crate::support::daemon::*;
 use crate::support::lm::{moved_copy, relative_errors, true_position, write_library_landmarks};
@@ -35,8 +36,8 @@ fn the_daemon_writes_the_carried_landmarks_next_to_the_json() {
     io::save(&tmp, &copy).unwrap();
     std::fs::rename(&tmp, env.export.join("tooth_7.ply")).unwrap();
 
-    let fcsv = out_dir.join("tooth_7.fcsv");
-    let json = out_dir.join("tooth_7.json");
+    let fcsv = out_dir.join("tooth_7.ply.fcsv");
+    let json = out_dir.join("tooth_7.ply.json");
     assert!(
         wait_until(Duration::from_secs(240), || fcsv.is_file()
             && json.is_file()),

@@ -5,6 +5,7 @@
 
 mod support;
 
+mod classify_result_files;
 mod clean_pipeline;
 mod clean_teeth;
 mod clean_variants;

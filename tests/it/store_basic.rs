@@ -2,9 +2,11 @@
 //! queue's transitions, atomic results, concurrent readers, JSON form.
 
 use crate::support::store::{outcome, reference_name, register_references, RANKS};
+use morphoid::hash::content_hash;
+use morphoid::library::DistanceRow;
 use morphoid::store::{
-    content_hash, now_ms, schema, utc_day_start_ms, Enqueued, Labels, ReferenceState, ScanStatus,
-    Store, StoreError, SCHEMA_VERSION,
+    migrate, now_ms, utc_day_start_ms, Enqueued, Labels, ReferenceState, ScanStatus, Store,
+    StoreError, SCHEMA_VERSION,
 };
 use rusqlite::Connection;
 
@@ -69,12 +71,9 @@ fn migrations_run_twice_change_nothing() {
     drop(Store::open(&path).expect("create"));
     let mut conn = Connection::open(&path).expect("raw open");
     let before = schema_sql(&conn);
+    assert_eq!(migrate(&mut conn, &path).expect("again"), SCHEMA_VERSION);
     assert_eq!(
-        schema::migrate(&mut conn, &path).expect("again"),
-        SCHEMA_VERSION
-    );
-    assert_eq!(
-        schema::migrate(&mut conn, &path).expect("and again"),
+        migrate(&mut conn, &path).expect("and again"),
         SCHEMA_VERSION
     );
     assert_eq!(schema_sql(&conn), before);
@@ -381,7 +380,7 @@ fn complete_is_all_or_nothing() {
     // 1. The last distance names a reference that does not exist: the
     //    results and the first 20 distances were already inserted.
     let mut bad = outcome(3, 20);
-    bad.distances.push(morphoid::store::DistanceRow {
+    bad.distances.push(DistanceRow {
         reference: "nobody".into(),
         forward: 0.1,
         backward: 0.1,

@@ -6,7 +6,8 @@
 //! `CRASH_CHILD_DB` set, executing the ignored test `crash_child_writer`.
 
 use crate::support::store::{outcome, register_references};
-use morphoid::store::{content_hash, ScanStatus, Store};
+use morphoid::hash::content_hash;
+use morphoid::store::{ScanStatus, Store};
 use rand::Rng;
 use rusqlite::Connection;
 use std::path::Path;
@@ -112,7 +113,8 @@ fn killed_writer_leaves_only_whole_results() {
     for round in 0..ROUNDS {
         let mut child = Command::new(&exe)
             .args([
-                "crash_child_writer",
+                // Test names in the one test crate carry their module.
+                "store_crash::crash_child_writer",
                 "--exact",
                 "--ignored",
                 "--test-threads=1",

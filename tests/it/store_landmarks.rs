@@ -4,9 +4,8 @@
 //! at all.
 
 use crate::support::store::{outcome, reference_name, register_references};
-use morphoid::store::{
-    schema, LandmarkPoint, ScanLandmarks, ScanStatus, Store, StoreError, SCHEMA_VERSION,
-};
+use morphoid::library::{LandmarkPoint, ScanLandmarks};
+use morphoid::store::{ScanStatus, Store, StoreError, APPLICATION_ID, MIGRATIONS, SCHEMA_VERSION};
 use rusqlite::{params, Connection};
 
 fn temp_db() -> (tempfile::TempDir, std::path::PathBuf) {
@@ -45,9 +44,9 @@ fn version_1_database(path: &std::path::Path) {
     let conn = Connection::open(path).expect("raw open");
     conn.execute_batch("PRAGMA journal_mode = WAL;")
         .expect("wal");
-    conn.execute_batch(schema::MIGRATIONS[0]).expect("schema 1");
+    conn.execute_batch(MIGRATIONS[0]).expect("schema 1");
     conn.pragma_update(None, "user_version", 1).expect("v1");
-    conn.pragma_update(None, "application_id", schema::APPLICATION_ID)
+    conn.pragma_update(None, "application_id", APPLICATION_ID)
         .expect("app id");
     for (id, name) in [(1, "ref000"), (2, "ref001")] {
         conn.execute(

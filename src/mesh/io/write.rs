@@ -1,9 +1,10 @@
 //! Writers for PLY (binary and ASCII), STL (binary and ASCII), OBJ and OFF.
 //!
-//! Files are written to a temporary sibling and renamed into place, so a
-//! watcher never sees a half-written mesh.
+//! Files are replaced atomically ([`crate::atomic_write`]), so a watcher
+//! never sees a half-written mesh.
 
 use super::{shown, Format};
+use crate::atomic_write::{write_atomic, AtomicWriteError};
 use crate::mesh::{norm, triangle_normal2, Mesh};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -69,6 +70,9 @@ pub enum SaveError {
         /// The operating-system error.
         source: std::io::Error,
     },
+    /// The file could not be replaced atomically.
+    #[error(transparent)]
+    Write(#[from] AtomicWriteError),
     /// The extension names no supported format.
     #[error(
         "{}: unsupported file type (expected .obj, .ply, .stl or .off)",
@@ -95,10 +99,7 @@ pub fn save_as(path: &Path, mesh: &Mesh, encoding: Encoding) -> Result<(), SaveE
         path: path.to_path_buf(),
         message: e.0,
     })?;
-    write_atomically(path, &bytes).map_err(|source| SaveError::Io {
-        path: path.to_path_buf(),
-        source,
-    })
+    Ok(write_atomic(path, &bytes)?)
 }
 
 /// Write binary little-endian PLY (a vertex-only PLY for a point cloud).
@@ -172,17 +173,6 @@ fn check_writable(mesh: &Mesh) -> Result<(), String> {
         return Err(format!("face {fi} refers to a vertex past {n}"));
     }
     Ok(())
-}
-
-fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let mut tmp_name = std::ffi::OsString::from(".");
-    tmp_name.push(path.file_name().unwrap_or_default());
-    tmp_name.push(format!(".{}.tmp", std::process::id()));
-    let tmp = path.with_file_name(tmp_name);
-    std::fs::write(&tmp, bytes)?;
-    std::fs::rename(&tmp, path).inspect_err(|_| {
-        let _ = std::fs::remove_file(&tmp);
-    })
 }
 
 fn ply_header(mesh: &Mesh, format: &str, scalar: &str) -> String {

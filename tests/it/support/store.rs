@@ -1,6 +1,7 @@
 //! Helpers shared by the store tests.
 
-use morphoid::store::{DistanceRow, Labels, RankResult, ScanOutcome, Store};
+use morphoid::library::{DistanceRow, RankResult, ScanOutcome};
+use morphoid::store::{Labels, Store};
 use std::collections::BTreeMap;
 
 /// Ranks used by the tests, broadest first.

@@ -16,7 +16,7 @@ pub fn content_hash(bytes: &[u8]) -> String {
 
 /// SHA-256 of everything `reader` yields, read in blocks (a large scan is
 /// never held in memory whole). Returns the hash and the number of bytes.
-pub fn content_hash_reader<R: Read>(mut reader: R) -> std::io::Result<(String, u64)> {
+fn content_hash_reader<R: Read>(mut reader: R) -> std::io::Result<(String, u64)> {
     let mut hasher = Sha256::new();
     let mut buffer = vec![0u8; 1 << 16];
     let mut total = 0u64;
@@ -39,10 +39,11 @@ pub fn content_hash_file(path: &Path) -> std::io::Result<(String, u64)> {
     content_hash_reader(std::fs::File::open(path)?)
 }
 
-fn hex(digest: &[u8]) -> String {
+/// `bytes` as lower-case hexadecimal digits, two per byte.
+pub(crate) fn hex(bytes: &[u8]) -> String {
     const DIGITS: &[u8; 16] = b"0123456789abcdef";
-    let mut out = String::with_capacity(digest.len() * 2);
-    for &byte in digest {
+    let mut out = String::with_capacity(bytes.len() * 2);
+    for &byte in bytes {
         out.push(DIGITS[usize::from(byte >> 4)] as char);
         out.push(DIGITS[usize::from(byte & 0x0f)] as char);
     }

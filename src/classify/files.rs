@@ -1,0 +1,247 @@
+//! Result files: for each identified scan, `<name>.json` (the `classify
+//! --json` line) and, when landmarks were carried onto it, `<name>.fcsv`
+//! (3D Slicer markups in the scan file's coordinates), in a results
+//! folder.
+//!
+//! `<name>` is the scan's path relative to the export folder, file
+//! extension included: `<export>/a/x.ply` gives `<results>/a/x.ply.json`.
+//! Two different scan files thus never share a result file, whether they
+//! differ in folder (`a/x.ply`, `b/x.ply`) or in format (`x.ply`,
+//! `x.stl`). A scan outside the export folder (`morphoid classify` on any
+//! file) is named by its path as given when that is relative and does not
+//! climb out with `..`, otherwise by its absolute path.
+
+use crate::atomic_write::{write_atomic, AtomicWriteError};
+use crate::landmarks::{self, Landmarks};
+use crate::store::ScanRecord;
+use std::ffi::OsString;
+use std::path::{Component, Path, PathBuf};
+
+/// Why the result files of a scan could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ResultsError {
+    /// A folder could not be created or a stale file removed.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// A result file could not be written.
+    #[error(transparent)]
+    Write(#[from] AtomicWriteError),
+    /// The record could not be turned into JSON.
+    #[error("cannot encode the result of {scan} as JSON: {source}")]
+    Json {
+        /// The scan.
+        scan: String,
+        /// serde_json's error.
+        source: serde_json::Error,
+    },
+}
+
+/// Where result files go and what they are named after.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ResultFiles {
+    dir: PathBuf,
+    export_dir: Option<PathBuf>,
+}
+
+impl ResultFiles {
+    /// Result files in `dir`, named after each scan's path relative to
+    /// `export_dir` (the watched folder) when the scan lies in it.
+    pub fn new(dir: PathBuf, export_dir: Option<PathBuf>) -> Self {
+        ResultFiles { dir, export_dir }
+    }
+
+    /// The results folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The result files of `record`: `<name>.json` and `<name>.fcsv`.
+    pub fn paths(&self, record: &ScanRecord) -> (PathBuf, PathBuf) {
+        let name = result_name(Path::new(&record.path), self.export_dir.as_deref())
+            .unwrap_or_else(|| PathBuf::from(format!("scan-{}", record.id)));
+        let base = self.dir.join(name).into_os_string();
+        let with = |ext: &str| {
+            let mut p = OsString::from(&base);
+            p.push(ext);
+            PathBuf::from(p)
+        };
+        (with(".json"), with(".fcsv"))
+    }
+
+    /// Write the result files of a recorded scan (folders created as
+    /// needed): the JSON always, the landmarks when the scan has some; a
+    /// stale `.fcsv` of an earlier result without landmarks is removed.
+    /// Each file is replaced atomically. Returns the files written.
+    pub fn write(&self, record: &ScanRecord) -> Result<Vec<PathBuf>, ResultsError> {
+        let (json_path, fcsv_path) = self.paths(record);
+        if let Some(folder) = json_path.parent() {
+            std::fs::create_dir_all(folder).map_err(|source| ResultsError::Io {
+                path: folder.to_path_buf(),
+                source,
+            })?;
+        }
+        let mut json = serde_json::to_string(record).map_err(|source| ResultsError::Json {
+            scan: record.path.clone(),
+            source,
+        })?;
+        json.push('\n');
+        write_atomic(&json_path, json.as_bytes())?;
+        let mut written = vec![json_path];
+        match &record.landmarks {
+            Some(lm) if !lm.points.is_empty() => {
+                let mut points = Landmarks::default();
+                for p in &lm.points {
+                    points.push([p.x, p.y, p.z], p.label.clone());
+                }
+                let text = landmarks::format(&points, landmarks::Format::Fcsv);
+                write_atomic(&fcsv_path, text.as_bytes())?;
+                written.push(fcsv_path);
+            }
+            _ => match std::fs::remove_file(&fcsv_path) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(ResultsError::Io {
+                        path: fcsv_path,
+                        source: e,
+                    })
+                }
+                _ => {}
+            },
+        }
+        Ok(written)
+    }
+}
+
+/// The name (a relative path, extension of the scan file kept) of the
+/// result files of the scan at `scan`: relative to `export_dir` when the
+/// scan lies in it, else the path as given when relative without `..`,
+/// else the absolute path without its root. `None` for a path with no
+/// file name (the export folder itself). Paths are compared after `.` and
+/// `..` are resolved in the text, without following links.
+pub fn result_name(scan: &Path, export_dir: Option<&Path>) -> Option<PathBuf> {
+    let absolute = absolute_lexical(scan);
+    let inside = export_dir.and_then(|d| absolute.strip_prefix(absolute_lexical(d)).ok());
+    let as_given = scan.is_relative() && !scan.components().any(|c| c == Component::ParentDir);
+    let relative = match inside {
+        Some(r) => r,
+        None if as_given => scan,
+        None => &absolute,
+    };
+    let name: PathBuf = relative
+        .components()
+        .filter(|c| matches!(c, Component::Normal(_)))
+        .collect();
+    (!name.as_os_str().is_empty()).then_some(name)
+}
+
+/// `path` made absolute against the working directory, with `.` and `..`
+/// resolved in the text.
+fn absolute_lexical(path: &Path) -> PathBuf {
+    let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let mut out = PathBuf::new();
+    for c in absolute.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir => {
+                out.pop();
+            }
+            other => out.push(other),
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::store::ScanStatus;
+    use std::collections::{BTreeMap, HashSet};
+
+    fn name(scan: &str, export: Option<&str>) -> Option<String> {
+        result_name(Path::new(scan), export.map(Path::new)).map(|p| p.display().to_string())
+    }
+
+    #[test]
+    fn names_follow_the_path_in_the_export_folder() {
+        let export = Some("/data/export");
+        assert_eq!(name("/data/export/x.ply", export).unwrap(), "x.ply");
+        assert_eq!(name("/data/export/a/x.ply", export).unwrap(), "a/x.ply");
+        assert_eq!(
+            name("/data/export/./b/../a/x.ply", export).unwrap(),
+            "a/x.ply"
+        );
+        assert_eq!(name("/data/export/", export), None);
+        // Outside the export folder: as given when relative, else absolute.
+        assert_eq!(name("scans/x.ply", export).unwrap(), "scans/x.ply");
+        assert_eq!(name("./x.ply", None).unwrap(), "x.ply");
+        assert_eq!(
+            name("/data/other/x.ply", export).unwrap(),
+            "data/other/x.ply"
+        );
+        let up = name("../x.ply", None).unwrap();
+        assert!(up.ends_with("x.ply") && !up.contains(".."), "{up}");
+        assert_ne!(up, "x.ply");
+    }
+
+    #[test]
+    fn scans_that_share_a_stem_get_different_names() {
+        let export = Some("/e");
+        let scans = [
+            "/e/a/x.ply",
+            "/e/b/x.ply",
+            "/e/x.stl",
+            "/e/x.ply",
+            "/e/a/x.stl",
+        ];
+        let names: HashSet<String> = scans.iter().map(|s| name(s, export).unwrap()).collect();
+        assert_eq!(names.len(), scans.len(), "{names:?}");
+    }
+
+    fn record(id: i64, path: &str) -> ScanRecord {
+        ScanRecord {
+            id,
+            path: path.into(),
+            content_hash: format!("{id:064x}"),
+            size: 1,
+            status: ScanStatus::Error,
+            error: Some(format!("error of {path}")),
+            attempts: 1,
+            created_at_ms: 0,
+            started_at_ms: None,
+            finished_at_ms: Some(1),
+            timings_ms: BTreeMap::new(),
+            cleaning: serde_json::Value::Null,
+            ranks: Vec::new(),
+            nearest: Vec::new(),
+            landmarks: None,
+        }
+    }
+
+    #[test]
+    fn each_scan_keeps_its_own_result_file() {
+        let out = tempfile::tempdir().unwrap();
+        let files = ResultFiles::new(out.path().to_path_buf(), Some("/e".into()));
+        let scans = ["/e/a/x.ply", "/e/b/x.ply", "/e/x.stl"];
+        for (i, s) in scans.iter().enumerate() {
+            files.write(&record(i as i64 + 1, s)).unwrap();
+        }
+        for (i, s) in scans.iter().enumerate() {
+            let (json, fcsv) = files.paths(&record(i as i64 + 1, s));
+            let text = std::fs::read_to_string(&json).unwrap();
+            assert!(
+                text.contains(&format!("error of {s}")),
+                "{}: {text}",
+                json.display()
+            );
+            assert!(!fcsv.exists());
+        }
+        assert!(out.path().join("a/x.ply.json").is_file());
+        assert!(out.path().join("x.stl.json").is_file());
+        let unnamed = record(9, "/e");
+        assert_eq!(files.paths(&unnamed).0, out.path().join("scan-9.json"));
+    }
+}

@@ -1,0 +1,340 @@
+//! Scans as jobs: `pending` → `running` → `ok` | `error`. A scan is
+//! queued once per content, claimed atomically, and finished with its
+//! whole result in one transaction, so a scan with a result is never
+//! run again and a crash leaves nothing half recorded.
+
+use super::{now_ms, parse_status, to_json, Enqueued, Job, ScanStatus, Store, StoreError};
+use crate::library::ScanOutcome;
+use rusqlite::{params, Connection, OptionalExtension, Row, TransactionBehavior};
+
+/// The columns a claim returns, in [`job_from_row`]'s terms.
+const JOB_COLUMNS: &str = "id, path, content_hash, size, attempts";
+
+impl Store {
+    /// Add a pending scan for the file at `path` with this content, unless
+    /// the content is already known: then nothing is added and the existing
+    /// scan is returned, whatever its status (the same bytes are identified
+    /// once; use [`Store::retry`] to identify them again). A changed file
+    /// has a new hash and is enqueued.
+    pub fn enqueue(
+        &mut self,
+        path: &str,
+        content_hash: &str,
+        size: u64,
+    ) -> Result<Enqueued, StoreError> {
+        let size = i64::try_from(size).map_err(|_| StoreError::OutOfRange("scan.size"))?;
+        let tx = self
+            .conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)?;
+        let existing: Option<(i64, String)> = tx
+            .query_row(
+                "SELECT id, status FROM scan WHERE content_hash = ?1",
+                [content_hash],
+                |r| Ok((r.get("id")?, r.get("status")?)),
+            )
+            .optional()?;
+        let out = match existing {
+            Some((id, status)) => Enqueued::Existing(id, parse_status(&status)?),
+            None => {
+                tx.execute(
+                    "INSERT INTO scan (path, content_hash, size, status, created_at)
+                     VALUES (?1, ?2, ?3, 'pending', ?4)",
+                    params![path, content_hash, size, now_ms()],
+                )?;
+                Enqueued::New(tx.last_insert_rowid())
+            }
+        };
+        tx.commit()?;
+        Ok(out)
+    }
+
+    /// Take the oldest pending scan: mark it running (atomically, so two
+    /// workers never get the same one) and return it. `None` when nothing
+    /// is pending.
+    pub fn claim_next(&mut self) -> Result<Option<Job>, StoreError> {
+        let mut stmt = self.conn.prepare(&format!(
+            "UPDATE scan SET status = 'running', started_at = ?1, attempts = attempts + 1
+             WHERE id = (SELECT id FROM scan WHERE status = 'pending' ORDER BY id LIMIT 1)
+             RETURNING {JOB_COLUMNS}"
+        ))?;
+        let mut rows = stmt.query([now_ms()])?;
+        rows.next()?.map(job_from_row).transpose()
+    }
+
+    /// Take this particular scan if it is pending (what one-shot `classify`
+    /// does with the scan it has just enqueued, leaving the rest of the
+    /// queue alone). `None` when it is not pending: running elsewhere, or
+    /// already finished (read it with [`Store::scan`]).
+    pub fn claim(&mut self, scan_id: i64) -> Result<Option<Job>, StoreError> {
+        let mut stmt = self.conn.prepare(&format!(
+            "UPDATE scan SET status = 'running', started_at = ?1, attempts = attempts + 1
+             WHERE id = ?2 AND status = 'pending'
+             RETURNING {JOB_COLUMNS}"
+        ))?;
+        let mut rows = stmt.query(params![now_ms(), scan_id])?;
+        rows.next()?.map(job_from_row).transpose()
+    }
+
+    /// Record the identification of a running scan: status `ok`, timings,
+    /// cleaning report, the per-rank results, every distance and the
+    /// carried landmarks, all in ONE transaction. If anything fails (an
+    /// unknown reference, a bad number, the process dies) nothing of it is
+    /// recorded and the scan stays running.
+    pub fn complete(&mut self, scan_id: i64, outcome: &ScanOutcome) -> Result<(), StoreError> {
+        validate_outcome(outcome)?;
+        let timings = to_json("scan.timings", &outcome.timings_ms)?;
+        let cleaning = to_json("scan.cleaning", &outcome.cleaning)?;
+        let tx = self
+            .conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)?;
+        require_status(&tx, scan_id, ScanStatus::Running, "complete", "running")?;
+        insert_outcome(&tx, scan_id, outcome)?;
+        tx.execute(
+            "UPDATE scan SET status = 'ok', error = NULL, finished_at = ?2,
+                    timings = ?3, cleaning = ?4
+             WHERE id = ?1",
+            params![scan_id, now_ms(), timings, cleaning],
+        )?;
+        tx.commit()?;
+        Ok(())
+    }
+
+    /// Record that a pending or running scan cannot be identified.
+    pub fn fail(&mut self, scan_id: i64, message: &str) -> Result<(), StoreError> {
+        let tx = self
+            .conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)?;
+        let status = scan_status(&tx, scan_id)?;
+        if !matches!(status, ScanStatus::Pending | ScanStatus::Running) {
+            return Err(StoreError::WrongStatus {
+                scan_id,
+                status,
+                operation: "fail",
+                expected: "pending or running",
+            });
+        }
+        tx.execute(
+            "UPDATE scan SET status = 'error', error = ?2, finished_at = ?3 WHERE id = ?1",
+            params![scan_id, message, now_ms()],
+        )?;
+        tx.commit()?;
+        Ok(())
+    }
+
+    /// Give a running scan back to the queue without a result (a clean
+    /// shutdown in the middle of a job): it becomes pending, and the claim
+    /// does not count as a failed attempt.
+    pub fn abandon(&mut self, scan_id: i64) -> Result<(), StoreError> {
+        let tx = self
+            .conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)?;
+        require_status(&tx, scan_id, ScanStatus::Running, "abandon", "running")?;
+        tx.execute(
+            "UPDATE scan SET status = 'pending', started_at = NULL,
+                    attempts = max(attempts - 1, 0)
+             WHERE id = ?1",
+            [scan_id],
+        )?;
+        tx.commit()?;
+        Ok(())
+    }
+
+    /// At start-up: put every scan left `running` by a worker that died
+    /// back to pending. Only one process may work a database's queue, so
+    /// call this before claiming. A running scan never has results (they
+    /// are committed together with `ok`); the query checks it anyway.
+    /// Returns how many were requeued.
+    pub fn requeue_running(&mut self) -> Result<usize, StoreError> {
+        Ok(self.conn.execute(
+            "UPDATE scan SET status = 'pending', started_at = NULL
+             WHERE status = 'running'
+               AND NOT EXISTS (SELECT 1 FROM result WHERE result.scan_id = scan.id)
+               AND NOT EXISTS (SELECT 1 FROM distance WHERE distance.scan_id = scan.id)
+               AND NOT EXISTS (SELECT 1 FROM landmark WHERE landmark.scan_id = scan.id)",
+            [],
+        )?)
+    }
+
+    /// Identify a finished scan again (after a library change, or an error
+    /// that has been fixed): drop its result, distances and landmarks and
+    /// make it pending, in one transaction.
+    pub fn retry(&mut self, scan_id: i64) -> Result<(), StoreError> {
+        let tx = self
+            .conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)?;
+        let status = scan_status(&tx, scan_id)?;
+        if !matches!(status, ScanStatus::Ok | ScanStatus::Error) {
+            return Err(StoreError::WrongStatus {
+                scan_id,
+                status,
+                operation: "retry",
+                expected: "ok or error",
+            });
+        }
+        tx.execute("DELETE FROM result WHERE scan_id = ?1", [scan_id])?;
+        tx.execute("DELETE FROM distance WHERE scan_id = ?1", [scan_id])?;
+        tx.execute("DELETE FROM landmark WHERE scan_id = ?1", [scan_id])?;
+        tx.execute(
+            "UPDATE scan SET status = 'pending', error = NULL, started_at = NULL,
+                    finished_at = NULL, timings = NULL, cleaning = NULL
+             WHERE id = ?1",
+            [scan_id],
+        )?;
+        tx.commit()?;
+        Ok(())
+    }
+}
+
+/// A claimed scan row ([`JOB_COLUMNS`]) as a job.
+fn job_from_row(r: &Row<'_>) -> Result<Job, StoreError> {
+    let size: i64 = r.get("size")?;
+    let attempts: i64 = r.get("attempts")?;
+    Ok(Job {
+        scan_id: r.get("id")?,
+        path: r.get("path")?,
+        content_hash: r.get("content_hash")?,
+        size: u64::try_from(size).map_err(|_| StoreError::OutOfRange("scan.size"))?,
+        attempts: u32::try_from(attempts).unwrap_or(u32::MAX),
+    })
+}
+
+/// Insert the per-rank results, the distances and the carried landmarks
+/// of `outcome` for `scan_id`, each naming its reference by the row id of
+/// the reference's current version.
+fn insert_outcome(
+    conn: &Connection,
+    scan_id: i64,
+    outcome: &ScanOutcome,
+) -> Result<(), StoreError> {
+    let mut reference_id = conn.prepare_cached(
+        "SELECT id FROM reference
+         WHERE name = ?1 AND state NOT IN ('superseded', 'removed')",
+    )?;
+    let mut lookup = |name: &str| -> Result<i64, StoreError> {
+        reference_id
+            .query_row([name], |r| r.get("id"))
+            .optional()?
+            .ok_or_else(|| StoreError::UnknownReference(name.to_string()))
+    };
+    let mut insert_result = conn.prepare_cached(
+        "INSERT INTO result
+         (scan_id, ordinal, rank, taxon, reference_id, distance, runner_up, margin)
+         VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)",
+    )?;
+    for (ordinal, r) in outcome.ranks.iter().enumerate() {
+        let ordinal =
+            i64::try_from(ordinal).map_err(|_| StoreError::OutOfRange("result.ordinal"))?;
+        insert_result.execute(params![
+            scan_id,
+            ordinal,
+            r.rank,
+            r.taxon,
+            lookup(&r.reference)?,
+            r.distance,
+            r.runner_up,
+            r.margin
+        ])?;
+    }
+    let mut insert_distance = conn.prepare_cached(
+        "INSERT INTO distance
+         (scan_id, reference_id, forward, backward, distance, reflected)
+         VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
+    )?;
+    for d in &outcome.distances {
+        insert_distance.execute(params![
+            scan_id,
+            lookup(&d.reference)?,
+            d.forward,
+            d.backward,
+            d.distance,
+            d.reflected
+        ])?;
+    }
+    if let Some(lm) = &outcome.landmarks {
+        let ref_id = lookup(&lm.reference)?;
+        let mut insert_landmark = conn.prepare_cached(
+            "INSERT INTO landmark (scan_id, idx, label, x, y, z, reference_id)
+             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+        )?;
+        for (idx, p) in lm.points.iter().enumerate() {
+            let idx = i64::try_from(idx).map_err(|_| StoreError::OutOfRange("landmark.idx"))?;
+            insert_landmark.execute(params![scan_id, idx, p.label, p.x, p.y, p.z, ref_id])?;
+        }
+    }
+    Ok(())
+}
+
+/// The status of scan `scan_id`.
+fn scan_status(conn: &Connection, scan_id: i64) -> Result<ScanStatus, StoreError> {
+    let status: Option<String> = conn
+        .query_row("SELECT status FROM scan WHERE id = ?1", [scan_id], |r| {
+            r.get("status")
+        })
+        .optional()?;
+    match status {
+        Some(s) => parse_status(&s),
+        None => Err(StoreError::NoSuchScan(scan_id)),
+    }
+}
+
+/// An error unless scan `scan_id` is `wanted`.
+fn require_status(
+    conn: &Connection,
+    scan_id: i64,
+    wanted: ScanStatus,
+    operation: &'static str,
+    expected: &'static str,
+) -> Result<(), StoreError> {
+    let status = scan_status(conn, scan_id)?;
+    if status != wanted {
+        return Err(StoreError::WrongStatus {
+            scan_id,
+            status,
+            operation,
+            expected,
+        });
+    }
+    Ok(())
+}
+
+/// Reject NaN, infinities and negative distances before anything is
+/// written: a check, not arithmetic.
+fn validate_outcome(outcome: &ScanOutcome) -> Result<(), StoreError> {
+    let check = |field: String, value: f64, nonnegative: bool| {
+        if value.is_finite() && (!nonnegative || value >= 0.0) {
+            Ok(())
+        } else {
+            Err(StoreError::InvalidNumber { field, value })
+        }
+    };
+    for r in &outcome.ranks {
+        check(format!("{} distance", r.rank), r.distance, true)?;
+        if let Some(m) = r.margin {
+            check(format!("{} margin", r.rank), m, true)?;
+        }
+    }
+    for d in &outcome.distances {
+        check(
+            format!("forward distance to {}", d.reference),
+            d.forward,
+            true,
+        )?;
+        check(
+            format!("backward distance to {}", d.reference),
+            d.backward,
+            true,
+        )?;
+        check(format!("distance to {}", d.reference), d.distance, true)?;
+    }
+    for (stage, &ms) in &outcome.timings_ms {
+        check(format!("timing {stage}"), ms, true)?;
+    }
+    if let Some(lm) = &outcome.landmarks {
+        for (i, p) in lm.points.iter().enumerate() {
+            for (axis, v) in [("x", p.x), ("y", p.y), ("z", p.z)] {
+                check(format!("landmark {i} {axis}"), v, false)?;
+            }
+        }
+    }
+    Ok(())
+}
