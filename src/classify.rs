@@ -128,8 +128,8 @@ impl Classifier {
         }
         let names: Vec<&str> = self.references.iter().map(|r| r.name.as_str()).collect();
         store.remove_references_except(&names)?;
-        for (name, why) in &outcome.failures {
-            tracing::warn!(reference = %name, "reference left out: {why}");
+        for f in &outcome.failures {
+            tracing::warn!(reference = %f.name, "reference left out: {}", f.error);
         }
         for (name, why) in &outcome.landmarks.problems {
             tracing::warn!(reference = %name, "landmarks left out: {why}");

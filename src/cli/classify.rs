@@ -1,7 +1,7 @@
 //! `morphoid classify`: one-shot identification of scans, recorded in the
 //! database exactly as the daemon records them.
 
-use super::common::{open_cache, open_library, progress_bar, ConfigArgs};
+use super::common::{progress_bar, ConfigArgs, ConfigFile};
 use anyhow::{Context, Result};
 use morphoid::classify::{self, Classifier, NEAREST};
 use morphoid::store::{content_hash, Enqueued, ScanRecord, ScanStatus, Store};
@@ -28,10 +28,10 @@ pub struct Args {
 }
 
 /// Run `morphoid classify`.
-pub fn run(args: Args) -> Result<ExitCode> {
-    let config = args.config.load()?;
-    let lib = open_library(&config)?;
-    let cache = open_cache(&config)?;
+pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
+    let config = args.config.load(file)?;
+    let lib = config.open_library()?;
+    let cache = config.open_cache()?;
     let bar = progress_bar(lib.members.len() as u64, "library");
     let (classifier, built) = Classifier::build(&lib, &cache, &config.settings(), |_| bar.inc(1))?;
     bar.finish_and_clear();

@@ -4,13 +4,12 @@
 //! results in a real SQLite database. Needs no data and no configuration.
 
 use super::classify::summary;
-use super::common::progress_bar;
+use super::common::{progress_bar, ConfigFile};
 use anyhow::{Context, Result};
 use morphoid::classify::{self, Classifier, NEAREST};
 use morphoid::library::{Cache, Library};
 use morphoid::mesh::io;
 use morphoid::mesh::synth::{self, LibrarySpec, RigidMotion, CROWN_GENERA};
-use morphoid::pipeline::Settings;
 use morphoid::store::{content_hash, Store};
 use std::path::Path;
 use std::process::ExitCode;
@@ -25,7 +24,10 @@ pub struct Args {
 }
 
 /// Run `morphoid demo`.
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
+    // The library, scans and database are the demo's own; the cleaning and
+    // engine settings come from the configuration.
+    let settings = config.load()?.settings();
     let started = Instant::now();
     let tmp = tempfile::Builder::new()
         .prefix("morphoid-demo-")
@@ -75,7 +77,6 @@ pub fn run(args: Args) -> Result<ExitCode> {
     );
 
     // The daemon's path: prepared library, jobs in SQLite, one transaction per scan.
-    let settings = Settings::default();
     let library = Library::open(&lib_dir, None)?;
     let cache = Cache::open(&root.join("cache"))?;
     let bar = progress_bar(library.members.len() as u64, "library");

@@ -1,6 +1,6 @@
 //! `morphoid run`: the daemon (see `morphoid::daemon`).
 
-use super::common::{open_cache, open_library, ConfigArgs};
+use super::common::{ConfigArgs, ConfigFile};
 use anyhow::Result;
 use morphoid::classify::Classifier;
 use morphoid::config::Config;
@@ -19,18 +19,29 @@ pub struct Args {
     watch: Option<PathBuf>,
 }
 
-impl Loader for Args {
+/// What the daemon reloads on SIGHUP: the configuration file with the
+/// command-line overrides, and the library it names.
+struct Daemon<'a> {
+    args: Args,
+    file: ConfigFile<'a>,
+}
+
+impl Loader for Daemon<'_> {
     fn config(&self) -> Result<Config, String> {
-        let mut config = self.config.load().map_err(|e| format!("{e:#}"))?;
-        if let Some(dir) = &self.watch {
+        let mut config = self
+            .args
+            .config
+            .load(self.file)
+            .map_err(|e| format!("{e:#}"))?;
+        if let Some(dir) = &self.args.watch {
             config.watch.dir = dir.clone();
         }
         Ok(config)
     }
 
     fn library(&self, config: &Config) -> Result<(Classifier, BuildOutcome), String> {
-        let lib = open_library(config).map_err(|e| format!("{e:#}"))?;
-        let cache = open_cache(config).map_err(|e| format!("{e:#}"))?;
+        let lib = config.open_library().map_err(|e| e.to_string())?;
+        let cache = config.open_cache().map_err(|e| e.to_string())?;
         Classifier::build(&lib, &cache, &config.settings(), |_| {})
             .map(|(c, o)| (c.with_results_dir(config.results.dir.clone()), o))
             .map_err(|e| e.to_string())
@@ -38,7 +49,7 @@ impl Loader for Args {
 }
 
 /// Run the daemon until SIGTERM/SIGINT.
-pub fn run(args: Args) -> Result<ExitCode> {
-    daemon::run(&args)?;
+pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
+    daemon::run(&Daemon { args, file })?;
     Ok(ExitCode::SUCCESS)
 }

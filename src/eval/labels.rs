@@ -133,6 +133,26 @@ impl Labels {
         w.finish()
     }
 
+    /// The names among `names` that have no row.
+    pub fn unlabelled<'a>(&self, names: &'a [String]) -> Vec<&'a str> {
+        names
+            .iter()
+            .filter(|n| !self.index.contains_key(*n))
+            .map(String::as_str)
+            .collect()
+    }
+
+    /// The values of `names` at `rank` (`None` for unknown or absent
+    /// specimens); `None` when `rank` is not one of the ranks.
+    pub fn column(&self, names: &[String], rank: &str) -> Option<Vec<Option<String>>> {
+        self.ranks.iter().any(|r| r == rank).then(|| {
+            names
+                .iter()
+                .map(|n| self.get(n, rank).map(str::to_string))
+                .collect()
+        })
+    }
+
     /// Value of specimen `name` at rank `rank` (`None`: unknown or absent).
     pub fn get(&self, name: &str, rank: &str) -> Option<&str> {
         let i = *self.index.get(name)?;
@@ -154,6 +174,13 @@ mod tests {
         assert_eq!(l.get("B", "genus"), None);
         assert_eq!(l.get("C", "genus"), None);
         assert_eq!(l.get("C", "order"), Some("Q"));
+        let names = ["C", "X", "A"].map(String::from);
+        assert_eq!(l.unlabelled(&names), ["X"]);
+        assert_eq!(
+            l.column(&names, "genus"),
+            Some(vec![None, None, Some("G1".to_string())])
+        );
+        assert_eq!(l.column(&names, "family"), None);
         let only = vec!["genus".to_string()];
         let l = Labels::parse(text, Some(&only), Path::new("l.csv")).unwrap();
         assert_eq!(l.ranks, vec!["genus"]);

@@ -16,6 +16,8 @@
 //! Slicer writers always declare LPS. Plain CSV and MeshLab files carry no
 //! convention and are read and written unchanged.
 
+mod chain;
+mod matrix;
 mod meshlab;
 pub mod mst;
 pub mod procrustes;
@@ -23,6 +25,11 @@ pub mod propagate;
 mod slicer;
 mod table;
 
+pub use chain::{
+    carry_along, complete_distances, correspondence_csv, far_landmarks, spanning_tree_route,
+    with_ends, Carried, ChainError, Specimens,
+};
+pub use matrix::{procrustes_matrix, LandmarkMatrixError};
 pub use mst::{minimum_spanning_tree, tree_path};
 pub use procrustes::{procrustes_distance, ProcrustesError};
 pub use propagate::{

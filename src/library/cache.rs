@@ -2,6 +2,12 @@
 //! content hash of its surface file and by the preparation settings, so a
 //! restart or a new scan never prepares a reference twice, and a changed
 //! file or changed settings are prepared again.
+//!
+//! The user names a cache folder (or gets the default one,
+//! [`default_cache_root`]); each folder of surfaces has its own subfolder
+//! in it ([`Cache::for_folder`]), so that two libraries never evict each
+//! other's entries and every command that prepares the same folder (the
+//! library build, the daemon, `matrix`) finds the same entries.
 
 use crate::clean::CleanReport;
 use crate::cp::Prepared;
@@ -29,6 +35,14 @@ pub enum CacheError {
     #[error("{path}: {source}")]
     Io {
         /// The folder or file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The folder of surfaces the cache belongs to cannot be found.
+    #[error("{path}: cannot open the folder of surfaces: {source}")]
+    Folder {
+        /// The folder of surfaces.
         path: PathBuf,
         /// The I/O error.
         source: std::io::Error,
@@ -69,8 +83,38 @@ pub struct Cache {
     dir: PathBuf,
 }
 
+/// The cache folder when none is configured: systemd's
+/// `$CACHE_DIRECTORY`, else `$XDG_CACHE_HOME/morphoid`, else
+/// `~/.cache/morphoid`, else `.morphoid-cache` in the working folder.
+pub fn default_cache_root() -> PathBuf {
+    std::env::var_os("CACHE_DIRECTORY")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("XDG_CACHE_HOME").map(|d| Path::new(&d).join("morphoid")))
+        .or_else(|| std::env::var_os("HOME").map(|d| Path::new(&d).join(".cache/morphoid")))
+        .unwrap_or_else(|| PathBuf::from(".morphoid-cache"))
+}
+
 impl Cache {
-    /// Use (and create if needed) the folder `dir`.
+    /// The cache of the surfaces in `folder` (a library folder), inside
+    /// the cache folder `root` (`None`: [`default_cache_root`]): the
+    /// subfolder `<folder name>-<hash of its canonical path>`, created
+    /// when missing.
+    pub fn for_folder(root: Option<&Path>, folder: &Path) -> Result<Self, CacheError> {
+        let canonical = std::fs::canonicalize(folder).map_err(|source| CacheError::Folder {
+            path: folder.to_path_buf(),
+            source,
+        })?;
+        let digest = Sha256::digest(canonical.to_string_lossy().as_bytes());
+        let name = canonical
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "library".into());
+        let sub = format!("{name}-{}", hex(&digest[..6]));
+        let root = root.map_or_else(default_cache_root, Path::to_path_buf);
+        Self::open(&root.join(sub))
+    }
+
+    /// Use (and create if needed) exactly the folder `dir`.
     pub fn open(dir: &Path) -> Result<Self, CacheError> {
         std::fs::create_dir_all(dir).map_err(|source| CacheError::Io {
             path: dir.to_path_buf(),
