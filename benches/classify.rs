@@ -19,13 +19,18 @@ use morphoid::store::{content_hash, Enqueued, ScanStatus, Store};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+// The integration tests' helpers (real-data location, loading as users do);
+// a bench uses only some of them.
+#[allow(dead_code)]
+#[path = "../tests/it/support/mod.rs"]
+mod support;
+
 /// The library folder: the real teeth, or a synthetic one written to `tmp`.
 fn library_dir(tmp: &Path) -> PathBuf {
-    let real = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/pnas-teeth");
-    if real.join("labels.csv").is_file() {
+    if let Some(real) = support::data::teeth_dir() {
         return real;
     }
-    eprintln!("pnas-teeth not found: using a synthetic library of 116 crowns");
+    eprintln!("real teeth not found: using a synthetic library of 116 crowns");
     let dir = tmp.join("library");
     let genera = synth::CROWN_GENERA.len();
     let spec = LibrarySpec {

@@ -1,15 +1,18 @@
 //! Benchmarks of the cP engine: preparing a tooth and comparing two.
 //! Uses the PNAS teeth when present, else synthetic crowns of ~5k vertices.
 
-#[path = "../tests/cp_support/mod.rs"]
-mod cp_support;
+// The integration tests' helpers (real-data location, loading as users do);
+// a bench uses only some of them.
+#[allow(dead_code)]
+#[path = "../tests/it/support/mod.rs"]
+mod support;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use morphoid::cp::{self, CpParams};
 use std::hint::black_box;
 
 fn bench(c: &mut Criterion) {
-    let (a, b, what) = cp_support::benchmark_pair();
+    let (a, b, what) = support::cp::benchmark_pair();
     eprintln!(
         "benchmarking on {what}: {} and {} vertices",
         a.vertex_count(),

@@ -4,8 +4,11 @@
 //!
 //! `cargo bench --bench cwn`
 
-#[path = "../tests/cp_support/mod.rs"]
-mod cp_support;
+// The integration tests' helpers (real-data location, loading as users do);
+// a bench uses only some of them.
+#[allow(dead_code)]
+#[path = "../tests/it/support/mod.rs"]
+mod support;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use morphoid::cp::{self, CpParams};
@@ -13,7 +16,7 @@ use morphoid::cwn::{self, CwnParams};
 use std::hint::black_box;
 
 fn bench(c: &mut Criterion) {
-    let (a, b, what) = cp_support::benchmark_pair();
+    let (a, b, what) = support::cp::benchmark_pair();
     eprintln!("benchmarking cWn on {what}, one thread");
     let cp_params = CpParams::default();
     let params = CwnParams::default();

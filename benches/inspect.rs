@@ -9,15 +9,19 @@ use morphoid::clean::{clean, CleanOptions};
 use morphoid::mesh::io;
 use morphoid::mesh::synth::{self, CROWN_GENERA};
 use std::hint::black_box;
+
+// The integration tests' helpers (real-data location, loading as users do);
+// a bench uses only some of them.
+#[allow(dead_code)]
+#[path = "../tests/it/support/mod.rs"]
+mod support;
 use std::path::{Path, PathBuf};
 
 fn source_surface() -> morphoid::mesh::Mesh {
-    let tooth =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/pnas-teeth/meshes/J12.ply");
-    match io::load(&tooth) {
-        Ok(l) => l.mesh,
-        Err(_) => {
-            eprintln!("pnas-teeth not found: using a synthetic crown");
+    match support::data::teeth_meshes() {
+        Some(dir) => io::load(&dir.join("J12.ply")).expect("J12 loads").mesh,
+        None => {
+            eprintln!("real teeth not found: using a synthetic crown");
             synth::crown(&CROWN_GENERA[0], 1, 5000)
         }
     }

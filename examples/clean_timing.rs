@@ -8,9 +8,6 @@ use morphoid::mesh::{dot, norm, sub, Mesh};
 use std::path::Path;
 use std::time::Instant;
 
-#[path = "../tests/clean_support/mod.rs"]
-mod clean_support;
-
 fn angles(m: &Mesh) -> (f64, f64, f64) {
     // (min angle, max angle in degrees, fraction of obtuse triangles)
     let (mut lo, mut hi, mut obtuse) = (180.0f64, 0.0f64, 0usize);
@@ -46,7 +43,13 @@ fn main() {
         println!("skipped: data not found");
         return;
     }
-    let tooth = clean_support::read_tooth(Path::new(&path));
+    let tooth = match morphoid::mesh::io::load(Path::new(&path)) {
+        Ok(loaded) => loaded.mesh,
+        Err(e) => {
+            eprintln!("{e}");
+            std::process::exit(1);
+        }
+    };
     let dense = subdivide_midpoint(&subdivide_midpoint(&tooth));
     let opts = CleanOptions::default();
     let (a0, a1, ob) = angles(&tooth);

@@ -14,6 +14,8 @@
 //!
 //! See `ARCHITECTURE.md` at the repository root for the data flow.
 
+#![forbid(unsafe_code)]
+
 pub mod classify;
 pub mod clean;
 pub mod config;

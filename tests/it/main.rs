@@ -1,0 +1,42 @@
+//! The integration tests: one test crate, one module per area and topic.
+//! Shared helpers live in `support`; the real teeth are found by
+//! `support::data` (set `MORPHOID_REQUIRE_DATA=1` to fail instead of skip
+//! when they are missing).
+
+mod support;
+
+mod clean_pipeline;
+mod clean_teeth;
+mod clean_variants;
+mod cli_classify;
+mod cli_cwn;
+mod cli_inspect;
+mod conformal_cleaned_teeth;
+mod conformal_compare_conjugate;
+mod conformal_flatten;
+mod conformal_teeth;
+mod cp_accuracy;
+mod cp_invariance;
+mod cp_prepare_all;
+mod cp_synthetic;
+mod cwn_teeth;
+mod daemon_files;
+mod daemon_load;
+mod daemon_notify;
+mod daemon_serial;
+mod daemon_signals;
+mod daemon_unit;
+mod eval_cli;
+mod eval_shard;
+mod io_errors;
+mod io_huge_header;
+mod io_real_data;
+mod io_roundtrip;
+mod io_synth;
+mod library_heldout;
+mod lm_classify;
+mod lm_daemon;
+mod lm_propagate;
+mod store_basic;
+mod store_crash;
+mod store_landmarks;

@@ -1,0 +1,95 @@
+//! Helpers shared by the cp tests: the real teeth loaded, cleaned and
+//! prepared through the same path as `morphoid matrix`.
+
+use morphoid::mesh::Mesh;
+use std::path::{Path, PathBuf};
+
+/// The real teeth folder (`labels.csv`, `meshes/`), if present.
+pub fn data_dir() -> Option<PathBuf> {
+    super::data::teeth_dir()
+}
+
+/// Load a tooth by name through the path users run: the file reader and
+/// the cleaning stage with default settings.
+pub fn load_tooth(dir: &Path, name: &str) -> Mesh {
+    let path = dir.join("meshes").join(format!("{name}.ply"));
+    let loaded = morphoid::mesh::io::load(&path).expect("tooth loads");
+    morphoid::clean::clean(&loaded.mesh, &morphoid::clean::CleanOptions::default())
+        .expect("tooth cleans")
+        .mesh
+}
+
+/// Names in labels.csv order.
+pub fn tooth_names(dir: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(dir.join("labels.csv")).expect("labels");
+    text.lines()
+        .skip(1)
+        .filter_map(|l| l.split(',').next())
+        .filter(|s| !s.is_empty())
+        .map(|s| s.to_string())
+        .collect()
+}
+
+/// Parameters from the JSON in the environment variable `var`, else the
+/// defaults; printed, so a run's output says what it measured.
+pub fn params_from_env<T>(var: &str) -> T
+where
+    T: serde::de::DeserializeOwned + serde::Serialize + Default,
+{
+    let params: T = match std::env::var(var) {
+        Ok(json) => serde_json::from_str(&json)
+            .unwrap_or_else(|e| panic!("{var} is not parameter JSON: {e}")),
+        Err(_) => T::default(),
+    };
+    println!(
+        "params: {}",
+        serde_json::to_string(&params).unwrap_or_default()
+    );
+    params
+}
+
+/// Every tooth of `names` loaded, cleaned and prepared with `params` (in
+/// parallel) by `pipeline::prepare_file`, as `morphoid matrix` does; each
+/// carries its name.
+pub fn prepare_teeth(
+    dir: &Path,
+    names: &[String],
+    params: &morphoid::cp::CpParams,
+) -> Vec<morphoid::cp::Prepared> {
+    use rayon::prelude::*;
+    let settings = morphoid::pipeline::Settings {
+        cp: params.clone(),
+        ..Default::default()
+    };
+    names
+        .par_iter()
+        .map(|n| {
+            let path = dir.join("meshes").join(format!("{n}.ply"));
+            morphoid::pipeline::prepare_file(&path, &settings)
+                .expect("tooth prepares")
+                .prepared
+        })
+        .collect()
+}
+
+/// The pair the benchmarks compare: the real teeth H10 and H16 (loaded and
+/// cleaned as users' files are) when the data is present, else two
+/// synthetic crowns of about 5,000 vertices; with a description of which.
+#[allow(dead_code)] // used by the benches, which include this module
+pub fn benchmark_pair() -> (Mesh, Mesh, &'static str) {
+    match super::data::teeth_dir() {
+        Some(dir) => (
+            load_tooth(&dir, "H10"),
+            load_tooth(&dir, "H16"),
+            "real teeth H10, H16",
+        ),
+        None => {
+            use morphoid::mesh::synth::{crown, CROWN_GENERA};
+            (
+                crown(&CROWN_GENERA[0], 1, 5000),
+                crown(&CROWN_GENERA[1], 2, 5000),
+                "synthetic crowns (data not found)",
+            )
+        }
+    }
+}

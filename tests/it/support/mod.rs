@@ -1,0 +1,8 @@
+//! Helpers shared by the integration tests, one module per area.
+
+pub mod clean;
+pub mod cp;
+pub mod daemon;
+pub mod data;
+pub mod lm;
+pub mod store;
