@@ -316,6 +316,62 @@ pub fn run_job(
     Ok(status)
 }
 
+/// Why [`identify_file`] could not identify a file.
+#[derive(Debug, thiserror::Error)]
+pub enum IdentifyFileError {
+    /// The file cannot be read.
+    #[error("{path}: {source}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The database failed.
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    /// The scan's record is gone (another process removed it).
+    #[error("{0}: the scan vanished from the database")]
+    Vanished(PathBuf),
+}
+
+/// Identify the file `path` through the store's queue, as the daemon
+/// does, and return its record. Content identified before is not
+/// identified again (its recorded result is returned); a failed one is
+/// retried, and one left running by a process that died (or being run by
+/// another) is taken over: if both finish, the store keeps the first
+/// result.
+pub fn identify_file(
+    store: &mut Store,
+    classifier: &Classifier,
+    path: &Path,
+) -> Result<ScanRecord, IdentifyFileError> {
+    let bytes = std::fs::read(path).map_err(|source| IdentifyFileError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let hash = store::content_hash(&bytes);
+    let shown = path.display().to_string();
+    let id = match store.enqueue(&shown, &hash, bytes.len() as u64)? {
+        store::Enqueued::New(id) => id,
+        store::Enqueued::Existing(id, ScanStatus::Error) => {
+            store.retry(id)?;
+            id
+        }
+        store::Enqueued::Existing(id, ScanStatus::Running) => {
+            store.abandon(id)?;
+            id
+        }
+        store::Enqueued::Existing(id, _) => id,
+    };
+    if let Some(job) = store.claim(id)? {
+        run_job(store, classifier, &job)?;
+    }
+    store
+        .scan(id, NEAREST)?
+        .ok_or_else(|| IdentifyFileError::Vanished(path.to_path_buf()))
+}
+
 /// The file stem result files of `record` are named after.
 fn result_stem(record: &ScanRecord) -> String {
     Path::new(&record.path)

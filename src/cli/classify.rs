@@ -3,8 +3,8 @@
 
 use super::common::{progress_bar, ConfigArgs, ConfigFile};
 use anyhow::{Context, Result};
-use morphoid::classify::{self, Classifier, NEAREST};
-use morphoid::store::{content_hash, Enqueued, ScanRecord, ScanStatus, Store};
+use morphoid::classify::{self, Classifier};
+use morphoid::store::{ScanRecord, ScanStatus, Store};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -44,7 +44,7 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     let out_dir = args.out_dir.clone().or_else(|| config.results.dir.clone());
     let mut all_ok = true;
     for scan in &args.scans {
-        let record = identify_one(&mut store, &classifier, scan);
+        let record = classify::identify_file(&mut store, &classifier, scan);
         let record = match record {
             Ok(r) => r,
             Err(e) => {
@@ -83,35 +83,6 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     } else {
         ExitCode::FAILURE
     })
-}
-
-/// Enqueue, claim and identify one file; an already identified content is
-/// not identified again (its recorded result is returned); a failed one,
-/// or one a killed process left running, is.
-fn identify_one(store: &mut Store, classifier: &Classifier, scan: &PathBuf) -> Result<ScanRecord> {
-    let bytes = std::fs::read(scan).with_context(|| format!("{}", scan.display()))?;
-    let hash = content_hash(&bytes);
-    let path = scan.display().to_string();
-    let id = match store.enqueue(&path, &hash, bytes.len() as u64)? {
-        Enqueued::New(id) => id,
-        Enqueued::Existing(id, ScanStatus::Error) => {
-            store.retry(id)?;
-            id
-        }
-        // Left running by a process that died (or being run by another):
-        // take it over; if both finish, the store keeps the first result.
-        Enqueued::Existing(id, ScanStatus::Running) => {
-            store.abandon(id)?;
-            id
-        }
-        Enqueued::Existing(id, _) => id,
-    };
-    if let Some(job) = store.claim(id)? {
-        classify::run_job(store, classifier, &job)?;
-    }
-    store
-        .scan(id, NEAREST)?
-        .with_context(|| format!("{}: the scan vanished from the database", scan.display()))
 }
 
 /// One line per scan for people: the taxon at each rank (and how many

@@ -6,11 +6,11 @@
 use super::classify::summary;
 use super::common::{progress_bar, ConfigFile};
 use anyhow::{Context, Result};
-use morphoid::classify::{self, Classifier, NEAREST};
+use morphoid::classify::{self, Classifier};
 use morphoid::library::{Cache, Library};
 use morphoid::mesh::io;
 use morphoid::mesh::synth::{self, LibrarySpec, RigidMotion, CROWN_GENERA};
-use morphoid::store::{content_hash, Store};
+use morphoid::store::Store;
 use std::path::Path;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -86,25 +86,11 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     classifier.register(&mut store, &built)?;
     let mut files: Vec<_> = expected.iter().map(|(p, _)| p.clone()).collect();
     files.push(broken.clone());
-    for f in &files {
-        let bytes = std::fs::read(f)?;
-        store.enqueue(
-            &f.display().to_string(),
-            &content_hash(&bytes),
-            bytes.len() as u64,
-        )?;
-    }
-    while let Some(job) = store.claim_next()? {
-        classify::run_job(&mut store, &classifier, &job)?;
-    }
 
     println!();
     let mut correct = 0;
     for f in &files {
-        let hash = content_hash(&std::fs::read(f)?);
-        let Some(record) = store.scan_by_hash(&hash, NEAREST)? else {
-            continue;
-        };
+        let record = classify::identify_file(&mut store, &classifier, f)?;
         let truth = expected.iter().find(|(p, _)| p == f).map(|(_, g)| *g);
         let called = record
             .ranks
