@@ -93,7 +93,7 @@ impl Classifier {
         let outcome = library::build(library, cache, settings, progress)?;
         let classifier = Classifier {
             references: outcome.references.clone(),
-            labels: library.labels.clone(),
+            labels: library.labels().clone(),
             settings: settings.clone(),
             landmarks: outcome.landmarks.by_name.clone(),
             results_dir: None,
@@ -114,7 +114,7 @@ impl Classifier {
         for r in &self.references {
             let labels: store::Labels = self
                 .labels
-                .ranks
+                .ranks()
                 .iter()
                 .map(|rank| {
                     (

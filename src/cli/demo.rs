@@ -79,7 +79,7 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     // The daemon's path: prepared library, jobs in SQLite, one transaction per scan.
     let library = Library::open(&lib_dir, None)?;
     let cache = Cache::open(&root.join("cache"))?;
-    let bar = progress_bar(library.members.len() as u64, "library");
+    let bar = progress_bar(library.members().len() as u64, "library");
     let (classifier, built) = Classifier::build(&library, &cache, &settings, |_| bar.inc(1))?;
     bar.finish_and_clear();
     let mut store = Store::open(&root.join("morphoid.sqlite"))?;

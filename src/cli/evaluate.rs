@@ -3,9 +3,7 @@
 
 use super::common::ConfigFile;
 use anyhow::{bail, Context, Result};
-use morphoid::eval::heatmap;
-use morphoid::eval::mantel::{DEFAULT_PERMUTATIONS, DEFAULT_SEED};
-use morphoid::eval::{self, DistanceMatrix, Labels, Mantel};
+use morphoid::eval::{self, DistanceMatrix, Labels, Mantel, DEFAULT_PERMUTATIONS, DEFAULT_SEED};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -91,7 +89,7 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     };
     if let Some(out) = &args.heatmap {
         let lower = compare.as_ref().unwrap_or(&matrix);
-        let mut order = heatmap::average_linkage_order(&matrix);
+        let mut order = eval::average_linkage_order(&matrix);
         let mut boundaries = Vec::new();
         if let (Some(rank), Some(path)) = (&args.group_rank, &args.labels) {
             let labels = Labels::read(path, None)?;
@@ -99,19 +97,19 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
                 bail!(
                     "{}: no rank column `{rank}` (ranks: {})",
                     path.display(),
-                    labels.ranks.join(", ")
+                    labels.ranks().join(", ")
                 );
             };
-            (order, boundaries) = heatmap::grouped_order(&order, &group);
+            (order, boundaries) = eval::grouped_order(&order, &group);
         }
-        let image = heatmap::heatmap(
+        let image = eval::heatmap(
             &matrix,
             lower,
             &order,
             &boundaries,
-            heatmap::default_cell_size(matrix.names.len()),
+            eval::default_cell_size(matrix.names.len()),
         )?;
-        let bytes = heatmap::encode_png(&image)?;
+        let bytes = eval::encode_png(&image)?;
         std::fs::write(out, bytes).with_context(|| format!("writing {}", out.display()))?;
         eprintln!(
             "wrote {} ({} × {} pixels)",
@@ -178,7 +176,7 @@ fn leave_one_out(
             missing.join(", ")
         );
     }
-    let scores = eval::leave_one_out(matrix, &labels, &labels.ranks);
+    let scores = eval::leave_one_out(matrix, &labels, labels.ranks());
     Ok(scores
         .into_iter()
         .map(|s| RankJson {

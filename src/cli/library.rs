@@ -35,7 +35,7 @@ fn build(args: &ConfigArgs, file: ConfigFile) -> Result<ExitCode> {
     let lib = config.open_library()?;
     let cache = config.open_cache()?;
     let started = Instant::now();
-    let bar = progress_bar(lib.members.len() as u64, "preparing");
+    let bar = progress_bar(lib.members().len() as u64, "preparing");
     let out = library::build(&lib, &cache, &config.settings(), |_| bar.inc(1))?;
     bar.finish_and_clear();
     for f in &out.failures {
@@ -48,7 +48,7 @@ fn build(args: &ConfigArgs, file: ConfigFile) -> Result<ExitCode> {
     }
     println!(
         "{}: {} references ({} prepared, {} from the cache, {} failed; {} stale cache entries removed) in {:.1} s; cache {}",
-        lib.dir.display(),
+        lib.dir().display(),
         out.references.len(),
         out.prepared,
         out.reused,
@@ -79,28 +79,28 @@ fn list(args: &ConfigArgs, file: ConfigFile) -> Result<ExitCode> {
     let cache = config.open_cache()?;
     let cached = library::cached_members(&lib, &cache, &config.settings());
     let mut header = format!("{:<16}", "name");
-    for r in &lib.labels.ranks {
+    for r in lib.labels().ranks() {
         header.push_str(&format!(" {r:<18}"));
     }
     println!("{header} state");
-    for (m, cached) in lib.members.iter().zip(&cached) {
+    for (m, cached) in lib.members().iter().zip(&cached) {
         let state = match cached {
             Some(true) => "prepared",
             Some(false) => "not prepared",
             None => "unreadable",
         };
         let mut row = format!("{:<16}", m.name);
-        for r in &lib.labels.ranks {
+        for r in lib.labels().ranks() {
             row.push_str(&format!(
                 " {:<18}",
-                lib.labels.get(&m.name, r).unwrap_or("NA")
+                lib.labels().get(&m.name, r).unwrap_or("NA")
             ));
         }
         println!("{row} {state}");
     }
     println!(
         "{} references, {} prepared (cache {})",
-        lib.members.len(),
+        lib.members().len(),
         cached.iter().filter(|c| **c == Some(true)).count(),
         cache.dir().display()
     );

@@ -7,7 +7,7 @@
 use super::common::{progress_bar, ConfigFile};
 use super::method::{CwnArgs, Method};
 use anyhow::{bail, Context, Result};
-use morphoid::eval::shard::{self, Shard, ShardFile};
+use morphoid::eval::{self, Shard, ShardFile};
 use morphoid::landmarks;
 use morphoid::library::{self, Cache, Member, Preparation, SurfaceDistance};
 use morphoid::pipeline::Settings;
@@ -142,7 +142,7 @@ fn run_whole(
     let prepare_s = started.elapsed().as_secs_f64();
 
     let n = prepared.len();
-    let pairs = shard::pair_count(n);
+    let pairs = eval::pair_count(n);
     let bar = progress_bar(pairs as u64, "comparing");
     let matrix = distance.matrix(&prepared, settings, |_| bar.inc(1))?;
     bar.finish_and_clear();
@@ -172,10 +172,10 @@ fn run_shard(
 ) -> Result<ExitCode> {
     let names: Vec<String> = members.iter().map(|m| m.name.clone()).collect();
     let started = Instant::now();
-    let own_pairs = shard::shard_pairs(names.len(), which);
-    let (pairs, needed) = (own_pairs.len(), shard::pair_specimens(&own_pairs).len());
+    let own_pairs = eval::shard_pairs(names.len(), which);
+    let (pairs, needed) = (own_pairs.len(), eval::pair_specimens(&own_pairs).len());
     let bar = progress_bar(pairs as u64, "comparing");
-    let file = shard::compute_shard(
+    let file = eval::compute_shard(
         &names,
         which,
         |k| {
@@ -189,7 +189,7 @@ fn run_shard(
     file.write(out)?;
     eprintln!(
         "shard {which}: {pairs} of {} pairs, {needed} of {} specimens prepared ({} from the cache), {:.1} s; wrote {}",
-        shard::pair_count(names.len()),
+        eval::pair_count(names.len()),
         names.len(),
         preparation.reused(),
         started.elapsed().as_secs_f64(),
@@ -205,7 +205,7 @@ fn merge(args: MergeArgs) -> Result<ExitCode> {
         .iter()
         .map(|p| ShardFile::read(p).map(|s| (p.clone(), s)))
         .collect::<Result<Vec<_>, _>>()?;
-    let matrix = shard::merge_shards(&shards)?;
+    let matrix = eval::merge_shards(&shards)?;
     matrix
         .write_csv(&args.out)
         .with_context(|| format!("writing {}", args.out.display()))?;
@@ -234,7 +234,7 @@ fn run_landmarks(
     let n = names.len();
     eprintln!(
         "{n} specimens, {count} landmarks each, {} pairs: wrote {}",
-        shard::pair_count(n),
+        eval::pair_count(n),
         out.display()
     );
     Ok(ExitCode::SUCCESS)

@@ -30,12 +30,13 @@ pub enum LabelsError {
 /// Labels: for each specimen name, a value (or unknown) at each rank.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Labels {
-    /// Rank names, in file order.
-    pub ranks: Vec<String>,
+    /// Rank names, in the order asked for (default: file order).
+    ranks: Vec<String>,
     /// Specimen names, in file order.
-    pub names: Vec<String>,
+    names: Vec<String>,
     /// `values[i][r]`: value of specimen `i` at rank `r`; `None` = unknown.
-    pub values: Vec<Vec<Option<String>>>,
+    values: Vec<Vec<Option<String>>>,
+    /// Row of each name.
     index: HashMap<String, usize>,
 }
 
@@ -131,6 +132,21 @@ impl Labels {
             );
         }
         w.finish()
+    }
+
+    /// The rank columns, in the order asked for (default: file order).
+    pub fn ranks(&self) -> &[String] {
+        &self.ranks
+    }
+
+    /// The specimen names, in file order.
+    pub fn names(&self) -> &[String] {
+        &self.names
+    }
+
+    /// Whether `name` has a row.
+    pub fn contains(&self, name: &str) -> bool {
+        self.index.contains_key(name)
     }
 
     /// The names among `names` that have no row.

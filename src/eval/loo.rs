@@ -90,7 +90,7 @@ mod tests {
             Path::new("l"),
         )
         .unwrap();
-        let r = leave_one_out(&m, &l, &l.ranks.clone());
+        let r = leave_one_out(&m, &l, l.ranks());
         // order: a→b ok, b→a ok, c→d (Y≠X) wrong, d→c wrong.
         assert_eq!(
             r[0],

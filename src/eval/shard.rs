@@ -62,7 +62,7 @@ pub fn pair_count(n: usize) -> usize {
 
 /// The positions `[start, end)` in the row-major pair list of `n`
 /// specimens that `shard` covers: `start = ⌊(K−1)·P/N⌋`, `end = ⌊K·P/N⌋`.
-pub fn shard_range(n: usize, shard: Shard) -> std::ops::Range<usize> {
+fn shard_range(n: usize, shard: Shard) -> std::ops::Range<usize> {
     let p = pair_count(n) as u128;
     let count = shard.count.max(1) as u128;
     let at = |k: usize| (k as u128 * p / count) as usize;

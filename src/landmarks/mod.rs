@@ -19,9 +19,9 @@
 mod chain;
 mod matrix;
 mod meshlab;
-pub mod mst;
-pub mod procrustes;
-pub mod propagate;
+mod mst;
+mod procrustes;
+mod propagate;
 mod slicer;
 mod table;
 
@@ -30,12 +30,10 @@ pub use chain::{
     with_ends, Carried, ChainError, Specimens,
 };
 pub use matrix::{procrustes_matrix, LandmarkMatrixError};
-pub use mst::{minimum_spanning_tree, tree_path};
-pub use procrustes::{procrustes_distance, ProcrustesError};
-pub use propagate::{
-    barycentric_coordinates, propagate, propagate_along, surface_point, PropagateError, Propagated,
-    Surface, SurfacePoint,
-};
+use mst::{minimum_spanning_tree, tree_path};
+use procrustes::procrustes_distance;
+pub use procrustes::ProcrustesError;
+pub use propagate::{propagate, propagate_along, PropagateError, Propagated, Surface};
 
 use std::path::{Path, PathBuf};
 
@@ -199,7 +197,7 @@ pub fn read(path: &Path, expected: Option<usize>) -> Result<Landmarks, LandmarkE
 }
 
 /// Error unless `landmarks` has `expected` points (when given).
-pub fn check_count(
+fn check_count(
     landmarks: &Landmarks,
     expected: Option<usize>,
     path: &Path,
@@ -225,7 +223,7 @@ pub fn write(path: &Path, landmarks: &Landmarks) -> Result<(), LandmarkError> {
 
 /// The extensions a library's landmark file may have, in the order they
 /// are looked for: `landmarks/<name>.{csv,fcsv,mrk.json,pp}`.
-pub const LIBRARY_EXTENSIONS: [&str; 4] = ["csv", "fcsv", "mrk.json", "pp"];
+const LIBRARY_EXTENSIONS: [&str; 4] = ["csv", "fcsv", "mrk.json", "pp"];
 
 /// The landmark files of specimen `name` in the library folder `dir`
 /// (`dir/landmarks/<name>.<ext>` for each of [`LIBRARY_EXTENSIONS`] that

@@ -4,7 +4,7 @@
 //! file or changed settings are prepared again.
 //!
 //! The user names a cache folder (or gets the default one,
-//! [`default_cache_root`]); each folder of surfaces has its own subfolder
+//! the default cache folder); each folder of surfaces has its own subfolder
 //! in it ([`Cache::for_folder`]), so that two libraries never evict each
 //! other's entries and every command that prepares the same folder (the
 //! library build, the daemon, `matrix`) finds the same entries.
@@ -96,7 +96,7 @@ pub fn default_cache_root() -> PathBuf {
 
 impl Cache {
     /// The cache of the surfaces in `folder` (a library folder), inside
-    /// the cache folder `root` (`None`: [`default_cache_root`]): the
+    /// the cache folder `root` (`None`: the default cache folder): the
     /// subfolder `<folder name>-<hash of its canonical path>`, created
     /// when missing.
     pub fn for_folder(root: Option<&Path>, folder: &Path) -> Result<Self, CacheError> {
@@ -132,7 +132,7 @@ impl Cache {
 
     /// The key of a surface with content hash `content_hash` prepared with
     /// `settings`.
-    pub fn key(content_hash: &str, settings: &Settings) -> String {
+    pub(super) fn key(content_hash: &str, settings: &Settings) -> String {
         let params = serde_json::to_string(settings).unwrap_or_default();
         let mut h = Sha256::new();
         h.update(CACHE_FORMAT.to_le_bytes());
@@ -147,7 +147,7 @@ impl Cache {
 
     /// The cached entry of `name` under `key`, if present and readable. An
     /// unreadable entry counts as absent (it will be prepared again).
-    pub fn get(&self, name: &str, key: &str) -> Option<CachedReference> {
+    pub(super) fn get(&self, name: &str, key: &str) -> Option<CachedReference> {
         let bytes = std::fs::read(self.path_of(name, key)).ok()?;
         let entry: Entry = match postcard::from_bytes(&bytes) {
             Ok(e) => e,
@@ -172,7 +172,7 @@ impl Cache {
     }
 
     /// Store an entry under `key`, atomically (write, then rename).
-    pub fn put(&self, key: &str, reference: &CachedReference) -> Result<(), CacheError> {
+    pub(super) fn put(&self, key: &str, reference: &CachedReference) -> Result<(), CacheError> {
         let entry = Entry {
             format: CACHE_FORMAT,
             key: key.to_string(),
@@ -194,7 +194,7 @@ impl Cache {
 
     /// Delete every entry whose (name, key) is not in `keep`; returns how
     /// many were deleted.
-    pub fn retain(&self, keep: &HashSet<(String, String)>) -> Result<usize, CacheError> {
+    pub(super) fn retain(&self, keep: &HashSet<(String, String)>) -> Result<usize, CacheError> {
         let io = |source| CacheError::Io {
             path: self.dir.clone(),
             source,

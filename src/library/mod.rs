@@ -13,7 +13,7 @@ mod cache;
 mod identify;
 mod matrix;
 
-pub use cache::{default_cache_root, Cache, CacheError, CachedReference};
+pub use cache::{Cache, CacheError, CachedReference};
 pub use identify::{identify, Identification};
 pub use matrix::{landscape, SurfaceDistance, SurfaceMatrixError};
 
@@ -92,15 +92,13 @@ pub struct Member {
     pub landmarks: Option<PathBuf>,
 }
 
-/// A reference library folder, checked.
+/// A reference library folder, checked: every surface has a label row
+/// and every label row a surface.
 #[derive(Debug, Clone)]
 pub struct Library {
-    /// The folder.
-    pub dir: PathBuf,
-    /// Labels at the configured ranks.
-    pub labels: Labels,
-    /// The specimens, sorted by name.
-    pub members: Vec<Member>,
+    dir: PathBuf,
+    labels: Labels,
+    members: Vec<Member>,
 }
 
 impl Library {
@@ -113,14 +111,14 @@ impl Library {
         }
         let labels = Labels::read(&labels_path, ranks)?;
         let members = members(dir)?;
-        if let Some(m) = members.iter().find(|m| !labels.names.contains(&m.name)) {
+        if let Some(m) = members.iter().find(|m| !labels.contains(&m.name)) {
             return Err(LibraryError::Unlabelled {
                 path: m.path.clone(),
                 name: m.name.clone(),
             });
         }
         if let Some(name) = labels
-            .names
+            .names()
             .iter()
             .find(|n| members.binary_search_by(|m| m.name.cmp(n)).is_err())
         {
@@ -177,7 +175,7 @@ pub struct Failure {
 
 /// Where a prepared surface came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Origin {
+enum Origin {
     /// An entry of the cache (the file and the settings are unchanged).
     Cache,
     /// Prepared now.
@@ -304,6 +302,23 @@ impl<'a> Preparation<'a> {
     /// How many surfaces were prepared so far.
     pub fn prepared(&self) -> usize {
         self.prepared.load(Ordering::Relaxed)
+    }
+}
+
+impl Library {
+    /// The folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The labels at the configured ranks.
+    pub fn labels(&self) -> &Labels {
+        &self.labels
+    }
+
+    /// The specimens, sorted by name.
+    pub fn members(&self) -> &[Member] {
+        &self.members
     }
 }
 
@@ -471,7 +486,7 @@ mod tests {
         let lib = Library::open(d.path(), None).unwrap();
         let names: Vec<&str> = lib.members.iter().map(|m| m.name.as_str()).collect();
         assert_eq!(names, ["a", "b"]);
-        assert_eq!(lib.labels.ranks, ["order", "genus"]);
+        assert_eq!(lib.labels().ranks(), ["order", "genus"]);
     }
 
     #[test]
