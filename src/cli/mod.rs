@@ -130,3 +130,41 @@ fn configure_threads(threads: Option<usize>) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    #[test]
+    fn the_command_line_is_consistent() {
+        Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn every_command_takes_config_before_or_after_its_name() {
+        for args in [
+            &[
+                "morphoid",
+                "matrix",
+                "--library",
+                "l",
+                "--out",
+                "o",
+                "--config",
+                "c",
+            ][..],
+            &["morphoid", "--config", "c", "distance", "a", "b"],
+            &["morphoid", "check-config", "--config", "c"],
+            &["morphoid", "synth", "--out", "x.ply", "--config", "c"],
+            &["morphoid", "library", "build", "--config", "c"],
+        ] {
+            let cli = Cli::try_parse_from(args).unwrap();
+            assert_eq!(
+                cli.config.as_deref(),
+                Some(std::path::Path::new("c")),
+                "{args:?}"
+            );
+        }
+    }
+}
