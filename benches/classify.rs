@@ -95,7 +95,7 @@ fn bench(c: &mut Criterion) {
     classifier
         .register(&mut store, &outcome)
         .expect("references recorded");
-    let source = io::load(&lib.members[0].path)
+    let source = io::load(&lib.members()[0].path)
         .expect("a library surface loads")
         .mesh;
     let mut seed = 0u64;

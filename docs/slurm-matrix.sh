@@ -24,8 +24,9 @@ LIBRARY=${LIBRARY:-library}        # labels.csv + meshes
 OUTDIR=${OUTDIR:-shards}           # shard files and logs
 MATRIX=${MATRIX:-matrix.csv}       # the merged result
 MORPHOID=${MORPHOID:-morphoid}     # path to the binary
-CACHE=${CACHE:-}                   # optional: prepared-reference cache of
+CACHE=${CACHE:-}                   # optional: the cache folder of
                                    # `morphoid library build` (run it first)
+CONFIG=${CONFIG:-}                 # optional: the configuration of that build
 
 if [[ -z "${SLURM_ARRAY_TASK_ID:-}" ]]; then
     # Not inside the array: submit it, then the merge job that depends on it.
@@ -44,6 +45,9 @@ fi
 cache_args=()
 if [[ -n "$CACHE" ]]; then
     cache_args=(--cache "$CACHE")
+fi
+if [[ -n "$CONFIG" ]]; then
+    cache_args+=(--config "$CONFIG")
 fi
 exec "$MORPHOID" matrix \
     --library "$LIBRARY" \

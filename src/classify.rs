@@ -91,7 +91,7 @@ impl Classifier {
         let mut outcome = library::build(library, cache, settings, progress)?;
         let classifier = Classifier {
             references: std::mem::take(&mut outcome.references),
-            labels: library.labels.clone(),
+            labels: library.labels().clone(),
             settings: settings.clone(),
             landmarks: std::mem::take(&mut outcome.landmarks.by_name),
             results: None,
@@ -129,7 +129,7 @@ impl Classifier {
         for r in &self.references {
             let labels: store::Labels = self
                 .labels
-                .ranks
+                .ranks()
                 .iter()
                 .map(|rank| {
                     (
@@ -143,8 +143,8 @@ impl Classifier {
         }
         let names: Vec<&str> = self.references.iter().map(|r| r.name.as_str()).collect();
         store.remove_references_except(&names)?;
-        for (name, why) in &outcome.failures {
-            tracing::warn!(reference = %name, "reference left out: {why}");
+        for f in &outcome.failures {
+            tracing::warn!(reference = %f.name, "reference left out: {}", f.error);
         }
         for (name, why) in &outcome.landmarks.problems {
             tracing::warn!(reference = %name, "landmarks left out: {why}");
@@ -333,6 +333,62 @@ pub fn run_job(
         }
     }
     Ok(status)
+}
+
+/// Why [`identify_file`] could not identify a file.
+#[derive(Debug, thiserror::Error)]
+pub enum IdentifyFileError {
+    /// The file cannot be read.
+    #[error("{path}: {source}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The database failed.
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    /// The scan's record is gone (another process removed it).
+    #[error("{0}: the scan vanished from the database")]
+    Vanished(PathBuf),
+}
+
+/// Identify the file `path` through the store's queue, as the daemon
+/// does, and return its record. Content identified before is not
+/// identified again (its recorded result is returned); a failed one is
+/// retried, and one left running by a process that died (or being run by
+/// another) is taken over: if both finish, the store keeps the first
+/// result.
+pub fn identify_file(
+    store: &mut Store,
+    classifier: &Classifier,
+    path: &Path,
+) -> Result<ScanRecord, IdentifyFileError> {
+    let bytes = std::fs::read(path).map_err(|source| IdentifyFileError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let hash = crate::hash::content_hash(&bytes);
+    let shown = path.display().to_string();
+    let id = match store.enqueue(&shown, &hash, bytes.len() as u64)? {
+        store::Enqueued::New(id) => id,
+        store::Enqueued::Existing(id, ScanStatus::Error) => {
+            store.retry(id)?;
+            id
+        }
+        store::Enqueued::Existing(id, ScanStatus::Running) => {
+            store.abandon(id)?;
+            id
+        }
+        store::Enqueued::Existing(id, _) => id,
+    };
+    if let Some(job) = store.claim(id)? {
+        run_job(store, classifier, &job)?;
+    }
+    store
+        .scan(id, NEAREST)?
+        .ok_or_else(|| IdentifyFileError::Vanished(path.to_path_buf()))
 }
 
 #[cfg(test)]

@@ -2,6 +2,7 @@
 //! example). Unknown keys are errors, so a typo never silently falls back
 //! to a default.
 
+use crate::library::{Cache, CacheError, Library, LibraryError};
 use crate::pipeline::Settings;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -212,6 +213,17 @@ impl Config {
     /// The rank columns, `None` meaning every column but `name`.
     pub fn ranks(&self) -> Option<&[String]> {
         (!self.library.ranks.is_empty()).then_some(self.library.ranks.as_slice())
+    }
+
+    /// The configured library folder, checked, with its rank columns.
+    pub fn open_library(&self) -> Result<Library, LibraryError> {
+        Library::open(&self.library.dir, self.ranks())
+    }
+
+    /// The cache of the configured library: its subfolder of the
+    /// configured cache folder (absent: the default one).
+    pub fn open_cache(&self) -> Result<Cache, CacheError> {
+        Cache::for_folder(self.library.cache.as_deref(), &self.library.dir)
     }
 }
 

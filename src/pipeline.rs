@@ -6,6 +6,7 @@ use crate::clean::{self, CleanError, CleanOptions, CleanReport};
 use crate::cp::{self, CpError, CpParams, Prepared};
 use crate::mesh::io::{self, LoadError};
 use crate::mesh::Mesh;
+use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -66,13 +67,17 @@ pub enum PipelineError {
     },
 }
 
+/// The specimen name of a surface file: its stem (`a/B03.ply` → `B03`).
+pub fn specimen_name(path: &Path) -> String {
+    path.file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
 /// Load, clean and prepare the surface in `path`; the prepared surface is
 /// named after the file stem.
 pub fn prepare_file(path: &Path, settings: &Settings) -> Result<PreparedSurface, PipelineError> {
-    let name = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
+    let name = specimen_name(path);
     let t = Instant::now();
     let loaded = {
         let _s = tracing::debug_span!("load", scan = %name).entered();
@@ -135,6 +140,18 @@ pub fn prepare_mesh(
             prepare: ms(t),
         },
     })
+}
+
+/// [`prepare_file`] for several files, in parallel, in their order; the
+/// first failure stops it.
+pub fn prepare_files(
+    paths: &[&Path],
+    settings: &Settings,
+) -> Result<Vec<PreparedSurface>, PipelineError> {
+    paths
+        .par_iter()
+        .map(|p| prepare_file(p, settings))
+        .collect()
 }
 
 fn ms(t: Instant) -> f64 {

@@ -1,17 +1,15 @@
 //! `morphoid check-config`: validate a configuration file and name any
 //! wrong key or value.
 
+use super::common::ConfigFile;
 use anyhow::{bail, Context, Result};
 use morphoid::config::Config;
-use std::path::PathBuf;
 use std::process::ExitCode;
 
-/// Arguments of `morphoid check-config`.
+/// Arguments of `morphoid check-config` (the file is `--config`; without
+/// it, the built-in defaults are checked).
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Configuration file (without it, the built-in defaults are checked).
-    #[arg(long, value_name = "FILE")]
-    config: Option<PathBuf>,
     /// Print the effective configuration as TOML.
     #[arg(long)]
     print: bool,
@@ -41,11 +39,8 @@ fn check_runtime(config: &Config) -> Result<()> {
 }
 
 /// Run `morphoid check-config`.
-pub fn run(args: Args) -> Result<ExitCode> {
-    let config = match &args.config {
-        Some(path) => Config::read(path)?,
-        None => Config::default(),
-    };
+pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
+    let config = file.load()?;
     check_runtime(&config)?;
     println!("ok");
     println!(

@@ -1,7 +1,7 @@
 //! `morphoid classify`: one-shot identification of scans, recorded in the
 //! database exactly as the daemon records them.
 
-use super::common::{open_cache, open_library, progress_bar, ConfigArgs};
+use super::common::{progress_bar, ConfigArgs, ConfigFile};
 use anyhow::{Context, Result};
 use morphoid::classify::{self, Classifier, ResultFiles, NEAREST};
 use morphoid::hash::content_hash;
@@ -30,11 +30,11 @@ pub struct Args {
 }
 
 /// Run `morphoid classify`.
-pub fn run(args: Args) -> Result<ExitCode> {
-    let config = args.config.load()?;
-    let lib = open_library(&config)?;
-    let cache = open_cache(&config)?;
-    let bar = progress_bar(lib.members.len() as u64, "library");
+pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
+    let config = args.config.load(file)?;
+    let lib = config.open_library()?;
+    let cache = config.open_cache()?;
+    let bar = progress_bar(lib.members().len() as u64, "library");
     let (classifier, built) = Classifier::build(&lib, &cache, &config.settings(), |_| bar.inc(1))?;
     bar.finish_and_clear();
     let db = &config.database.path;
@@ -50,7 +50,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         .map(|dir| ResultFiles::new(dir, Some(config.watch.dir.clone())));
     let mut all_ok = true;
     for scan in &args.scans {
-        let record = identify_one(&mut store, &classifier, scan);
+        let record = classify::identify_file(&mut store, &classifier, scan);
         let record = match record {
             Ok(r) => r,
             Err(e) => {
@@ -89,35 +89,6 @@ pub fn run(args: Args) -> Result<ExitCode> {
     } else {
         ExitCode::FAILURE
     })
-}
-
-/// Enqueue, claim and identify one file; an already identified content is
-/// not identified again (its recorded result is returned); a failed one,
-/// or one a killed process left running, is.
-fn identify_one(store: &mut Store, classifier: &Classifier, scan: &PathBuf) -> Result<ScanRecord> {
-    let bytes = std::fs::read(scan).with_context(|| format!("{}", scan.display()))?;
-    let hash = content_hash(&bytes);
-    let path = scan.display().to_string();
-    let id = match store.enqueue(&path, &hash, bytes.len() as u64)? {
-        Enqueued::New(id) => id,
-        Enqueued::Existing(id, ScanStatus::Error) => {
-            store.retry(id)?;
-            id
-        }
-        // Left running by a process that died (or being run by another):
-        // take it over; if both finish, the store keeps the first result.
-        Enqueued::Existing(id, ScanStatus::Running) => {
-            store.abandon(id)?;
-            id
-        }
-        Enqueued::Existing(id, _) => id,
-    };
-    if let Some(job) = store.claim(id)? {
-        classify::run_job(store, classifier, &job)?;
-    }
-    store
-        .scan(id, NEAREST)?
-        .with_context(|| format!("{}: the scan vanished from the database", scan.display()))
 }
 
 /// One line per scan for people: the taxon at each rank (and how many

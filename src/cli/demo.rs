@@ -4,7 +4,7 @@
 //! results in a real SQLite database. Needs no data and no configuration.
 
 use super::classify::summary;
-use super::common::progress_bar;
+use super::common::{progress_bar, ConfigFile};
 use anyhow::{Context, Result};
 use morphoid::classify::{self, Classifier, NEAREST};
 use morphoid::hash::content_hash;
@@ -26,7 +26,10 @@ pub struct Args {
 }
 
 /// Run `morphoid demo`.
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
+    // The library, scans and database are the demo's own; the cleaning and
+    // engine settings come from the configuration.
+    let settings = config.load()?.settings();
     let started = Instant::now();
     let tmp = tempfile::Builder::new()
         .prefix("morphoid-demo-")
@@ -76,35 +79,20 @@ pub fn run(args: Args) -> Result<ExitCode> {
     );
 
     // The daemon's path: prepared library, jobs in SQLite, one transaction per scan.
-    let settings = Settings::default();
     let library = Library::open(&lib_dir, None)?;
     let cache = Cache::open(&root.join("cache"))?;
-    let bar = progress_bar(library.members.len() as u64, "library");
+    let bar = progress_bar(library.members().len() as u64, "library");
     let (classifier, built) = Classifier::build(&library, &cache, &settings, |_| bar.inc(1))?;
     bar.finish_and_clear();
     let mut store = Store::open(&root.join("morphoid.sqlite"))?;
     classifier.register(&mut store, &built)?;
     let mut files: Vec<_> = expected.iter().map(|(p, _)| p.clone()).collect();
     files.push(broken.clone());
-    for f in &files {
-        let bytes = std::fs::read(f)?;
-        store.enqueue(
-            &f.display().to_string(),
-            &content_hash(&bytes),
-            bytes.len() as u64,
-        )?;
-    }
-    while let Some(job) = store.claim_next()? {
-        classify::run_job(&mut store, &classifier, &job)?;
-    }
 
     println!();
     let mut correct = 0;
     for f in &files {
-        let hash = content_hash(&std::fs::read(f)?);
-        let Some(record) = store.scan_by_hash(&hash, NEAREST)? else {
-            continue;
-        };
+        let record = classify::identify_file(&mut store, &classifier, f)?;
         let truth = expected.iter().find(|(p, _)| p == f).map(|(_, g)| *g);
         let called = record
             .ranks

@@ -1,14 +1,16 @@
 //! `morphoid distance`: the cP distance and correspondence of two surfaces,
 //! or their cWn distance (`--method cwn`).
 
+use super::common::ConfigFile;
 use super::method::{CwnArgs, Method};
 use anyhow::{bail, Context, Result};
-use morphoid::cp::{self, Directed};
+use morphoid::cp;
 use morphoid::cwn;
+use morphoid::landmarks;
+use morphoid::library::{self, SurfaceDistance};
 use morphoid::pipeline::{self, PreparedSurface, Settings, StageTimings};
 use serde::Serialize;
-use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -94,37 +96,41 @@ struct CwnTimings {
 }
 
 /// Run `morphoid distance`.
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
+    let settings = config.load()?.settings();
     super::configure_threads(args.threads)?;
     match args.method {
-        Method::Cp => run_cp(args),
-        Method::Cwn => run_cwn(args),
+        Method::Cp => run_cp(args, &settings),
+        Method::Cwn => run_cwn(args, &settings),
         Method::Landmarks => bail!(
             "--method landmarks compares the landmark files of a library: use `morphoid matrix --method landmarks`"
         ),
     }
 }
 
+/// Load, clean and prepare both surfaces (in parallel).
+fn prepare_both(args: &Args, settings: &Settings) -> Result<(PreparedSurface, PreparedSurface)> {
+    let mut both = pipeline::prepare_files(&[&args.a, &args.b], settings)?.into_iter();
+    match (both.next(), both.next()) {
+        (Some(a), Some(b)) => Ok((a, b)),
+        _ => bail!("preparing two surfaces gave fewer than two"),
+    }
+}
+
 /// The cWn distance: landscapes of both surfaces, then one transport.
-fn run_cwn(args: Args) -> Result<ExitCode> {
+fn run_cwn(args: Args, settings: &Settings) -> Result<ExitCode> {
     if args.map.is_some() {
         bail!("--map writes the cP correspondence; it is not available with --method cwn");
     }
     let params = args.cwn.params();
-    params.validate()?;
-    let settings = Settings::default();
-    let (a, b) = rayon::join(
-        || pipeline::prepare_file(&args.a, &settings),
-        || pipeline::prepare_file(&args.b, &settings),
-    );
-    let (a, b) = (a?, b?);
+    SurfaceDistance::Cwn(params.clone()).validate()?;
+    let (a, b) = prepare_both(&args, settings)?;
     let t = Instant::now();
     let (la, lb) = rayon::join(
-        || cwn::prepare(&a.prepared, &params),
-        || cwn::prepare(&b.prepared, &params),
+        || library::landscape(&a.prepared, &params),
+        || library::landscape(&b.prepared, &params),
     );
-    let la = la.with_context(|| format!("{}", args.a.display()))?;
-    let lb = lb.with_context(|| format!("{}", args.b.display()))?;
+    let (la, lb) = (la?, lb?);
     let landscapes_ms = t.elapsed().as_secs_f64() * 1e3;
     let t = Instant::now();
     let r = {
@@ -168,13 +174,8 @@ fn run_cwn(args: Args) -> Result<ExitCode> {
 }
 
 /// The cP distance and, with `--map`, the correspondence.
-fn run_cp(args: Args) -> Result<ExitCode> {
-    let settings = Settings::default();
-    let (a, b) = rayon::join(
-        || pipeline::prepare_file(&args.a, &settings),
-        || pipeline::prepare_file(&args.b, &settings),
-    );
-    let (a, b) = (a?, b?);
+fn run_cp(args: Args, settings: &Settings) -> Result<ExitCode> {
+    let (a, b) = prepare_both(&args, settings)?;
     let t = Instant::now();
     let c = {
         let _s = tracing::info_span!("compare", a = %a.prepared.name(), b = %b.prepared.name())
@@ -183,7 +184,9 @@ fn run_cp(args: Args) -> Result<ExitCode> {
     };
     let compare_ms = t.elapsed().as_secs_f64() * 1e3;
     if let Some(out) = &args.map {
-        write_map(out, &a, &b, &c.forward)
+        let text = landmarks::correspondence_csv(&a, &b, &c.forward)
+            .context("the correspondence does not fit the surfaces")?;
+        std::fs::write(out, text)
             .with_context(|| format!("writing the correspondence to {}", out.display()))?;
     }
     let out = Output {
@@ -221,41 +224,4 @@ fn run_cp(args: Args) -> Result<ExitCode> {
         );
     }
     Ok(ExitCode::SUCCESS)
-}
-
-/// The correspondence as CSV, one row per vertex of the cleaned A.
-fn write_map(
-    path: &Path,
-    a: &PreparedSurface,
-    b: &PreparedSurface,
-    forward: &Directed,
-) -> Result<()> {
-    let mut text = String::from("vertex,x,y,z,face,b0,b1,b2,tx,ty,tz\n");
-    for (v, (x, &(face, bary))) in a
-        .cleaned
-        .vertices
-        .iter()
-        .zip(&forward.correspondence)
-        .enumerate()
-    {
-        let tri = b
-            .prepared
-            .faces()
-            .get(face as usize)
-            .context("the correspondence names a triangle that does not exist")?;
-        let mut image = [0.0; 3];
-        for (k, &corner) in tri.iter().enumerate() {
-            let p = b.cleaned.vertices[corner as usize];
-            for d in 0..3 {
-                image[d] += bary[k] * p[d];
-            }
-        }
-        writeln!(
-            text,
-            "{v},{},{},{},{face},{},{},{},{},{},{}",
-            x[0], x[1], x[2], bary[0], bary[1], bary[2], image[0], image[1], image[2]
-        )?;
-    }
-    std::fs::write(path, text)?;
-    Ok(())
 }

@@ -1,10 +1,9 @@
 //! `morphoid evaluate`: leave-one-out nearest-neighbour classification,
 //! the Mantel test against a second matrix, the Figure 1 heatmap.
 
+use super::common::ConfigFile;
 use anyhow::{bail, Context, Result};
-use morphoid::eval::heatmap;
-use morphoid::eval::mantel::{DEFAULT_PERMUTATIONS, DEFAULT_SEED};
-use morphoid::eval::{self, DistanceMatrix, Labels, Mantel};
+use morphoid::eval::{self, DistanceMatrix, Labels, Mantel, DEFAULT_PERMUTATIONS, DEFAULT_SEED};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -42,7 +41,8 @@ pub struct Args {
     /// together (from --labels) and separate the groups by white lines.
     #[arg(long, value_name = "RANK", requires_all = ["labels", "heatmap"])]
     group_rank: Option<String>,
-    /// Ranks to evaluate, comma-separated (default: every column but `name`).
+    /// Ranks to evaluate, comma-separated (default: the `[library] ranks`
+    /// of --config when one is given, else every column but `name`).
     #[arg(long, value_delimiter = ',')]
     ranks: Option<Vec<String>>,
     /// Print the result as JSON on stdout.
@@ -59,10 +59,16 @@ struct RankJson {
 }
 
 /// Run `morphoid evaluate`.
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
+    let config = file.load()?;
+    let ranks = match (&args.ranks, file.0) {
+        (Some(r), _) => Some(r.clone()),
+        (None, Some(_)) => config.ranks().map(<[String]>::to_vec),
+        (None, None) => None,
+    };
     let matrix = DistanceMatrix::read_csv(&args.matrix)?;
     let rows = match &args.labels {
-        Some(path) => Some(leave_one_out(&matrix, path, &args)?),
+        Some(path) => Some(leave_one_out(&matrix, path, &args, ranks.as_deref())?),
         None => None,
     };
     let compare = match &args.compare {
@@ -83,32 +89,27 @@ pub fn run(args: Args) -> Result<ExitCode> {
     };
     if let Some(out) = &args.heatmap {
         let lower = compare.as_ref().unwrap_or(&matrix);
-        let mut order = heatmap::average_linkage_order(&matrix);
+        let mut order = eval::average_linkage_order(&matrix);
         let mut boundaries = Vec::new();
         if let (Some(rank), Some(path)) = (&args.group_rank, &args.labels) {
             let labels = Labels::read(path, None)?;
-            if !labels.ranks.contains(rank) {
+            let Some(group) = labels.column(&matrix.names, rank) else {
                 bail!(
                     "{}: no rank column `{rank}` (ranks: {})",
                     path.display(),
-                    labels.ranks.join(", ")
+                    labels.ranks().join(", ")
                 );
-            }
-            let group: Vec<Option<String>> = matrix
-                .names
-                .iter()
-                .map(|n| labels.get(n, rank).map(str::to_string))
-                .collect();
-            (order, boundaries) = heatmap::grouped_order(&order, &group);
+            };
+            (order, boundaries) = eval::grouped_order(&order, &group);
         }
-        let image = heatmap::heatmap(
+        let image = eval::heatmap(
             &matrix,
             lower,
             &order,
             &boundaries,
-            heatmap::default_cell_size(matrix.names.len()),
+            eval::default_cell_size(matrix.names.len()),
         )?;
-        let bytes = heatmap::encode_png(&image)?;
+        let bytes = eval::encode_png(&image)?;
         std::fs::write(out, bytes).with_context(|| format!("writing {}", out.display()))?;
         eprintln!(
             "wrote {} ({} × {} pixels)",
@@ -158,14 +159,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
 }
 
 /// Leave-one-out classification of `matrix` with the labels in `path`.
-fn leave_one_out(matrix: &DistanceMatrix, path: &Path, args: &Args) -> Result<Vec<RankJson>> {
-    let labels = Labels::read(path, args.ranks.as_deref())?;
-    let missing: Vec<&str> = matrix
-        .names
-        .iter()
-        .filter(|n| !labels.names.contains(n))
-        .map(String::as_str)
-        .collect();
+fn leave_one_out(
+    matrix: &DistanceMatrix,
+    path: &Path,
+    args: &Args,
+    ranks: Option<&[String]>,
+) -> Result<Vec<RankJson>> {
+    let labels = Labels::read(path, ranks)?;
+    let missing = labels.unlabelled(&matrix.names);
     if !missing.is_empty() {
         bail!(
             "{}: no label row for {} specimen(s) of {}: {}",
@@ -175,15 +176,11 @@ fn leave_one_out(matrix: &DistanceMatrix, path: &Path, args: &Args) -> Result<Ve
             missing.join(", ")
         );
     }
-    let scores = eval::leave_one_out(matrix, &labels, &labels.ranks);
+    let scores = eval::leave_one_out(matrix, &labels, labels.ranks());
     Ok(scores
         .into_iter()
         .map(|s| RankJson {
-            percent: if s.total == 0 {
-                0.0
-            } else {
-                100.0 * s.correct as f64 / s.total as f64
-            },
+            percent: s.percent(),
             rank: s.rank,
             correct: s.correct,
             total: s.total,

@@ -1,5 +1,6 @@
 //! `morphoid inspect`: load, clean, report.
 
+use super::common::ConfigFile;
 use anyhow::{Context, Result};
 use morphoid::clean::{self, CleanOptions, CleanReport};
 use morphoid::mesh::io::{self, Format};
@@ -19,9 +20,10 @@ pub struct Args {
     /// Write the cleaned surface here (format from the extension).
     #[arg(long, value_name = "OUT")]
     write_clean: Option<PathBuf>,
-    /// Working resolution: about this many vertices after cleaning.
-    #[arg(long, default_value_t = CleanOptions::default().target_vertices)]
-    target_vertices: usize,
+    /// Working resolution: about this many vertices after cleaning
+    /// (default: `[clean] target_vertices` of the configuration).
+    #[arg(long)]
+    target_vertices: Option<usize>,
 }
 
 #[derive(Debug, Serialize)]
@@ -109,9 +111,13 @@ struct Timings {
 }
 
 /// Run `morphoid inspect`.
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     let _span = tracing::info_span!("inspect", scan = %args.mesh.display()).entered();
-    match inspect(&args) {
+    let mut opts = config.load()?.clean;
+    if let Some(n) = args.target_vertices {
+        opts.target_vertices = n;
+    }
+    match inspect(&args, &opts) {
         Ok(report) => {
             if args.json {
                 println!("{}", serde_json::to_string_pretty(&report)?);
@@ -136,16 +142,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
     }
 }
 
-fn inspect(args: &Args) -> Result<Report> {
+fn inspect(args: &Args, opts: &CleanOptions) -> Result<Report> {
     let t0 = Instant::now();
     let loaded = io::load(&args.mesh)?;
     let t_load = t0.elapsed();
-    let opts = CleanOptions {
-        target_vertices: args.target_vertices,
-        ..CleanOptions::default()
-    };
     let cleaned =
-        clean::clean(&loaded.mesh, &opts).with_context(|| format!("{}", args.mesh.display()))?;
+        clean::clean(&loaded.mesh, opts).with_context(|| format!("{}", args.mesh.display()))?;
     let t_clean = t0.elapsed() - t_load;
     if let Some(out) = &args.write_clean {
         io::save(out, &cleaned.mesh)

@@ -1,6 +1,6 @@
 //! `morphoid library build|list`: prepare and cache the references.
 
-use super::common::{open_cache, open_library, progress_bar, ConfigArgs};
+use super::common::{progress_bar, ConfigArgs, ConfigFile};
 use anyhow::Result;
 use morphoid::hash::content_hash;
 use morphoid::library::{self, Cache};
@@ -24,23 +24,23 @@ enum Action {
 }
 
 /// Run `morphoid library`.
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     match args.action {
-        Action::Build(c) => build(&c),
-        Action::List(c) => list(&c),
+        Action::Build(c) => build(&c, config),
+        Action::List(c) => list(&c, config),
     }
 }
 
-fn build(args: &ConfigArgs) -> Result<ExitCode> {
-    let config = args.load()?;
-    let lib = open_library(&config)?;
-    let cache = open_cache(&config)?;
+fn build(args: &ConfigArgs, file: ConfigFile) -> Result<ExitCode> {
+    let config = args.load(file)?;
+    let lib = config.open_library()?;
+    let cache = config.open_cache()?;
     let started = Instant::now();
-    let bar = progress_bar(lib.members.len() as u64, "preparing");
+    let bar = progress_bar(lib.members().len() as u64, "preparing");
     let out = library::build(&lib, &cache, &config.settings(), |_| bar.inc(1))?;
     bar.finish_and_clear();
-    for (name, why) in &out.failures {
-        eprintln!("morphoid: error: reference {name}: {why}");
+    for f in &out.failures {
+        eprintln!("morphoid: error: reference {}: {}", f.name, f.error);
     }
     // A reference whose landmark file cannot be used still identifies
     // scans, without landmarks; the file needs fixing all the same.
@@ -49,7 +49,7 @@ fn build(args: &ConfigArgs) -> Result<ExitCode> {
     }
     println!(
         "{}: {} references ({} prepared, {} from the cache, {} failed; {} stale cache entries removed) in {:.1} s; cache {}",
-        lib.dir.display(),
+        lib.dir().display(),
         out.references.len(),
         out.prepared,
         out.reused,
@@ -74,43 +74,35 @@ fn build(args: &ConfigArgs) -> Result<ExitCode> {
     )
 }
 
-fn list(args: &ConfigArgs) -> Result<ExitCode> {
-    let config = args.load()?;
-    let lib = open_library(&config)?;
-    let cache = open_cache(&config)?;
-    let settings = config.settings();
+fn list(args: &ConfigArgs, file: ConfigFile) -> Result<ExitCode> {
+    let config = args.load(file)?;
+    let lib = config.open_library()?;
+    let cache = config.open_cache()?;
+    let cached = library::cached_members(&lib, &cache, &config.settings());
     let mut header = format!("{:<16}", "name");
-    for r in &lib.labels.ranks {
+    for r in lib.labels().ranks() {
         header.push_str(&format!(" {r:<18}"));
     }
     println!("{header} state");
-    let mut prepared = 0;
-    for m in &lib.members {
-        let state = match std::fs::read(&m.path) {
-            Ok(bytes) => {
-                let key = Cache::key(&content_hash(&bytes), &settings);
-                if cache.get(&m.name, &key).is_some() {
-                    prepared += 1;
-                    "prepared"
-                } else {
-                    "not prepared"
-                }
-            }
-            Err(_) => "unreadable",
+    for (m, cached) in lib.members().iter().zip(&cached) {
+        let state = match cached {
+            Some(true) => "prepared",
+            Some(false) => "not prepared",
+            None => "unreadable",
         };
         let mut row = format!("{:<16}", m.name);
-        for r in &lib.labels.ranks {
+        for r in lib.labels().ranks() {
             row.push_str(&format!(
                 " {:<18}",
-                lib.labels.get(&m.name, r).unwrap_or("NA")
+                lib.labels().get(&m.name, r).unwrap_or("NA")
             ));
         }
         println!("{row} {state}");
     }
     println!(
         "{} references, {} prepared (cache {})",
-        lib.members.len(),
-        prepared,
+        lib.members().len(),
+        cached.iter().filter(|c| **c == Some(true)).count(),
         cache.dir().display()
     );
     Ok(ExitCode::SUCCESS)

@@ -4,21 +4,15 @@
 //! landmarks`, the discrete Procrustes distance matrix of the folder's
 //! landmark files (the paper's ODLP).
 
-use super::common::progress_bar;
+use super::common::{progress_bar, ConfigFile};
 use super::method::{CwnArgs, Method};
 use anyhow::{bail, Context, Result};
-use morphoid::cp::Prepared;
-use morphoid::cwn;
-use morphoid::eval;
-use morphoid::eval::shard::{self, Shard, ShardFile};
-use morphoid::hash::content_hash;
+use morphoid::eval::{self, Shard, ShardFile};
 use morphoid::landmarks;
-use morphoid::library::{self, Cache};
-use morphoid::pipeline::{self, Settings};
-use rayon::prelude::*;
+use morphoid::library::{self, Cache, Member, Preparation, SurfaceDistance};
+use morphoid::pipeline::Settings;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 /// Arguments of `morphoid matrix`.
@@ -37,10 +31,11 @@ pub struct Args {
     /// cluster job array; combine the parts with `morphoid matrix merge`.
     #[arg(long, value_name = "K/N")]
     shard: Option<Shard>,
-    /// Reuse the prepared surfaces of this cache folder (as `library build`
-    /// writes it) where the file and the settings are unchanged; the others
-    /// are prepared here and not written back. Saves every shard of a job
-    /// array from preparing the whole library again.
+    /// Cache folder of prepared surfaces (the `[library] cache` of the
+    /// configuration, as `library build` uses it): surfaces whose file and
+    /// settings are unchanged are taken from it, the others are prepared
+    /// and stored in it. Saves every shard of a job array, and every later
+    /// run, from preparing the whole library again.
     #[arg(long, value_name = "DIR")]
     cache: Option<PathBuf>,
     /// Worker threads (default: all cores).
@@ -83,108 +78,73 @@ struct MergeArgs {
 }
 
 /// Run `morphoid matrix`.
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     if let Some(MatrixCommand::Merge(m)) = args.command {
         return merge(m);
     }
     let (Some(library), Some(out)) = (args.library, args.out) else {
         bail!("`morphoid matrix` needs --library and --out (or the `merge` subcommand)");
     };
+    let settings = config.load()?.settings();
     super::configure_threads(args.threads)?;
-    match args.method {
-        Method::Cp | Method::Cwn => {}
+    let members = library::members(&library)?;
+    let distance = match args.method {
+        Method::Cp => SurfaceDistance::Cp,
+        Method::Cwn => SurfaceDistance::Cwn(args.cwn.params()),
         Method::Landmarks => {
             if args.shard.is_some() || args.cache.is_some() {
                 bail!("--shard and --cache apply to --method cp only");
             }
-            return run_landmarks(&library, &out, args.allow_reflection);
+            return run_landmarks(&library, &members, &out, args.allow_reflection);
         }
+    };
+    // Fail on bad options before hours of preparation.
+    distance.validate()?;
+    if args.shard.is_some() && distance != SurfaceDistance::Cp {
+        bail!(
+            "--shard computes cP shards only; run --method {} without --shard",
+            distance.name()
+        );
     }
     let cache = match &args.cache {
-        Some(dir) if !dir.is_dir() => bail!("{}: no such cache folder", dir.display()),
-        Some(dir) => Some(Cache::open(dir)?),
+        Some(root) => Some(Cache::for_folder(Some(root), &library)?),
         None => None,
     };
-    match args.shard {
-        Some(_) if args.method != Method::Cp => bail!(
-            "--shard computes cP shards only; run --method {} without --shard",
-            args.method.name()
-        ),
-        Some(shard) => run_shard(&library, &out, shard, cache.as_ref()),
-        None => run_whole(&library, &out, cache.as_ref(), args.method, &args.cwn),
+    let preparation = Preparation::new(cache.as_ref(), &settings);
+    let code = match args.shard {
+        Some(shard) => run_shard(&members, &out, shard, &preparation, &settings)?,
+        None => run_whole(&members, &out, &preparation, &settings, &distance)?,
+    };
+    if let Some(dir) = preparation.cache_dir() {
+        eprintln!(
+            "cache {}: {} of {} prepared surfaces found, {} stored",
+            dir.display(),
+            preparation.reused(),
+            preparation.reused() + preparation.prepared(),
+            preparation.prepared()
+        );
     }
-}
-
-/// The prepared form of the surface in `path`: from the cache when it
-/// holds an entry for this content and these settings, else prepared now.
-/// `hits` counts the surfaces taken from the cache.
-fn prepare(
-    path: &Path,
-    settings: &Settings,
-    cache: Option<&Cache>,
-    hits: &AtomicUsize,
-) -> Result<Prepared> {
-    let name = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    if let Some(cache) = cache {
-        let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-        let key = Cache::key(&content_hash(&bytes), settings);
-        if let Some(hit) = cache.get(&name, &key) {
-            let mut prepared = hit.prepared;
-            prepared.set_name(name);
-            hits.fetch_add(1, Ordering::Relaxed);
-            return Ok(prepared);
-        }
-    }
-    Ok(pipeline::prepare_file(path, settings)?.prepared)
+    Ok(code)
 }
 
 /// The whole matrix in one run.
 fn run_whole(
-    library: &Path,
+    members: &[Member],
     out: &Path,
-    cache: Option<&Cache>,
-    method: Method,
-    cwn_args: &CwnArgs,
+    preparation: &Preparation,
+    settings: &Settings,
+    distance: &SurfaceDistance,
 ) -> Result<ExitCode> {
-    let settings = Settings::default();
-    let cwn_params = cwn_args.params();
-    if method == Method::Cwn {
-        // Fail on bad options before hours of preparation.
-        cwn_params.validate()?;
-    }
-    let files = surface_files(library)?;
     let started = Instant::now();
-    let hits = AtomicUsize::new(0);
-
-    let bar = progress_bar(files.len() as u64, "preparing");
-    let prepared = files
-        .par_iter()
-        .map(|f| {
-            let p = prepare(f, &settings, cache, &hits);
-            bar.inc(1);
-            p
-        })
-        .collect::<Result<Vec<_>, _>>()?;
+    let bar = progress_bar(members.len() as u64, "preparing");
+    let prepared = preparation.prepare_all(members, |_| bar.inc(1))?;
     bar.finish_and_clear();
     let prepare_s = started.elapsed().as_secs_f64();
 
     let n = prepared.len();
-    let bar = progress_bar((n * n.saturating_sub(1) / 2) as u64, "comparing");
-    let matrix = match method {
-        Method::Cp => eval::distance_matrix(&prepared, &settings.cp.compare, |_| bar.inc(1)),
-        Method::Cwn => {
-            let landscapes = prepared
-                .par_iter()
-                .map(|p| cwn::prepare(p, &cwn_params).with_context(|| p.name().to_string()))
-                .collect::<Result<Vec<_>>>()?;
-            cwn::distance_matrix(&landscapes, &cwn_params, |_| bar.inc(1))?
-        }
-        // Dispatched to `run_landmarks` before any surface is prepared.
-        Method::Landmarks => bail!("--method landmarks does not compare surfaces"),
-    };
+    let pairs = eval::pair_count(n);
+    let bar = progress_bar(pairs as u64, "comparing");
+    let matrix = distance.matrix(&prepared, settings, |_| bar.inc(1))?;
     bar.finish_and_clear();
     matrix
         .write_csv(out)
@@ -192,9 +152,9 @@ fn run_whole(
     eprintln!(
         "{} specimens ({} from the cache), {} pairs, {}: prepared in {:.1} s, compared in {:.1} s; wrote {}",
         n,
-        hits.load(Ordering::Relaxed),
-        n * n.saturating_sub(1) / 2,
-        method.name(),
+        preparation.reused(),
+        pairs,
+        distance.name(),
         prepare_s,
         started.elapsed().as_secs_f64() - prepare_s,
         out.display()
@@ -202,34 +162,25 @@ fn run_whole(
     Ok(ExitCode::SUCCESS)
 }
 
-/// The specimen names of surface files: their stems.
-fn file_stems(files: &[PathBuf]) -> Vec<String> {
-    files
-        .iter()
-        .map(|f| {
-            f.file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_default()
-        })
-        .collect()
-}
-
 /// Compute one shard: prepare only the specimens its pairs involve.
-fn run_shard(library: &Path, out: &Path, which: Shard, cache: Option<&Cache>) -> Result<ExitCode> {
-    let settings = Settings::default();
-    let files = surface_files(library)?;
-    let names = file_stems(&files);
+fn run_shard(
+    members: &[Member],
+    out: &Path,
+    which: Shard,
+    preparation: &Preparation,
+    settings: &Settings,
+) -> Result<ExitCode> {
+    let names: Vec<String> = members.iter().map(|m| m.name.clone()).collect();
     let started = Instant::now();
-    let hits = AtomicUsize::new(0);
-    let own_pairs = shard::shard_pairs(names.len(), which);
-    let (pairs, needed) = (own_pairs.len(), shard::pair_specimens(&own_pairs).len());
+    let own_pairs = eval::shard_pairs(names.len(), which);
+    let (pairs, needed) = (own_pairs.len(), eval::pair_specimens(&own_pairs).len());
     let bar = progress_bar(pairs as u64, "comparing");
-    let file = shard::compute_shard(
+    let file = eval::compute_shard(
         &names,
         which,
         |k| {
-            let path = files.get(k).map(PathBuf::as_path).unwrap_or(library);
-            prepare(path, &settings, cache, &hits)
+            let member = members.get(k).context("a shard pair outside the library")?;
+            anyhow::Ok(preparation.prepare(member)?)
         },
         &settings.cp.compare,
         |_| bar.inc(1),
@@ -238,9 +189,9 @@ fn run_shard(library: &Path, out: &Path, which: Shard, cache: Option<&Cache>) ->
     file.write(out)?;
     eprintln!(
         "shard {which}: {pairs} of {} pairs, {needed} of {} specimens prepared ({} from the cache), {:.1} s; wrote {}",
-        shard::pair_count(names.len()),
+        eval::pair_count(names.len()),
         names.len(),
-        hits.load(Ordering::Relaxed),
+        preparation.reused(),
         started.elapsed().as_secs_f64(),
         out.display()
     );
@@ -254,7 +205,7 @@ fn merge(args: MergeArgs) -> Result<ExitCode> {
         .iter()
         .map(|p| ShardFile::read(p).map(|s| (p.clone(), s)))
         .collect::<Result<Vec<_>, _>>()?;
-    let matrix = shard::merge_shards(&shards)?;
+    let matrix = eval::merge_shards(&shards)?;
     matrix
         .write_csv(&args.out)
         .with_context(|| format!("writing {}", args.out.display()))?;
@@ -269,59 +220,22 @@ fn merge(args: MergeArgs) -> Result<ExitCode> {
 
 /// The landmark Procrustes matrix over the specimens of the folder (the
 /// surface files' names, so that it lines up with the cP matrix).
-fn run_landmarks(library: &Path, out: &Path, allow_reflection: bool) -> Result<ExitCode> {
-    let names = file_stems(&surface_files(library)?);
-    let loaded = landmarks::load_library(library, &names);
-    if let Some((name, why)) = loaded.problems.first() {
-        bail!("landmarks of `{name}`: {why}");
-    }
-    let missing: Vec<&str> = names
-        .iter()
-        .filter(|n| !loaded.by_name.contains_key(*n))
-        .map(String::as_str)
-        .collect();
-    if !missing.is_empty() {
-        bail!(
-            "{}: no landmark file (landmarks/<name>.csv, .fcsv, .mrk.json or .pp) for {}",
-            library.display(),
-            missing.join(", ")
-        );
-    }
-    let sets: Vec<&[[f64; 3]]> = names
-        .iter()
-        .filter_map(|n| loaded.by_name.get(n).map(|l| l.points.as_slice()))
-        .collect();
-    let n = sets.len();
-    let mut values = vec![vec![0.0; n]; n];
-    for i in 0..n {
-        for j in i + 1..n {
-            let d = landmarks::procrustes_distance(sets[i], sets[j], allow_reflection)
-                .with_context(|| format!("landmarks of `{}` and `{}`", names[i], names[j]))?;
-            values[i][j] = d;
-            values[j][i] = d;
-        }
-    }
-    let matrix = eval::DistanceMatrix { names, values };
+fn run_landmarks(
+    library: &Path,
+    members: &[Member],
+    out: &Path,
+    allow_reflection: bool,
+) -> Result<ExitCode> {
+    let names: Vec<String> = members.iter().map(|m| m.name.clone()).collect();
+    let (matrix, count) = landmarks::procrustes_matrix(library, &names, allow_reflection)?;
     matrix
         .write_csv(out)
         .with_context(|| format!("writing {}", out.display()))?;
+    let n = names.len();
     eprintln!(
-        "{n} specimens, {} landmarks each, {} pairs: wrote {}",
-        loaded.count.unwrap_or(0),
-        n * n.saturating_sub(1) / 2,
+        "{n} specimens, {count} landmarks each, {} pairs: wrote {}",
+        eval::pair_count(n),
         out.display()
     );
     Ok(ExitCode::SUCCESS)
-}
-
-/// The surface files of a library folder, sorted by name.
-fn surface_files(dir: &Path) -> Result<Vec<PathBuf>> {
-    let files = library::surface_files(dir)?;
-    if files.is_empty() {
-        bail!(
-            "{}: no surface files (.obj, .ply, .stl, .off)",
-            dir.display()
-        );
-    }
-    Ok(files)
 }

@@ -1,6 +1,6 @@
 //! Subcommands of the `morphoid` binary. Each module parses nothing itself:
-//! clap builds the argument structs here, the modules do the work and turn
-//! library errors into one-line messages with context.
+//! clap builds the argument structs here; the modules call the library,
+//! print, and turn library errors into one-line messages with context.
 
 mod check_config;
 mod classify;
@@ -18,6 +18,8 @@ mod run;
 mod synth;
 
 use clap::{Parser, Subcommand};
+use common::ConfigFile;
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 /// Identify anatomical surfaces with the continuous Procrustes distance.
@@ -27,6 +29,10 @@ struct Cli {
     /// More log output (repeat for more).
     #[arg(short, long, global = true, action = clap::ArgAction::Count)]
     verbose: u8,
+    /// Configuration file (TOML; see config/morphoid.toml), read by every
+    /// command. Without it, the built-in defaults.
+    #[arg(long, global = true, value_name = "FILE")]
+    config: Option<PathBuf>,
     #[command(subcommand)]
     command: Command,
 }
@@ -65,19 +71,20 @@ pub fn main() -> ExitCode {
     // The daemon logs one info line per scan by default.
     let daemon = matches!(cli.command, Command::Run(_));
     init_tracing(cli.verbose + u8::from(daemon));
+    let config = ConfigFile(cli.config.as_deref());
     let result = match cli.command {
-        Command::Inspect(a) => inspect::run(a),
-        Command::Synth(a) => synth::run(a),
-        Command::Distance(a) => distance::run(a),
-        Command::Library(a) => library::run(a),
-        Command::Classify(a) => classify::run(a),
-        Command::Demo(a) => demo::run(a),
-        Command::Results(a) => results::run(a),
-        Command::Matrix(a) => matrix::run(a),
-        Command::Evaluate(a) => evaluate::run(a),
-        Command::Propagate(a) => propagate::run(a),
-        Command::Run(a) => run::run(a),
-        Command::CheckConfig(a) => check_config::run(a),
+        Command::Inspect(a) => inspect::run(a, config),
+        Command::Synth(a) => synth::run(a, config),
+        Command::Distance(a) => distance::run(a, config),
+        Command::Library(a) => library::run(a, config),
+        Command::Classify(a) => classify::run(a, config),
+        Command::Demo(a) => demo::run(a, config),
+        Command::Results(a) => results::run(a, config),
+        Command::Matrix(a) => matrix::run(a, config),
+        Command::Evaluate(a) => evaluate::run(a, config),
+        Command::Propagate(a) => propagate::run(a, config),
+        Command::Run(a) => run::run(a, config),
+        Command::CheckConfig(a) => check_config::run(a, config),
     };
     match result {
         Ok(code) => code,
@@ -122,4 +129,42 @@ fn configure_threads(threads: Option<usize>) -> anyhow::Result<()> {
             .map_err(|e| anyhow::anyhow!("cannot start {n} worker threads: {e}"))?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    #[test]
+    fn the_command_line_is_consistent() {
+        Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn every_command_takes_config_before_or_after_its_name() {
+        for args in [
+            &[
+                "morphoid",
+                "matrix",
+                "--library",
+                "l",
+                "--out",
+                "o",
+                "--config",
+                "c",
+            ][..],
+            &["morphoid", "--config", "c", "distance", "a", "b"],
+            &["morphoid", "check-config", "--config", "c"],
+            &["morphoid", "synth", "--out", "x.ply", "--config", "c"],
+            &["morphoid", "library", "build", "--config", "c"],
+        ] {
+            let cli = Cli::try_parse_from(args).unwrap();
+            assert_eq!(
+                cli.config.as_deref(),
+                Some(std::path::Path::new("c")),
+                "{args:?}"
+            );
+        }
+    }
 }

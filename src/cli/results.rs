@@ -1,6 +1,6 @@
 //! `morphoid results`: what has been identified, newest first.
 
-use super::common::ConfigArgs;
+use super::common::{ConfigArgs, ConfigFile};
 use anyhow::Result;
 use morphoid::store::Store;
 use std::process::ExitCode;
@@ -19,8 +19,8 @@ pub struct Args {
 }
 
 /// Run `morphoid results`.
-pub fn run(args: Args) -> Result<ExitCode> {
-    let config = args.config.load()?;
+pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
+    let config = args.config.load(file)?;
     let mut store = Store::open(&config.database.path)?;
     for record in store.recent(args.last)? {
         if args.json {

@@ -1,6 +1,6 @@
 //! `morphoid run`: the daemon (see `morphoid::daemon`).
 
-use super::common::{open_cache, open_library, ConfigArgs};
+use super::common::{ConfigArgs, ConfigFile};
 use anyhow::Result;
 use morphoid::classify::Classifier;
 use morphoid::config::Config;
@@ -19,13 +19,21 @@ pub struct Args {
     watch: Option<PathBuf>,
 }
 
-impl Loader for Args {
+/// What the daemon reloads on SIGHUP: the configuration file with the
+/// command-line overrides, and the library it names.
+struct Daemon<'a> {
+    args: Args,
+    file: ConfigFile<'a>,
+}
+
+impl Loader for Daemon<'_> {
     fn config(&self) -> Result<Config, LoadError> {
         let mut config = self
+            .args
             .config
-            .load()
+            .load(self.file)
             .map_err(|e| LoadError::Config(e.into()))?;
-        if let Some(dir) = &self.watch {
+        if let Some(dir) = &self.args.watch {
             config.watch.dir = dir.clone();
         }
         Ok(config)
@@ -36,14 +44,14 @@ impl Loader for Args {
             dir: config.library.dir.clone(),
             source: source.into(),
         };
-        let lib = open_library(config).map_err(failed)?;
-        let cache = open_cache(config).map_err(failed)?;
+        let lib = config.open_library().map_err(|e| failed(e.into()))?;
+        let cache = config.open_cache().map_err(|e| failed(e.into()))?;
         Classifier::build(&lib, &cache, &config.settings(), |_| {}).map_err(|e| failed(e.into()))
     }
 }
 
 /// Run the daemon until SIGTERM/SIGINT.
-pub fn run(args: Args) -> Result<ExitCode> {
-    daemon::run(&args)?;
+pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
+    daemon::run(&Daemon { args, file })?;
     Ok(ExitCode::SUCCESS)
 }

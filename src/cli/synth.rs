@@ -1,6 +1,7 @@
 //! `morphoid synth`: write a synthetic crown-like surface, so that a new user
 //! can try every command without data of their own.
 
+use super::common::ConfigFile;
 use anyhow::{Context, Result};
 use morphoid::mesh::io;
 use morphoid::mesh::synth::{self, CROWN_GENERA};
@@ -25,7 +26,10 @@ pub struct Args {
 }
 
 /// Run `morphoid synth`.
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
+    // Nothing here depends on the configuration; a broken one is still
+    // reported, as by every command.
+    config.load()?;
     let genus = synth::crown_genus(&args.genus).with_context(|| {
         let names: Vec<&str> = CROWN_GENERA.iter().map(|g| g.name).collect();
         format!(

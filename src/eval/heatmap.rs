@@ -52,7 +52,7 @@ pub enum HeatmapError {
 }
 
 /// Colour where a specimen meets itself: the separating diagonal.
-pub const DIAGONAL_COLOUR: [u8; 3] = [255, 255, 255];
+const DIAGONAL_COLOUR: [u8; 3] = [255, 255, 255];
 
 /// Viridis (the perceptually uniform map of matplotlib), sampled at eleven
 /// evenly spaced points; [`viridis`] interpolates linearly between them.
@@ -72,7 +72,7 @@ const VIRIDIS: [[u8; 3]; 11] = [
 
 /// The viridis colour of `t ∈ [0, 1]` (dark violet at 0, yellow at 1;
 /// values outside are clamped, NaN maps to 0).
-pub fn viridis(t: f64) -> [u8; 3] {
+fn viridis(t: f64) -> [u8; 3] {
     let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) };
     let x = t * (VIRIDIS.len() - 1) as f64;
     let k = (x.floor() as usize).min(VIRIDIS.len() - 2);
@@ -84,7 +84,7 @@ pub fn viridis(t: f64) -> [u8; 3] {
 
 /// The matrix rescaled to `[0, 1]` over the range of its off-diagonal
 /// entries (all zero when they are constant).
-pub fn normalized(m: &DistanceMatrix) -> Vec<Vec<f64>> {
+fn normalized(m: &DistanceMatrix) -> Vec<Vec<f64>> {
     let n = m.names.len();
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for i in 0..n {

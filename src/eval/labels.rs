@@ -1,6 +1,6 @@
 //! Taxonomic labels of a library (`labels.csv`).
 
-use super::split_csv_line;
+use super::csv_text::{rows, trimmed, CsvString, Row};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -30,12 +30,13 @@ pub enum LabelsError {
 /// Labels: for each specimen name, a value (or unknown) at each rank.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Labels {
-    /// Rank names, in file order.
-    pub ranks: Vec<String>,
+    /// Rank names, in the order asked for (default: file order).
+    ranks: Vec<String>,
     /// Specimen names, in file order.
-    pub names: Vec<String>,
+    names: Vec<String>,
     /// `values[i][r]`: value of specimen `i` at rank `r`; `None` = unknown.
-    pub values: Vec<Vec<Option<String>>>,
+    values: Vec<Vec<Option<String>>>,
+    /// Row of each name.
     index: HashMap<String, usize>,
 }
 
@@ -49,17 +50,21 @@ impl Labels {
             line,
             message,
         };
-        let mut lines = text
-            .lines()
-            .enumerate()
-            .filter(|(_, l)| !l.trim().is_empty());
-        let (_, head) = lines.next().ok_or_else(|| err(1, "empty file".into()))?;
-        let header = split_csv_line(head).map_err(|m| err(1, m.into()))?;
-        let header: Vec<String> = header.iter().map(|h| h.trim().to_string()).collect();
+        let mut rows = rows(text, false);
+        let header = match rows.next() {
+            None => return Err(err(1, "empty file".into())),
+            Some(r) => r.map_err(|(line, m)| err(line, m))?,
+        };
+        let header_line = header.line;
+        let header: Vec<String> = header
+            .fields
+            .iter()
+            .map(|h| trimmed(h).to_string())
+            .collect();
         let name_col = header
             .iter()
             .position(|h| h == "name")
-            .ok_or_else(|| err(1, "no `name` column".into()))?;
+            .ok_or_else(|| err(header_line, "no `name` column".into()))?;
         let rank_names: Vec<String> = match ranks {
             Some(r) => r.to_vec(),
             None => header.iter().filter(|h| *h != "name").cloned().collect(),
@@ -70,32 +75,32 @@ impl Labels {
                 header
                     .iter()
                     .position(|h| h == r)
-                    .ok_or_else(|| err(1, format!("no column `{r}`")))?,
+                    .ok_or_else(|| err(header_line, format!("no column `{r}`")))?,
             );
         }
         let mut out = Labels {
             ranks: rank_names,
             ..Default::default()
         };
-        for (i, line) in lines {
-            let f = split_csv_line(line).map_err(|m| err(i + 1, m.into()))?;
+        for r in rows {
+            let Row { line, fields: f } = r.map_err(|(line, m)| err(line, m))?;
             if f.len() != header.len() {
                 return Err(err(
-                    i + 1,
+                    line,
                     format!("{} fields, the header has {}", f.len(), header.len()),
                 ));
             }
-            let name = f[name_col].trim().to_string();
+            let name = trimmed(&f[name_col]).to_string();
             if name.is_empty() {
-                return Err(err(i + 1, "empty name".into()));
+                return Err(err(line, "empty name".into()));
             }
             if out.index.contains_key(&name) {
-                return Err(err(i + 1, format!("duplicate name `{name}`")));
+                return Err(err(line, format!("duplicate name `{name}`")));
             }
             let vals = cols
                 .iter()
                 .map(|&c| {
-                    let v = f[c].trim();
+                    let v = trimmed(&f[c]);
                     (!v.is_empty() && v != "NA").then(|| v.to_string())
                 })
                 .collect();
@@ -113,6 +118,55 @@ impl Labels {
             source,
         })?;
         Self::parse(&text, ranks, path)
+    }
+
+    /// The CSV text: `name` and the ranks, then one row per specimen,
+    /// `NA` for unknown values.
+    pub fn to_csv(&self) -> String {
+        let mut w = CsvString::new();
+        w.record(std::iter::once("name").chain(self.ranks.iter().map(String::as_str)));
+        for (name, values) in self.names.iter().zip(&self.values) {
+            w.record(
+                std::iter::once(name.as_str())
+                    .chain(values.iter().map(|v| v.as_deref().unwrap_or("NA"))),
+            );
+        }
+        w.finish()
+    }
+
+    /// The rank columns, in the order asked for (default: file order).
+    pub fn ranks(&self) -> &[String] {
+        &self.ranks
+    }
+
+    /// The specimen names, in file order.
+    pub fn names(&self) -> &[String] {
+        &self.names
+    }
+
+    /// Whether `name` has a row.
+    pub fn contains(&self, name: &str) -> bool {
+        self.index.contains_key(name)
+    }
+
+    /// The names among `names` that have no row.
+    pub fn unlabelled<'a>(&self, names: &'a [String]) -> Vec<&'a str> {
+        names
+            .iter()
+            .filter(|n| !self.index.contains_key(*n))
+            .map(String::as_str)
+            .collect()
+    }
+
+    /// The values of `names` at `rank` (`None` for unknown or absent
+    /// specimens); `None` when `rank` is not one of the ranks.
+    pub fn column(&self, names: &[String], rank: &str) -> Option<Vec<Option<String>>> {
+        self.ranks.iter().any(|r| r == rank).then(|| {
+            names
+                .iter()
+                .map(|n| self.get(n, rank).map(str::to_string))
+                .collect()
+        })
     }
 
     /// Value of specimen `name` at rank `rank` (`None`: unknown or absent).
@@ -136,10 +190,33 @@ mod tests {
         assert_eq!(l.get("B", "genus"), None);
         assert_eq!(l.get("C", "genus"), None);
         assert_eq!(l.get("C", "order"), Some("Q"));
+        let names = ["C", "X", "A"].map(String::from);
+        assert_eq!(l.unlabelled(&names), ["X"]);
+        assert_eq!(
+            l.column(&names, "genus"),
+            Some(vec![None, None, Some("G1".to_string())])
+        );
+        assert_eq!(l.column(&names, "family"), None);
         let only = vec!["genus".to_string()];
         let l = Labels::parse(text, Some(&only), Path::new("l.csv")).unwrap();
         assert_eq!(l.ranks, vec!["genus"]);
         assert_eq!(l.get("A", "order"), None);
+    }
+
+    #[test]
+    fn any_name_round_trips() {
+        let text =
+            "name,order,genus\n\"a,b\",P,G\n\"q\"\"x\",P,NA\n\"new\nline\",Q,G2\nplain,Q,G2\n";
+        let l = Labels::parse(text, None, Path::new("l.csv")).unwrap();
+        assert_eq!(l.names, ["a,b", "q\"x", "new\nline", "plain"]);
+        assert_eq!(l.get("new\nline", "genus"), Some("G2"));
+        assert_eq!(l.to_csv(), text);
+        assert_eq!(
+            Labels::parse(&l.to_csv(), None, Path::new("l.csv")).unwrap(),
+            l
+        );
+        let e = Labels::parse("name,a\n\"x\ny\",1\nz\n", None, Path::new("l.csv")).unwrap_err();
+        assert!(e.to_string().starts_with("l.csv:4:"), "{e}");
     }
 
     #[test]

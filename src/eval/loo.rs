@@ -15,6 +15,17 @@ pub struct RankScore {
     pub total: usize,
 }
 
+impl RankScore {
+    /// The share of correct classifications in percent (0 when none).
+    pub fn percent(&self) -> f64 {
+        if self.total == 0 {
+            0.0
+        } else {
+            100.0 * self.correct as f64 / self.total as f64
+        }
+    }
+}
+
 /// For each rank: classify every specimen known at that rank by its nearest
 /// other specimen known at that rank (ties: first in matrix order), and
 /// count the correct ones. Specimens absent from the labels are unknown.
@@ -79,7 +90,7 @@ mod tests {
             Path::new("l"),
         )
         .unwrap();
-        let r = leave_one_out(&m, &l, &l.ranks.clone());
+        let r = leave_one_out(&m, &l, l.ranks());
         // order: a→b ok, b→a ok, c→d (Y≠X) wrong, d→c wrong.
         assert_eq!(
             r[0],

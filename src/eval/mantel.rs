@@ -89,7 +89,7 @@ pub enum MantelError {
 /// Pearson's correlation coefficient of two equally long samples; `None`
 /// when they differ in length, have fewer than two values or one of them is
 /// constant.
-pub fn pearson(x: &[f64], y: &[f64]) -> Option<f64> {
+fn pearson(x: &[f64], y: &[f64]) -> Option<f64> {
     if x.len() != y.len() || x.len() < 2 {
         return None;
     }
@@ -111,7 +111,7 @@ pub fn pearson(x: &[f64], y: &[f64]) -> Option<f64> {
 }
 
 /// The entries above the diagonal, row by row: `d(0,1), d(0,2), …, d(1,2), …`.
-pub fn upper_triangle(m: &DistanceMatrix) -> Vec<f64> {
+fn upper_triangle(m: &DistanceMatrix) -> Vec<f64> {
     let n = m.names.len();
     (0..n)
         .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
@@ -121,7 +121,7 @@ pub fn upper_triangle(m: &DistanceMatrix) -> Vec<f64> {
 
 /// Check that `m` is square, finite and symmetric (to a relative 1e-9 of
 /// its largest entry) with unique names.
-pub fn check_distance_matrix(m: &DistanceMatrix) -> Result<(), MantelError> {
+pub(super) fn check_distance_matrix(m: &DistanceMatrix) -> Result<(), MantelError> {
     let n = m.names.len();
     let mut seen = BTreeSet::new();
     for name in &m.names {
@@ -168,7 +168,7 @@ pub fn check_distance_matrix(m: &DistanceMatrix) -> Result<(), MantelError> {
 
 /// `other` with its rows and columns reordered to follow `reference`'s
 /// names; an error names the specimens the two do not share.
-pub fn align_to(
+pub(super) fn align_to(
     reference: &DistanceMatrix,
     other: &DistanceMatrix,
 ) -> Result<DistanceMatrix, MantelError> {
@@ -216,7 +216,7 @@ pub fn align_to(
 
 /// The Mantel correlation: Pearson r of the upper triangles of `a` and `b`,
 /// matching specimens by name.
-pub fn mantel_r(a: &DistanceMatrix, b: &DistanceMatrix) -> Result<f64, MantelError> {
+fn mantel_r(a: &DistanceMatrix, b: &DistanceMatrix) -> Result<f64, MantelError> {
     let b = align_to(a, b)?;
     let n = a.names.len();
     if n < 3 {
@@ -249,7 +249,7 @@ pub fn mantel_test(
     // The reported r comes from the plain two-pass formula (exactly 1 for
     // a matrix against itself); permutations are compared with the same
     // cross product they are computed with, so that rounding is alike.
-    let r = pearson(&upper_triangle(a), &upper_triangle(&b)).ok_or(MantelError::Constant)?;
+    let r = mantel_r(a, &b)?;
     let observed = cross_product(&x, &y, &identity, n);
     let larger = (1..=permutations)
         .into_par_iter()

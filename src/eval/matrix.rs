@@ -1,6 +1,6 @@
 //! Distance matrices: computation over prepared surfaces and CSV files.
 
-use super::{csv_field, split_csv_line};
+use super::csv_text::{rows, trimmed, CsvString, Row};
 use crate::cp::{compare, CompareParams, Prepared};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -48,23 +48,15 @@ impl DistanceMatrix {
             .unwrap_or(f64::NAN)
     }
 
-    /// The CSV text: header `name,<name1>,…`, then one row per specimen.
+    /// The CSV text: header `name,<name1>,…`, then one row per specimen;
+    /// each value in the shortest form that reads back exactly.
     pub fn to_csv(&self) -> String {
-        let mut s = String::from("name");
-        for n in &self.names {
-            s.push(',');
-            s.push_str(&csv_field(n));
-        }
-        s.push('\n');
+        let mut w = CsvString::new();
+        w.record(std::iter::once("name").chain(self.names.iter().map(String::as_str)));
         for (n, row) in self.names.iter().zip(&self.values) {
-            s.push_str(&csv_field(n));
-            for v in row {
-                // Shortest representation that reads back exactly.
-                s.push_str(&format!(",{v:?}"));
-            }
-            s.push('\n');
+            w.record(std::iter::once(n.clone()).chain(row.iter().map(|v| format!("{v:?}"))));
         }
-        s
+        w.finish()
     }
 
     /// Parse CSV text (`path` is only used in errors). Rows must follow the
@@ -75,45 +67,51 @@ impl DistanceMatrix {
             line,
             message,
         };
-        let mut lines = text
-            .lines()
-            .enumerate()
-            .filter(|(_, l)| !l.trim().is_empty());
-        let (_, head) = lines.next().ok_or_else(|| err(1, "empty file".into()))?;
-        let header = split_csv_line(head).map_err(|m| err(1, m.into()))?;
-        if header.first().map(|h| h.trim()) != Some("name") {
-            return Err(err(1, "the header must start with `name`".into()));
+        let mut rows = rows(text, false);
+        let header = match rows.next() {
+            None => return Err(err(1, "empty file".into())),
+            Some(r) => r.map_err(|(line, m)| err(line, m))?,
+        };
+        if header.fields.first().map(|h| trimmed(h)) != Some("name") {
+            return Err(err(header.line, "the header must start with `name`".into()));
         }
-        let names: Vec<String> = header[1..].iter().map(|h| h.trim().to_string()).collect();
+        let names: Vec<String> = header.fields[1..]
+            .iter()
+            .map(|h| trimmed(h).to_string())
+            .collect();
         let mut values = Vec::with_capacity(names.len());
-        for (i, line) in lines {
-            let f = split_csv_line(line).map_err(|m| err(i + 1, m.into()))?;
+        for r in rows {
+            let Row { line, fields: f } = r.map_err(|(line, m)| err(line, m))?;
             let row = values.len();
             if row >= names.len() {
-                return Err(err(i + 1, "more rows than columns".into()));
+                return Err(err(line, "more rows than columns".into()));
             }
             if f.len() != names.len() + 1 {
                 return Err(err(
-                    i + 1,
+                    line,
                     format!("{} fields, expected {}", f.len(), names.len() + 1),
                 ));
             }
-            if f[0].trim() != names[row] {
+            if trimmed(&f[0]) != names[row] {
                 return Err(err(
-                    i + 1,
-                    format!("row `{}` where `{}` was expected", f[0].trim(), names[row]),
+                    line,
+                    format!(
+                        "row `{}` where `{}` was expected",
+                        trimmed(&f[0]),
+                        names[row]
+                    ),
                 ));
             }
             let mut r = Vec::with_capacity(names.len());
             for (k, v) in f[1..].iter().enumerate() {
                 let x: f64 = v.trim().parse().map_err(|_| {
                     err(
-                        i + 1,
+                        line,
                         format!("column {}: `{}` is not a number", k + 2, v.trim()),
                     )
                 })?;
                 if !x.is_finite() {
-                    return Err(err(i + 1, format!("column {}: not finite", k + 2)));
+                    return Err(err(line, format!("column {}: not finite", k + 2)));
                 }
                 r.push(x);
             }
@@ -200,8 +198,18 @@ mod tests {
 
     fn sample() -> DistanceMatrix {
         DistanceMatrix {
-            names: vec!["a".into(), "b,c".into()],
-            values: vec![vec![0.0, 0.1234567890123], vec![0.1234567890123, 0.0]],
+            names: vec![
+                "a".into(),
+                "b,c".into(),
+                "q\"uote".into(),
+                "new\nline".into(),
+            ],
+            values: vec![
+                vec![0.0, 0.1234567890123, 1.0, 2.5],
+                vec![0.1234567890123, 0.0, 1e-300, 0.1 + 0.2],
+                vec![1.0, 1e-300, 0.0, 3.0],
+                vec![2.5, 0.1 + 0.2, 3.0, 0.0],
+            ],
         }
     }
 
@@ -209,7 +217,8 @@ mod tests {
     fn csv_round_trip_is_exact() {
         let m = sample();
         let text = m.to_csv();
-        assert!(text.starts_with("name,a,\"b,c\"\n"));
+        assert!(text.starts_with("name,a,\"b,c\",\"q\"\"uote\",\"new\nline\"\n"));
+        assert!(text.contains("\na,0.0,0.1234567890123,1.0,2.5\n"), "{text}");
         assert_eq!(
             DistanceMatrix::parse_csv(&text, Path::new("m.csv")).unwrap(),
             m

@@ -16,7 +16,8 @@
 //! same `N`, every `K` once, every pair once) and assembles the matrix the
 //! unsharded computation writes.
 
-use super::{csv_field, split_csv_line, DistanceMatrix};
+use super::csv_text::{rows, trimmed, CsvString, Row};
+use super::DistanceMatrix;
 use crate::cp::{compare, CompareParams, Prepared};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -61,7 +62,7 @@ pub fn pair_count(n: usize) -> usize {
 
 /// The positions `[start, end)` in the row-major pair list of `n`
 /// specimens that `shard` covers: `start = ⌊(K−1)·P/N⌋`, `end = ⌊K·P/N⌋`.
-pub fn shard_range(n: usize, shard: Shard) -> std::ops::Range<usize> {
+fn shard_range(n: usize, shard: Shard) -> std::ops::Range<usize> {
     let p = pair_count(n) as u128;
     let count = shard.count.max(1) as u128;
     let at = |k: usize| (k as u128 * p / count) as usize;
@@ -162,23 +163,25 @@ impl ShardFile {
     /// `# names: …`), the header `a,b,distance,forward,backward`, one line
     /// per pair.
     pub fn to_text(&self) -> String {
-        let mut s = format!("# morphoid matrix shard {}\n# names: ", self.shard);
-        let names: Vec<String> = self.names.iter().map(|n| csv_field(n)).collect();
-        s.push_str(&names.join(","));
-        s.push_str("\na,b,distance,forward,backward\n");
+        let mut w = CsvString::new();
+        w.record(&self.names);
+        w.record(["a", "b", "distance", "forward", "backward"]);
+        let name = |k: usize| self.names.get(k).map_or("", String::as_str);
         for p in &self.pairs {
-            let name = |k: usize| self.names.get(k).map_or(String::new(), |n| csv_field(n));
             // `{:?}` is the shortest text that reads back exactly.
-            s.push_str(&format!(
-                "{},{},{:?},{:?},{:?}\n",
+            w.record([
                 name(p.a),
                 name(p.b),
-                p.distance,
-                p.forward,
-                p.backward
-            ));
+                &format!("{:?}", p.distance),
+                &format!("{:?}", p.forward),
+                &format!("{:?}", p.backward),
+            ]);
         }
-        s
+        format!(
+            "# morphoid matrix shard {}\n# names: {}",
+            self.shard,
+            w.finish()
+        )
     }
 
     /// Parse shard text (`path` only names the file in errors).
@@ -188,23 +191,35 @@ impl ShardFile {
             line,
             message,
         };
-        let mut lines = text.lines().enumerate();
-        let (_, first) = lines.next().ok_or_else(|| err(1, "empty file".into()))?;
+        let (first, rest) = text.split_once('\n').unwrap_or((text, ""));
+        if first.is_empty() && rest.is_empty() {
+            return Err(err(1, "empty file".into()));
+        }
         let shard: Shard = first
+            .trim_end_matches('\r')
             .strip_prefix("# morphoid matrix shard ")
             .ok_or_else(|| err(1, "not a morphoid matrix shard".into()))?
             .trim()
             .parse()
             .map_err(|m| err(1, m))?;
-        let names_line = lines
-            .next()
-            .and_then(|(_, l)| l.strip_prefix("# names: ").or(l.strip_prefix("# names:")))
+        // The name list is a CSV record after the prefix (a quoted name
+        // may hold a line break); the lines of `rest` start at line 2.
+        let rest = rest
+            .strip_prefix("# names:")
             .ok_or_else(|| err(2, "expected `# names: …`".into()))?;
-        let names: Vec<String> = split_csv_line(names_line)
-            .map_err(|m| err(2, m.into()))?
-            .into_iter()
-            .filter(|n| !n.is_empty())
-            .collect();
+        let rest = rest.strip_prefix(' ').unwrap_or(rest);
+        let line_of = |line: usize| line + 1;
+        // An empty name list leaves no record on the names line.
+        let names_empty = rest.starts_with(['\n', '\r']);
+        let mut rows = rows(rest, false).map(|r| r.map_err(|(l, m)| err(line_of(l), m)));
+        let names: Vec<String> = if names_empty {
+            Vec::new()
+        } else {
+            match rows.next() {
+                Some(r) => r?.fields.into_iter().filter(|n| !n.is_empty()).collect(),
+                None => Vec::new(),
+            }
+        };
         let index: HashMap<&str, usize> = names
             .iter()
             .enumerate()
@@ -213,29 +228,36 @@ impl ShardFile {
         if index.len() != names.len() {
             return Err(err(2, "a name occurs twice".into()));
         }
-        match lines.next() {
-            Some((_, h)) if h.trim() == "a,b,distance,forward,backward" => {}
-            _ => return Err(err(3, "expected `a,b,distance,forward,backward`".into())),
+        match rows.next().transpose()? {
+            Some(h)
+                if h.fields
+                    .iter()
+                    .map(|f| trimmed(f))
+                    .eq(["a", "b", "distance", "forward", "backward"]) => {}
+            h => {
+                return Err(err(
+                    h.map_or(3, |h| line_of(h.line)),
+                    "expected `a,b,distance,forward,backward`".into(),
+                ))
+            }
         }
         let mut pairs = Vec::new();
-        for (i, line) in lines {
-            if line.trim().is_empty() {
-                continue;
-            }
-            let f = split_csv_line(line).map_err(|m| err(i + 1, m.into()))?;
+        for r in rows {
+            let Row { line, fields: f } = r?;
+            let line = line_of(line);
             if f.len() != 5 {
-                return Err(err(i + 1, format!("{} fields, expected 5", f.len())));
+                return Err(err(line, format!("{} fields, expected 5", f.len())));
             }
             let specimen = |s: &str| {
                 index
-                    .get(s.trim())
+                    .get(trimmed(s))
                     .copied()
-                    .ok_or_else(|| err(i + 1, format!("`{}` is not in the name list", s.trim())))
+                    .ok_or_else(|| err(line, format!("`{}` is not in the name list", trimmed(s))))
             };
             let (a, b) = (specimen(&f[0])?, specimen(&f[1])?);
             if a >= b {
                 return Err(err(
-                    i + 1,
+                    line,
                     format!("pair `{}`,`{}` is not in list order", f[0], f[1]),
                 ));
             }
@@ -246,7 +268,7 @@ impl ShardFile {
                     .parse()
                     .ok()
                     .filter(|x: &f64| x.is_finite())
-                    .ok_or_else(|| err(i + 1, format!("`{s}` is not a finite number")))?;
+                    .ok_or_else(|| err(line, format!("`{s}` is not a finite number")))?;
             }
             pairs.push(PairDistance {
                 a,
@@ -502,10 +524,14 @@ mod tests {
 
     #[test]
     fn text_round_trip() {
-        let mut s = fake_shards(&["a", "b,c", "d", "e"], 2).remove(1).1;
+        let mut s = fake_shards(&["a", "b,c", "d", "q\"x", "new\nline", "e"], 2)
+            .remove(1)
+            .1;
         s.pairs[0].forward = 0.1 + 0.2;
         let text = s.to_text();
-        assert!(text.starts_with("# morphoid matrix shard 2/2\n# names: a,\"b,c\",d,e\n"));
+        assert!(text.starts_with(
+            "# morphoid matrix shard 2/2\n# names: a,\"b,c\",d,\"q\"\"x\",\"new\nline\",e\na,b,distance,forward,backward\n"
+        ));
         assert_eq!(ShardFile::parse(&text, Path::new("s.csv")).unwrap(), s);
         let e = ShardFile::parse(&text.replace(",e\n", ",x\n"), Path::new("s.csv")).unwrap_err();
         assert!(e.to_string().starts_with("s.csv:"), "{e}");

@@ -16,19 +16,24 @@
 //! Slicer writers always declare LPS. Plain CSV and MeshLab files carry no
 //! convention and are read and written unchanged.
 
+mod chain;
+mod matrix;
 mod meshlab;
-pub mod mst;
-pub mod procrustes;
-pub mod propagate;
+mod mst;
+mod procrustes;
+mod propagate;
 mod slicer;
 mod table;
 
-pub use mst::{minimum_spanning_tree, tree_path};
-pub use procrustes::{procrustes_distance, ProcrustesError};
-pub use propagate::{
-    barycentric_coordinates, propagate, propagate_along, surface_point, PropagateError, Propagated,
-    Surface, SurfacePoint,
+pub use chain::{
+    carry_along, complete_distances, correspondence_csv, far_landmarks, spanning_tree_route,
+    with_ends, Carried, ChainError, Specimens,
 };
+pub use matrix::{procrustes_matrix, LandmarkMatrixError};
+use mst::{minimum_spanning_tree, tree_path};
+use procrustes::procrustes_distance;
+pub use procrustes::ProcrustesError;
+pub use propagate::{propagate, propagate_along, PropagateError, Propagated, Surface};
 
 use std::path::{Path, PathBuf};
 
@@ -192,7 +197,7 @@ pub fn read(path: &Path, expected: Option<usize>) -> Result<Landmarks, LandmarkE
 }
 
 /// Error unless `landmarks` has `expected` points (when given).
-pub fn check_count(
+fn check_count(
     landmarks: &Landmarks,
     expected: Option<usize>,
     path: &Path,
@@ -218,7 +223,7 @@ pub fn write(path: &Path, landmarks: &Landmarks) -> Result<(), LandmarkError> {
 
 /// The extensions a library's landmark file may have, in the order they
 /// are looked for: `landmarks/<name>.{csv,fcsv,mrk.json,pp}`.
-pub const LIBRARY_EXTENSIONS: [&str; 4] = ["csv", "fcsv", "mrk.json", "pp"];
+const LIBRARY_EXTENSIONS: [&str; 4] = ["csv", "fcsv", "mrk.json", "pp"];
 
 /// The landmark files of specimen `name` in the library folder `dir`
 /// (`dir/landmarks/<name>.<ext>` for each of [`LIBRARY_EXTENSIONS`] that

@@ -12,7 +12,7 @@
 use super::Landmarks;
 use crate::clean::closest::TriangleGrid;
 use crate::cp::Prepared;
-use crate::mesh::{dot, norm, sub, Mesh};
+use crate::mesh::{dot, sub, Mesh};
 use crate::pipeline::PreparedSurface;
 
 /// Why landmarks cannot be propagated.
@@ -291,14 +291,14 @@ pub fn propagate_along(
     })
 }
 
-/// Euclidean distance between two points.
-pub fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
-    norm(sub(a, b))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::norm;
+
+    fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+        norm(sub(a, b))
+    }
 
     /// A unit square in the plane z = 0 made of two triangles.
     fn square(offset: [f64; 3]) -> Surface {

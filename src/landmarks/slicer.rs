@@ -3,9 +3,8 @@
 //! documentation of [`super`]); the writers declare LPS.
 
 use super::{parse_coordinate, LandmarkError, Landmarks};
-use crate::eval::{csv_field, split_csv_line};
+use crate::eval::csv_text::{rows, CsvString, Row};
 use serde_json::{json, Value};
-use std::fmt::Write as _;
 use std::path::Path;
 
 /// The column list Slicer writes (version 4.6 and later).
@@ -49,26 +48,30 @@ pub(super) fn parse_fcsv(text: &str, path: &Path) -> Result<Landmarks, LandmarkE
         message,
     };
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    // The `# key = value` header lines, by line number; the data records
+    // come from the CSV reader, which skips them (and lets a quoted label
+    // span lines).
+    let mut header = text.lines().enumerate().filter_map(|(i, raw)| {
+        let (key, value) = raw.trim().strip_prefix('#')?.split_once('=')?;
+        Some((i + 1, key.trim().to_ascii_lowercase(), value.to_string()))
+    });
+    let mut next_header = header.next();
     // Files written before Slicer 4.11 have no coordinate system line and
     // are in RAS.
     let mut space = Space::Ras;
     let mut columns: Vec<String> = FCSV_COLUMNS.split(',').map(str::to_string).collect();
     let mut seen_header = false;
     let mut lm = Landmarks::default();
-    for (i, raw) in text.lines().enumerate() {
-        let line = i + 1;
-        let trimmed = raw.trim();
-        if trimmed.is_empty() {
-            continue;
-        }
-        if let Some(comment) = trimmed.strip_prefix('#') {
-            let Some((key, value)) = comment.split_once('=') else {
-                continue;
-            };
-            match key.trim().to_ascii_lowercase().as_str() {
+    let mut data = rows(text, true);
+    loop {
+        let row = data.next().transpose().map_err(|(line, m)| err(line, m))?;
+        // Header lines above this record (all that remain after the last).
+        let until = row.as_ref().map_or(usize::MAX, |r| r.line);
+        while let Some((line, key, value)) = next_header.take_if(|(l, _, _)| *l < until) {
+            match key.as_str() {
                 "markups fiducial file version" => seen_header = true,
                 "coordinatesystem" => {
-                    space = Space::parse(value).ok_or_else(|| {
+                    space = Space::parse(&value).ok_or_else(|| {
                         err(
                             line,
                             format!("unknown coordinate system `{}`", value.trim()),
@@ -81,8 +84,11 @@ pub(super) fn parse_fcsv(text: &str, path: &Path) -> Result<Landmarks, LandmarkE
                 }
                 _ => {}
             }
-            continue;
+            next_header = header.next();
         }
+        let Some(Row { line, fields }) = row else {
+            break;
+        };
         if !seen_header {
             return Err(err(
                 line,
@@ -94,7 +100,6 @@ pub(super) fn parse_fcsv(text: &str, path: &Path) -> Result<Landmarks, LandmarkE
         let (Some(x), Some(y), Some(z)) = (col("x"), col("y"), col("z")) else {
             return Err(err(line, "the columns header lacks x, y or z".into()));
         };
-        let fields = split_csv_line(raw).map_err(|m| err(line, m.to_string()))?;
         if fields.len() != columns.len() {
             return Err(err(
                 line,
@@ -117,21 +122,32 @@ pub(super) fn parse_fcsv(text: &str, path: &Path) -> Result<Landmarks, LandmarkE
 }
 
 pub(super) fn format_fcsv(lm: &Landmarks) -> String {
-    let mut s = format!(
-        "# Markups fiducial file version = 4.11\n# CoordinateSystem = LPS\n# columns = {FCSV_COLUMNS}\n"
-    );
+    let mut w = CsvString::new();
     for (i, p) in lm.points.iter().enumerate() {
-        let label = csv_field(lm.label(i).unwrap_or(""));
-        let _ = writeln!(
-            s,
-            "{},{},{},{},0,0,0,1,1,1,0,{label},,",
-            i + 1,
-            p[0],
-            p[1],
-            p[2]
-        );
+        let [x, y, z] = p.map(|c| c.to_string());
+        let id = (i + 1).to_string();
+        let label = lm.label(i).unwrap_or("");
+        w.record([
+            id.as_str(),
+            &x,
+            &y,
+            &z,
+            "0",
+            "0",
+            "0",
+            "1",
+            "1",
+            "1",
+            "0",
+            label,
+            "",
+            "",
+        ]);
     }
-    s
+    format!(
+        "# Markups fiducial file version = 4.11\n# CoordinateSystem = LPS\n# columns = {FCSV_COLUMNS}\n{}",
+        w.finish()
+    )
 }
 
 pub(super) fn parse_markups_json(text: &str, path: &Path) -> Result<Landmarks, LandmarkError> {
@@ -262,6 +278,21 @@ mod tests {
         let lps = text.replace("= 0", "= LPS");
         let lm = parse_fcsv(&lps, Path::new("r.fcsv")).unwrap();
         assert_eq!(lm.points, vec![[1.5, -2.0, 3.0]]);
+    }
+
+    #[test]
+    fn fcsv_labels_with_commas_quotes_and_line_breaks_round_trip() {
+        let mut lm = Landmarks::default();
+        lm.push([1.0, 2.5, -3.0], Some("a, \"b\"\nc".into()));
+        lm.push([0.1, 0.2, 0.3], None);
+        let text = format_fcsv(&lm);
+        assert!(
+            text.ends_with("\n2,0.1,0.2,0.3,0,0,0,1,1,1,0,,,\n"),
+            "{text}"
+        );
+        assert_eq!(parse_fcsv(&text, Path::new("l.fcsv")).unwrap(), lm);
+        let e = parse_fcsv(&format!("{text}3,1,2\n"), Path::new("l.fcsv")).unwrap_err();
+        assert!(e.to_string().contains("l.fcsv:7"), "{e}");
     }
 
     #[test]

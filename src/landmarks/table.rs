@@ -6,8 +6,7 @@
 //! commas.
 
 use super::{parse_coordinate, LandmarkError, Landmarks};
-use crate::eval::{csv_field, split_csv_line};
-use std::fmt::Write as _;
+use crate::eval::csv_text::{rows, CsvString, Row};
 use std::path::Path;
 
 /// Column positions of the coordinates and the label.
@@ -37,21 +36,22 @@ pub(super) fn parse_csv(text: &str, path: &Path) -> Result<Landmarks, LandmarkEr
         line,
         message,
     };
-    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut layout: Option<Layout> = None;
     let mut lm = Landmarks::default();
-    for (i, raw) in text.lines().enumerate() {
-        let line = i + 1;
-        let trimmed = raw.trim();
-        if trimmed.is_empty() || trimmed.starts_with('#') {
+    for row in rows(text, true) {
+        let Row { line, fields } = row.map_err(|(line, m)| err(line, m))?;
+        if fields
+            .first()
+            .is_some_and(|f| f.trim_start().starts_with('#'))
+        {
+            // An indented comment.
             continue;
         }
-        // Lines without a comma are split at whitespace (`x y z`, as many
+        // A line without a comma is split at whitespace (`x y z`, as many
         // morphometrics programs write landmarks).
-        let fields = if raw.contains(',') {
-            split_csv_line(raw).map_err(|m| err(line, m.to_string()))?
-        } else {
-            raw.split_whitespace().map(str::to_string).collect()
+        let fields = match fields.as_slice() {
+            [one] => one.split_whitespace().map(str::to_string).collect(),
+            _ => fields,
         };
         let lay = match &layout {
             Some(l) => l,
@@ -122,16 +122,25 @@ pub(super) fn parse_csv(text: &str, path: &Path) -> Result<Landmarks, LandmarkEr
 
 pub(super) fn format_csv(lm: &Landmarks) -> String {
     let labels = lm.has_labels();
-    let mut s = String::from(if labels { "x,y,z,label\n" } else { "x,y,z\n" });
-    for (i, p) in lm.points.iter().enumerate() {
-        let _ = write!(s, "{},{},{}", p[0], p[1], p[2]);
-        if labels {
-            s.push(',');
-            s.push_str(&csv_field(lm.label(i).unwrap_or("")));
-        }
-        s.push('\n');
+    let mut w = CsvString::new();
+    if labels {
+        w.record(["x", "y", "z", "label"]);
+    } else {
+        w.record(["x", "y", "z"]);
     }
-    s
+    for (i, p) in lm.points.iter().enumerate() {
+        let xyz = p.map(|c| c.to_string());
+        if labels {
+            w.record(
+                xyz.iter()
+                    .map(String::as_str)
+                    .chain([lm.label(i).unwrap_or("")]),
+            );
+        } else {
+            w.record(&xyz);
+        }
+    }
+    w.finish()
 }
 
 #[cfg(test)]
@@ -152,8 +161,10 @@ mod tests {
         assert_eq!(b.labels, vec![Some("tip".into()), None]);
         let w = parse("x y z\n1 2\t3\n  4 5 6 \n").unwrap();
         assert_eq!(w.points, vec![[1., 2., 3.], [4., 5., 6.]]);
-        let c = parse("1,2,3,a\n4,5,6,\"b, c\"\n").unwrap();
+        let c = parse("1,2,3,a\n4,5,6,\"b, c\"\n7,8,9,\"two\nlines\"\n  # indented\n").unwrap();
         assert_eq!(c.label(1), Some("b, c"));
+        assert_eq!(c.label(2), Some("two\nlines"));
+        assert_eq!(parse(&format_csv(&c)).unwrap(), c);
     }
 
     #[test]

@@ -2,6 +2,12 @@
 //! content hash of its surface file and by the preparation settings, so a
 //! restart or a new scan never prepares a reference twice, and a changed
 //! file or changed settings are prepared again.
+//!
+//! The user names a cache folder (or gets the default one,
+//! the default cache folder); each folder of surfaces has its own subfolder
+//! in it ([`Cache::for_folder`]), so that two libraries never evict each
+//! other's entries and every command that prepares the same folder (the
+//! library build, the daemon, `matrix`) finds the same entries.
 
 use crate::atomic_write::{write_atomic, AtomicWriteError};
 use crate::clean::CleanReport;
@@ -38,6 +44,14 @@ pub enum CacheError {
     /// An entry cannot be written.
     #[error(transparent)]
     Write(#[from] AtomicWriteError),
+    /// The folder of surfaces the cache belongs to cannot be found.
+    #[error("{path}: cannot open the folder of surfaces: {source}")]
+    Folder {
+        /// The folder of surfaces.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
     /// An entry cannot be encoded.
     #[error("cannot encode the prepared form of `{name}`: {message}")]
     Encode {
@@ -74,8 +88,38 @@ pub struct Cache {
     dir: PathBuf,
 }
 
+/// The cache folder when none is configured: systemd's
+/// `$CACHE_DIRECTORY`, else `$XDG_CACHE_HOME/morphoid`, else
+/// `~/.cache/morphoid`, else `.morphoid-cache` in the working folder.
+pub fn default_cache_root() -> PathBuf {
+    std::env::var_os("CACHE_DIRECTORY")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("XDG_CACHE_HOME").map(|d| Path::new(&d).join("morphoid")))
+        .or_else(|| std::env::var_os("HOME").map(|d| Path::new(&d).join(".cache/morphoid")))
+        .unwrap_or_else(|| PathBuf::from(".morphoid-cache"))
+}
+
 impl Cache {
-    /// Use (and create if needed) the folder `dir`.
+    /// The cache of the surfaces in `folder` (a library folder), inside
+    /// the cache folder `root` (`None`: the default cache folder): the
+    /// subfolder `<folder name>-<hash of its canonical path>`, created
+    /// when missing.
+    pub fn for_folder(root: Option<&Path>, folder: &Path) -> Result<Self, CacheError> {
+        let canonical = std::fs::canonicalize(folder).map_err(|source| CacheError::Folder {
+            path: folder.to_path_buf(),
+            source,
+        })?;
+        let digest = Sha256::digest(canonical.to_string_lossy().as_bytes());
+        let name = canonical
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "library".into());
+        let sub = format!("{name}-{}", hex(&digest[..6]));
+        let root = root.map_or_else(default_cache_root, Path::to_path_buf);
+        Self::open(&root.join(sub))
+    }
+
+    /// Use (and create if needed) exactly the folder `dir`.
     pub fn open(dir: &Path) -> Result<Self, CacheError> {
         std::fs::create_dir_all(dir).map_err(|source| CacheError::Io {
             path: dir.to_path_buf(),
@@ -95,7 +139,7 @@ impl Cache {
     /// `settings`: only what preparation reads (cleaning and the cP
     /// preparation parameters), so changing a comparison setting keeps
     /// every entry.
-    pub fn key(content_hash: &str, settings: &Settings) -> String {
+    pub(super) fn key(content_hash: &str, settings: &Settings) -> String {
         let params =
             serde_json::to_string(&(&settings.clean, &settings.cp.prepare)).unwrap_or_default();
         let mut h = Sha256::new();
@@ -111,7 +155,7 @@ impl Cache {
 
     /// The cached entry of `name` under `key`, if present and readable. An
     /// unreadable entry counts as absent (it will be prepared again).
-    pub fn get(&self, name: &str, key: &str) -> Option<CachedReference> {
+    pub(super) fn get(&self, name: &str, key: &str) -> Option<CachedReference> {
         let bytes = std::fs::read(self.path_of(name, key)).ok()?;
         let entry: Entry = match postcard::from_bytes(&bytes) {
             Ok(e) => e,
@@ -137,7 +181,7 @@ impl Cache {
 
     /// Store an entry under `key`, atomically: processes sharing the cache
     /// may write the same entry at once.
-    pub fn put(&self, key: &str, reference: &CachedReference) -> Result<(), CacheError> {
+    pub(super) fn put(&self, key: &str, reference: &CachedReference) -> Result<(), CacheError> {
         let entry = Entry {
             format: CACHE_FORMAT,
             key: key.to_string(),
@@ -152,7 +196,7 @@ impl Cache {
 
     /// Delete every entry whose (name, key) is not in `keep`, and the
     /// temporary files of writes that died; returns how many were deleted.
-    pub fn retain(&self, keep: &HashSet<(String, String)>) -> Result<usize, CacheError> {
+    pub(super) fn retain(&self, keep: &HashSet<(String, String)>) -> Result<usize, CacheError> {
         let io = |source| CacheError::Io {
             path: self.dir.clone(),
             source,

@@ -115,7 +115,7 @@ pub fn identify(
             .then_with(|| a.reference.cmp(&b.reference))
     });
     let ranks = labels
-        .ranks
+        .ranks()
         .iter()
         .filter_map(|rank| {
             let mut known = sorted

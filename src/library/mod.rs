@@ -4,26 +4,33 @@
 //! supported format; see [`crate::landmarks::load_library`]).
 //!
 //! [`Library::open`] checks that labels and surfaces match one to one;
-//! [`identify`] turns the distances of a scan to the references into the
-//! nearest taxon at each rank.
+//! [`members`] lists any folder of surfaces; [`Preparation`] takes their
+//! prepared forms from the [`Cache`] or prepares them; [`build`] prepares
+//! a whole library; [`identify`] turns the distances of a scan to the
+//! references into the nearest taxon at each rank.
 
 mod cache;
 mod identify;
+mod matrix;
 
 pub use cache::{Cache, CacheError, CachedReference};
 pub use identify::{
     identify, DistanceRow, Identification, LandmarkPoint, Nearest, RankResult, ScanLandmarks,
     ScanOutcome,
 };
+pub use matrix::{landscape, SurfaceDistance, SurfaceMatrixError};
 
+use crate::cp::Prepared;
 use crate::eval::{Labels, LabelsError};
 use crate::hash::content_hash;
 use crate::landmarks::LibraryLandmarks;
-use crate::mesh::io::{self, Format};
-use crate::pipeline::{self, Settings};
+use crate::hash::content_hash;
+use crate::mesh::io::{self, Format, LoadError};
+use crate::pipeline::{self, MeshError, Settings};
 use rayon::prelude::*;
 use std::collections::{BTreeMap, HashSet};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Why a library folder cannot be used; each message names the folder or file.
 #[derive(Debug, thiserror::Error)]
@@ -72,9 +79,9 @@ pub enum LibraryError {
         /// The other.
         second: PathBuf,
     },
-    /// The library has no specimen.
-    #[error("{0}: the library has no specimen")]
-    Empty(PathBuf),
+    /// The folder holds no surface file.
+    #[error("{0}: no surface files (.obj, .ply, .stl, .off)")]
+    NoSurfaces(PathBuf),
 }
 
 /// One reference specimen.
@@ -89,15 +96,13 @@ pub struct Member {
     pub landmarks: Option<PathBuf>,
 }
 
-/// A reference library folder, checked.
+/// A reference library folder, checked: every surface has a label row
+/// and every label row a surface.
 #[derive(Debug, Clone)]
 pub struct Library {
-    /// The folder.
-    pub dir: PathBuf,
-    /// Labels at the configured ranks.
-    pub labels: Labels,
-    /// The specimens, sorted by name.
-    pub members: Vec<Member>,
+    dir: PathBuf,
+    labels: Labels,
+    members: Vec<Member>,
 }
 
 impl Library {
@@ -109,42 +114,24 @@ impl Library {
             return Err(LibraryError::NoLabels(dir.to_path_buf()));
         }
         let labels = Labels::read(&labels_path, ranks)?;
-        let surfaces = surface_files(dir)?;
-        let mut by_name: BTreeMap<String, PathBuf> = BTreeMap::new();
-        for path in surfaces {
-            let name = stem(&path);
-            if let Some(first) = by_name.get(&name) {
-                return Err(LibraryError::DuplicateName {
-                    name,
-                    first: first.clone(),
-                    second: path,
-                });
-            }
-            if !labels.names.contains(&name) {
-                return Err(LibraryError::Unlabelled { path, name });
-            }
-            by_name.insert(name, path);
+        let members = members(dir)?;
+        if let Some(m) = members.iter().find(|m| !labels.contains(&m.name)) {
+            return Err(LibraryError::Unlabelled {
+                path: m.path.clone(),
+                name: m.name.clone(),
+            });
         }
-        if let Some(name) = labels.names.iter().find(|n| !by_name.contains_key(*n)) {
+        if let Some(name) = labels
+            .names()
+            .iter()
+            .find(|n| members.binary_search_by(|m| m.name.cmp(n)).is_err())
+        {
             return Err(LibraryError::MissingSurface {
                 labels: labels_path,
                 dir: dir.to_path_buf(),
                 name: name.clone(),
             });
         }
-        if by_name.is_empty() {
-            return Err(LibraryError::Empty(dir.to_path_buf()));
-        }
-        let members = by_name
-            .into_iter()
-            .map(|(name, path)| Member {
-                landmarks: crate::landmarks::library_files(dir, &name)
-                    .into_iter()
-                    .next(),
-                name,
-                path,
-            })
-            .collect();
         Ok(Library {
             dir: dir.to_path_buf(),
             labels,
@@ -153,13 +140,199 @@ impl Library {
     }
 }
 
+/// Why one surface file could not be prepared; the message names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum PrepareError {
+    /// The file cannot be read.
+    #[error("{path}: {source}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The file is not a readable surface (the message names the file).
+    #[error(transparent)]
+    Load(#[from] LoadError),
+    /// The surface cannot be cleaned or prepared.
+    #[error("{path}: {source}")]
+    Mesh {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        #[source]
+        source: MeshError,
+    },
+    /// The prepared surface cannot be stored in the cache.
+    #[error(transparent)]
+    Cache(#[from] CacheError),
+}
+
+/// One reference that [`build`] left out, and why.
+#[derive(Debug)]
+pub struct Failure {
+    /// The reference.
+    pub name: String,
+    /// Why it could not be prepared.
+    pub error: PrepareError,
+}
+
+/// Where a prepared surface came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Origin {
+    /// An entry of the cache (the file and the settings are unchanged).
+    Cache,
+    /// Prepared now.
+    Prepared,
+}
+
+/// A prepared surface, the cache key it belongs under, where it came from.
+struct Loaded {
+    reference: CachedReference,
+    key: String,
+    origin: Origin,
+}
+
+/// The prepared form of `member`'s surface: the entry of `cache` for its
+/// content and `settings` when there is one, else prepared now (not yet
+/// stored).
+fn load_or_prepare(
+    member: &Member,
+    cache: Option<&Cache>,
+    settings: &Settings,
+) -> Result<Loaded, PrepareError> {
+    let _span = tracing::info_span!("reference", name = %member.name).entered();
+    let path = &member.path;
+    let bytes = std::fs::read(path).map_err(|source| PrepareError::Read {
+        path: path.clone(),
+        source,
+    })?;
+    let hash = content_hash(&bytes);
+    let key = Cache::key(&hash, settings);
+    if let Some(hit) = cache.and_then(|c| c.get(&member.name, &key)) {
+        return Ok(Loaded {
+            reference: hit,
+            key,
+            origin: Origin::Cache,
+        });
+    }
+    let format =
+        Format::from_path(path).ok_or_else(|| LoadError::UnknownFormat { path: path.clone() })?;
+    let loaded = io::load_bytes(&bytes, format, path)?;
+    let surface =
+        pipeline::prepare_mesh(&loaded.mesh, &member.name, settings).map_err(|source| {
+            PrepareError::Mesh {
+                path: path.clone(),
+                source,
+            }
+        })?;
+    Ok(Loaded {
+        reference: CachedReference {
+            name: member.name.clone(),
+            content_hash: hash,
+            prepared: surface.prepared,
+            cleaning: surface.cleaning,
+        },
+        key,
+        origin: Origin::Prepared,
+    })
+}
+
+/// Prepared surfaces taken from a cache where the file and the settings
+/// are unchanged and prepared otherwise (then stored in the cache, so the
+/// next run finds them); counts both. Without a cache, every surface is
+/// prepared. Safe to share between threads.
+#[derive(Debug)]
+pub struct Preparation<'a> {
+    cache: Option<&'a Cache>,
+    settings: &'a Settings,
+    reused: AtomicUsize,
+    prepared: AtomicUsize,
+}
+
+impl<'a> Preparation<'a> {
+    /// Prepare with `settings`, reading and filling `cache` if given.
+    pub fn new(cache: Option<&'a Cache>, settings: &'a Settings) -> Self {
+        Preparation {
+            cache,
+            settings,
+            reused: AtomicUsize::new(0),
+            prepared: AtomicUsize::new(0),
+        }
+    }
+
+    /// The prepared form of `member`'s surface, named after it.
+    pub fn prepare(&self, member: &Member) -> Result<Prepared, PrepareError> {
+        let loaded = load_or_prepare(member, self.cache, self.settings)?;
+        match loaded.origin {
+            Origin::Cache => self.reused.fetch_add(1, Ordering::Relaxed),
+            Origin::Prepared => {
+                if let Some(cache) = self.cache {
+                    cache.put(&loaded.key, &loaded.reference)?;
+                }
+                self.prepared.fetch_add(1, Ordering::Relaxed)
+            }
+        };
+        Ok(loaded.reference.prepared)
+    }
+
+    /// The prepared forms of all `members`, in their order, in parallel;
+    /// `progress` is called once per member. The first failure stops it.
+    pub fn prepare_all(
+        &self,
+        members: &[Member],
+        progress: impl Fn(&str) + Sync,
+    ) -> Result<Vec<Prepared>, PrepareError> {
+        members
+            .par_iter()
+            .map(|m| {
+                let p = self.prepare(m);
+                progress(&m.name);
+                p
+            })
+            .collect()
+    }
+
+    /// The cache folder, if any.
+    pub fn cache_dir(&self) -> Option<&Path> {
+        self.cache.map(Cache::dir)
+    }
+
+    /// How many surfaces came from the cache so far.
+    pub fn reused(&self) -> usize {
+        self.reused.load(Ordering::Relaxed)
+    }
+
+    /// How many surfaces were prepared so far.
+    pub fn prepared(&self) -> usize {
+        self.prepared.load(Ordering::Relaxed)
+    }
+}
+
+impl Library {
+    /// The folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The labels at the configured ranks.
+    pub fn labels(&self) -> &Labels {
+        &self.labels
+    }
+
+    /// The specimens, sorted by name.
+    pub fn members(&self) -> &[Member] {
+        &self.members
+    }
+}
+
 /// What [`build`] did.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Default)]
 pub struct BuildOutcome {
     /// The prepared references, in library order (failed ones left out).
     pub references: Vec<CachedReference>,
-    /// References that could not be prepared: name and one-line reason.
-    pub failures: Vec<(String, String)>,
+    /// References that could not be prepared.
+    pub failures: Vec<Failure>,
     /// How many were prepared now.
     pub prepared: usize,
     /// How many came from the cache.
@@ -169,12 +342,6 @@ pub struct BuildOutcome {
     /// The references' landmarks (read at every build, not cached) and
     /// the landmark files that could not be used, per reference.
     pub landmarks: LibraryLandmarks,
-}
-
-/// Whether a reference came from the cache.
-enum Source {
-    Cache,
-    Prepared,
 }
 
 /// Prepare every reference of `library`, reusing the cache where the file
@@ -189,11 +356,11 @@ pub fn build(
     settings: &Settings,
     progress: impl Fn(&str) + Sync,
 ) -> Result<BuildOutcome, CacheError> {
-    let results: Vec<Result<(CachedReference, String, Source), String>> = library
+    let results: Vec<Result<Loaded, PrepareError>> = library
         .members
         .par_iter()
         .map(|m| {
-            let r = prepare_member(m, cache, settings);
+            let r = load_or_prepare(m, Some(cache), settings);
             progress(&m.name);
             r
         })
@@ -202,18 +369,22 @@ pub fn build(
     let mut keep = HashSet::new();
     for (m, r) in library.members.iter().zip(results) {
         match r {
-            Ok((reference, key, source)) => {
-                match source {
-                    Source::Cache => out.reused += 1,
-                    Source::Prepared => {
-                        cache.put(&key, &reference)?;
+            Ok(loaded) => {
+                match loaded.origin {
+                    Origin::Cache => out.reused += 1,
+                    Origin::Prepared => {
+                        cache.put(&loaded.key, &loaded.reference)?;
                         out.prepared += 1;
                     }
                 }
-                keep.insert((m.name.clone(), key));
-                out.references.push(reference);
+                keep.insert((m.name.clone(), loaded.key));
+                out.references.push(loaded.reference);
             }
-            Err(message) => out.failures.push((m.name.clone(), message)),
+            Err(PrepareError::Cache(e)) => return Err(e),
+            Err(error) => out.failures.push(Failure {
+                name: m.name.clone(),
+                error,
+            }),
         }
     }
     out.removed = cache.retain(&keep)?;
@@ -222,30 +393,52 @@ pub fn build(
     Ok(out)
 }
 
-fn prepare_member(
-    m: &Member,
-    cache: &Cache,
-    settings: &Settings,
-) -> Result<(CachedReference, String, Source), String> {
-    let _span = tracing::info_span!("reference", name = %m.name).entered();
-    let bytes = std::fs::read(&m.path).map_err(|e| format!("{}: {e}", m.path.display()))?;
-    let hash = content_hash(&bytes);
-    let key = Cache::key(&hash, settings);
-    if let Some(hit) = cache.get(&m.name, &key) {
-        return Ok((hit, key, Source::Cache));
+/// Whether each member of `library` has an entry in `cache` for its
+/// current content and `settings`; `None` when its file cannot be read.
+pub fn cached_members(library: &Library, cache: &Cache, settings: &Settings) -> Vec<Option<bool>> {
+    library
+        .members
+        .iter()
+        .map(|m| {
+            let bytes = std::fs::read(&m.path).ok()?;
+            let key = Cache::key(&content_hash(&bytes), settings);
+            Some(cache.get(&m.name, &key).is_some())
+        })
+        .collect()
+}
+
+/// The specimens of a folder of surfaces, sorted by name: each surface
+/// file (by extension) named by its stem, with its landmark file if the
+/// folder has one (`landmarks/<name>.{csv,fcsv,mrk.json,pp}`). When the
+/// folder holds no surface but has a `meshes/` subfolder, that one is used
+/// (the layout of the PNAS data set). No surface at all and two surfaces
+/// with one name are errors.
+pub fn members(dir: &Path) -> Result<Vec<Member>, LibraryError> {
+    let mut by_name: BTreeMap<String, PathBuf> = BTreeMap::new();
+    for path in surface_files(dir)? {
+        let name = pipeline::specimen_name(&path);
+        if let Some(first) = by_name.get(&name) {
+            return Err(LibraryError::DuplicateName {
+                name,
+                first: first.clone(),
+                second: path,
+            });
+        }
+        by_name.insert(name, path);
     }
-    let format = Format::from_path(&m.path)
-        .ok_or_else(|| format!("{}: unsupported file type", m.path.display()))?;
-    let loaded = io::load_bytes(&bytes, format, &m.path).map_err(|e| e.to_string())?;
-    let surface = pipeline::prepare_mesh(&loaded.mesh, &m.name, settings)
-        .map_err(|e| format!("{}: {e}", m.path.display()))?;
-    let reference = CachedReference {
-        name: m.name.clone(),
-        content_hash: hash,
-        prepared: surface.prepared,
-        cleaning: surface.cleaning,
-    };
-    Ok((reference, key, Source::Prepared))
+    if by_name.is_empty() {
+        return Err(LibraryError::NoSurfaces(dir.to_path_buf()));
+    }
+    Ok(by_name
+        .into_iter()
+        .map(|(name, path)| Member {
+            landmarks: crate::landmarks::library_files(dir, &name)
+                .into_iter()
+                .next(),
+            name,
+            path,
+        })
+        .collect())
 }
 
 /// The surface files of a folder (by extension), sorted. When the folder
@@ -276,12 +469,6 @@ fn list_surfaces(dir: &Path) -> Result<Vec<PathBuf>, LibraryError> {
     Ok(files)
 }
 
-fn stem(path: &Path) -> String {
-    path.file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -303,7 +490,98 @@ mod tests {
         let lib = Library::open(d.path(), None).unwrap();
         let names: Vec<&str> = lib.members.iter().map(|m| m.name.as_str()).collect();
         assert_eq!(names, ["a", "b"]);
-        assert_eq!(lib.labels.ranks, ["order", "genus"]);
+        assert_eq!(lib.labels().ranks(), ["order", "genus"]);
+    }
+
+    #[test]
+    fn members_of_a_plain_folder() {
+        let d = folder("", &["b.ply", "a.obj", "notes.txt"]);
+        let m = members(d.path()).unwrap();
+        assert_eq!(
+            m.iter().map(|m| m.name.as_str()).collect::<Vec<_>>(),
+            ["a", "b"]
+        );
+        let d = folder("", &["a.ply", "a.stl"]);
+        let e = members(d.path()).unwrap_err().to_string();
+        assert!(e.contains("two surfaces named `a`"), "{e}");
+        let d = folder("", &["notes.txt"]);
+        let e = members(d.path()).unwrap_err().to_string();
+        assert!(e.contains("no surface files"), "{e}");
+    }
+
+    /// The bug this guards against: the library build and `matrix
+    /// --cache` chose different folders inside the cache, so a matrix
+    /// never found what the build had prepared.
+    #[test]
+    fn build_and_preparation_share_the_cache_of_a_folder() {
+        let lib = tempfile::tempdir().unwrap();
+        let spec = crate::mesh::synth::LibrarySpec {
+            per_genus: 1,
+            target_vertices: 600,
+            seed: 5,
+            random_pose: false,
+        };
+        crate::mesh::synth::write_synthetic_library(lib.path(), &spec).unwrap();
+        let root = tempfile::tempdir().unwrap();
+        let settings = Settings::default();
+        let library = Library::open(lib.path(), None).unwrap();
+        let n = library.members.len();
+
+        // The cache folder the user gives is the root; the library's
+        // subfolder is chosen here, the same for every caller.
+        let cache = Cache::for_folder(Some(root.path()), lib.path()).unwrap();
+        assert_eq!(cache.dir().parent(), Some(root.path()));
+        let built = build(&library, &cache, &settings, |_| {}).unwrap();
+        assert_eq!((built.prepared, built.reused), (n, 0));
+        assert!(built.failures.is_empty());
+
+        let again = Cache::for_folder(Some(root.path()), lib.path()).unwrap();
+        let preparation = Preparation::new(Some(&again), &settings);
+        let prepared = preparation.prepare_all(&library.members, |_| {}).unwrap();
+        assert_eq!((preparation.reused(), preparation.prepared()), (n, 0));
+        let names: Vec<&str> = prepared.iter().map(|p| p.name.as_str()).collect();
+        let expected: Vec<&str> = library.members.iter().map(|m| m.name.as_str()).collect();
+        assert_eq!(names, expected);
+        assert!(cached_members(&library, &again, &settings)
+            .iter()
+            .all(|c| *c == Some(true)));
+
+        // Another folder has its own subfolder; preparing there stores
+        // what it prepared, so the next run finds it.
+        let other = tempfile::tempdir().unwrap();
+        let copy = other
+            .path()
+            .join(format!("{}.ply", library.members[0].name));
+        std::fs::copy(&library.members[0].path, &copy).unwrap();
+        let other_cache = Cache::for_folder(Some(root.path()), other.path()).unwrap();
+        assert_ne!(other_cache.dir(), cache.dir());
+        let first = members(other.path()).unwrap();
+        let p = Preparation::new(Some(&other_cache), &settings);
+        p.prepare_all(&first, |_| {}).unwrap();
+        assert_eq!((p.reused(), p.prepared()), (0, 1));
+        let p = Preparation::new(Some(&other_cache), &settings);
+        p.prepare_all(&first, |_| {}).unwrap();
+        assert_eq!((p.reused(), p.prepared()), (1, 0));
+        // Without a cache, everything is prepared.
+        let p = Preparation::new(None, &settings);
+        p.prepare_all(&first, |_| {}).unwrap();
+        assert_eq!((p.reused(), p.prepared()), (0, 1));
+    }
+
+    #[test]
+    fn a_failing_reference_is_reported_with_its_file() {
+        let d = folder("name,genus\na,G\n", &["a.ply"]);
+        let root = tempfile::tempdir().unwrap();
+        let library = Library::open(d.path(), None).unwrap();
+        let cache = Cache::for_folder(Some(root.path()), d.path()).unwrap();
+        let out = build(&library, &cache, &Settings::default(), |_| {}).unwrap();
+        assert_eq!(out.failures.len(), 1);
+        let f = &out.failures[0];
+        assert_eq!(f.name, "a");
+        assert!(matches!(f.error, PrepareError::Load(_)), "{:?}", f.error);
+        assert!(f.error.to_string().contains("a.ply"), "{}", f.error);
+        let e = Cache::for_folder(Some(root.path()), &d.path().join("missing")).unwrap_err();
+        assert!(matches!(e, CacheError::Folder { .. }), "{e}");
     }
 
     #[test]

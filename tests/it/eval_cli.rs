@@ -77,10 +77,11 @@ fn sharded_cli_run_equals_unsharded_and_evaluate_reports_mantel() {
         "{err}"
     );
 
-    // With the prepared surfaces from a library build's cache, a shard is
+    // With the prepared surfaces from a library build's cache (the cache
+    // folder the user gives; the library picks its subfolder), a shard is
     // the same, byte for byte.
     let cache_dir = out.path().join("cache");
-    let cache = morphoid::library::Cache::open(&cache_dir).unwrap();
+    let cache = morphoid::library::Cache::for_folder(Some(&cache_dir), lib.path()).unwrap();
     let library = morphoid::library::Library::open(lib.path(), None).unwrap();
     let settings = morphoid::pipeline::Settings::default();
     morphoid::library::build(&library, &cache, &settings, |_| {}).unwrap();

@@ -1,7 +1,8 @@
 //! A sharded matrix run, merged, equals the unsharded matrix exactly.
 
-use morphoid::eval::shard::{compute_shard, merge_shards, Shard, ShardFile};
-use morphoid::eval::{distance_matrix, DistanceMatrix};
+use morphoid::eval::{
+    compute_shard, distance_matrix, merge_shards, DistanceMatrix, Shard, ShardFile,
+};
 use morphoid::library;
 use morphoid::mesh::synth::{write_synthetic_library, LibrarySpec};
 use morphoid::pipeline::{prepare_file, Settings};

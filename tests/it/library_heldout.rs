@@ -20,7 +20,7 @@ fn held_out_teeth_are_identified_to_genus() {
     let labels = Labels::read(&data.join("labels.csv"), Some(&ranks)).unwrap();
     // Every tenth tooth with a known genus, in name order: ten teeth.
     let mut with_genus: Vec<&String> = labels
-        .names
+        .names()
         .iter()
         .filter(|n| labels.get(n, "genus").is_some())
         .collect();
@@ -35,7 +35,7 @@ fn held_out_teeth_are_identified_to_genus() {
 
     let settings = Settings::default();
     let references: Vec<CachedReference> = labels
-        .names
+        .names()
         .par_iter()
         .filter(|n| !held_out.contains(n))
         .map(|n| {
