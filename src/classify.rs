@@ -19,7 +19,7 @@ use crate::library::{
 };
 use crate::mesh::io::{self, Format, LoadError};
 use crate::pipeline::{self, PipelineError, PreparedSurface, Settings};
-use crate::store::{self, Job, ScanStatus, Store, StoreError};
+use crate::store::{self, Job, ScanRecord, ScanStatus, Store, StoreError};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -412,7 +412,7 @@ mod tests {
         let mut settings = Settings::default();
         settings.clean.target_vertices = 600;
         let (classifier, outcome) = Classifier::build(&library, &cache, &settings, |_| {}).unwrap();
-        let n = library.members.len();
+        let n = library.members().len();
         assert_eq!((classifier.references().len(), outcome.prepared), (n, n));
         // One copy of the prepared references, the classifier's: the
         // report a caller keeps must not hold a second one.

@@ -3,9 +3,8 @@
 
 use super::common::{progress_bar, ConfigArgs, ConfigFile};
 use anyhow::{Context, Result};
-use morphoid::classify::{self, Classifier, ResultFiles, NEAREST};
-use morphoid::hash::content_hash;
-use morphoid::store::{Enqueued, ScanRecord, ScanStatus, Store};
+use morphoid::classify::{self, Classifier, ResultFiles};
+use morphoid::store::{ScanRecord, ScanStatus, Store};
 use std::path::PathBuf;
 use std::process::ExitCode;
 

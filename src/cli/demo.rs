@@ -6,12 +6,10 @@
 use super::classify::summary;
 use super::common::{progress_bar, ConfigFile};
 use anyhow::{Context, Result};
-use morphoid::classify::{self, Classifier, NEAREST};
-use morphoid::hash::content_hash;
+use morphoid::classify::{self, Classifier};
 use morphoid::library::{Cache, Library};
 use morphoid::mesh::io;
 use morphoid::mesh::synth::{self, LibrarySpec, RigidMotion, CROWN_GENERA};
-use morphoid::pipeline::Settings;
 use morphoid::store::Store;
 use std::path::Path;
 use std::process::ExitCode;

@@ -2,8 +2,7 @@
 
 use super::common::{progress_bar, ConfigArgs, ConfigFile};
 use anyhow::Result;
-use morphoid::hash::content_hash;
-use morphoid::library::{self, Cache};
+use morphoid::library;
 use std::process::ExitCode;
 use std::time::Instant;
 

@@ -64,7 +64,7 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
         }
         Some(dir) => mst_route(&args, dir, &settings)?,
     };
-    let carried = landmarks::carry_along(&input, &surfaces, &route, &settings.cp)?;
+    let carried = landmarks::carry_along(&input, &surfaces, &route, &settings.cp.compare)?;
     for (step, m) in route.windows(2).zip(&carried.maps) {
         eprintln!(
             "{} → {}: directed cP distance {:.6}{}",
@@ -109,7 +109,7 @@ fn mst_route(
     let paths: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
     let surfaces = pipeline::prepare_files(&paths, settings)?;
     let (d, computed) =
-        landmarks::complete_distances(&names, &surfaces, known.as_ref(), &settings.cp);
+        landmarks::complete_distances(&names, &surfaces, known.as_ref(), &settings.cp.compare);
     eprintln!(
         "{computed} cP distances computed, {} taken from the matrix",
         names.len() * names.len().saturating_sub(1) / 2 - computed

@@ -4,7 +4,7 @@
 
 use super::{minimum_spanning_tree, propagate_along, tree_path};
 use super::{Landmarks, PropagateError, Propagated, Surface};
-use crate::cp::{self, CpParams, Directed};
+use crate::cp::{self, CompareParams, Directed};
 use crate::eval::csv_text::CsvString;
 use crate::eval::DistanceMatrix;
 use crate::mesh::{bbox_diagonal, Mesh};
@@ -90,7 +90,7 @@ pub fn complete_distances(
     names: &[String],
     surfaces: &[PreparedSurface],
     known: Option<&DistanceMatrix>,
-    params: &CpParams,
+    params: &CompareParams,
 ) -> (Vec<Vec<f64>>, usize) {
     let n = surfaces.len();
     let lookup = |i: usize, j: usize| -> Option<f64> {
@@ -151,7 +151,7 @@ pub fn carry_along(
     landmarks: &Landmarks,
     surfaces: &[PreparedSurface],
     route: &[usize],
-    params: &CpParams,
+    params: &CompareParams,
 ) -> Result<Carried, ChainError> {
     let steps: Vec<(usize, usize)> = route.windows(2).map(|w| (w[0], w[1])).collect();
     let maps: Vec<Directed> = steps
@@ -162,7 +162,7 @@ pub fn carry_along(
         .iter()
         .map(|&i| {
             Surface::from_prepared(&surfaces[i]).map_err(|source| ChainError::Surface {
-                name: surfaces[i].prepared.name.clone(),
+                name: surfaces[i].prepared.name().to_string(),
                 source,
             })
         })
@@ -193,7 +193,7 @@ pub fn correspondence_csv(
     b: &PreparedSurface,
     forward: &Directed,
 ) -> Result<String, PropagateError> {
-    let faces = b.prepared.faces.len();
+    let faces = b.prepared.faces().len();
     let mut w = CsvString::new();
     w.record([
         "vertex", "x", "y", "z", "face", "b0", "b1", "b2", "tx", "ty", "tz",
@@ -206,7 +206,7 @@ pub fn correspondence_csv(
         .enumerate()
     {
         let out_of_range = PropagateError::FaceOutOfRange { face, faces };
-        let tri = b.prepared.faces.get(face as usize).ok_or(out_of_range)?;
+        let tri = b.prepared.faces().get(face as usize).ok_or(out_of_range)?;
         let mut image = [0.0; 3];
         for (k, &corner) in tri.iter().enumerate() {
             let p =
@@ -214,7 +214,7 @@ pub fn correspondence_csv(
                     .vertices
                     .get(corner as usize)
                     .ok_or(PropagateError::Inconsistent {
-                        prepared: b.prepared.vertices.len(),
+                        prepared: b.prepared.vertices().len(),
                         cleaned: b.cleaned.vertices.len(),
                     })?;
             for d in 0..3 {

@@ -1,6 +1,7 @@
 //! The distance matrix of a folder of prepared surfaces, by either
 //! surface distance (cP or cWn).
 
+use crate::cp::ParamError;
 use crate::cp::Prepared;
 use crate::cwn::{self, CwnError, CwnParams, Landscape};
 use crate::eval::{self, DistanceMatrix};
@@ -22,7 +23,7 @@ pub enum SurfaceDistance {
 pub enum SurfaceMatrixError {
     /// The cWn parameters are invalid.
     #[error(transparent)]
-    Params(CwnError),
+    Params(ParamError),
     /// The cWn landscape of one surface cannot be built.
     #[error("{name}: {source}")]
     Landscape {
@@ -65,7 +66,11 @@ impl SurfaceDistance {
         progress: impl Fn(usize) + Sync,
     ) -> Result<DistanceMatrix, SurfaceMatrixError> {
         match self {
-            SurfaceDistance::Cp => Ok(eval::distance_matrix(prepared, &settings.cp, progress)),
+            SurfaceDistance::Cp => Ok(eval::distance_matrix(
+                prepared,
+                &settings.cp.compare,
+                progress,
+            )),
             SurfaceDistance::Cwn(params) => {
                 self.validate()?;
                 let landscapes = prepared
@@ -81,7 +86,7 @@ impl SurfaceDistance {
 /// The cWn landscape of one prepared surface; the error names it.
 pub fn landscape(prepared: &Prepared, params: &CwnParams) -> Result<Landscape, SurfaceMatrixError> {
     cwn::prepare(prepared, params).map_err(|source| SurfaceMatrixError::Landscape {
-        name: prepared.name.clone(),
+        name: prepared.name().to_string(),
         source,
     })
 }

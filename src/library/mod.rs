@@ -24,7 +24,6 @@ use crate::cp::Prepared;
 use crate::eval::{Labels, LabelsError};
 use crate::hash::content_hash;
 use crate::landmarks::LibraryLandmarks;
-use crate::hash::content_hash;
 use crate::mesh::io::{self, Format, LoadError};
 use crate::pipeline::{self, MeshError, Settings};
 use rayon::prelude::*;
@@ -539,7 +538,7 @@ mod tests {
         let preparation = Preparation::new(Some(&again), &settings);
         let prepared = preparation.prepare_all(&library.members, |_| {}).unwrap();
         assert_eq!((preparation.reused(), preparation.prepared()), (n, 0));
-        let names: Vec<&str> = prepared.iter().map(|p| p.name.as_str()).collect();
+        let names: Vec<&str> = prepared.iter().map(|p| p.name()).collect();
         let expected: Vec<&str> = library.members.iter().map(|m| m.name.as_str()).collect();
         assert_eq!(names, expected);
         assert!(cached_members(&library, &again, &settings)
