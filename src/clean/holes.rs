@@ -42,27 +42,7 @@ mod tests {
     use super::*;
     use crate::mesh::{boundary_loops, euler_characteristic};
 
-    /// A square annulus: outer square of side 3, inner hole of side 1.
-    fn annulus() -> Mesh {
-        let mut v = Vec::new();
-        for j in 0..4 {
-            for i in 0..4 {
-                v.push([i as f64, j as f64, 0.0]);
-            }
-        }
-        let mut f = Vec::new();
-        for j in 0..3u32 {
-            for i in 0..3u32 {
-                if (i, j) == (1, 1) {
-                    continue;
-                }
-                let a = j * 4 + i;
-                f.push([a, a + 1, a + 5]);
-                f.push([a, a + 5, a + 4]);
-            }
-        }
-        Mesh::new(v, f)
-    }
+    use crate::mesh::synth::square_annulus as annulus;
 
     #[test]
     fn disk_with_a_hole_is_filled() {

@@ -481,23 +481,7 @@ mod tests {
     use super::*;
     use crate::mesh::{euler_characteristic, surface_area};
 
-    fn grid(n: u32) -> Mesh {
-        let mut v = Vec::new();
-        for j in 0..=n {
-            for i in 0..=n {
-                v.push([i as f64, j as f64, 0.0]);
-            }
-        }
-        let mut f = Vec::new();
-        for j in 0..n {
-            for i in 0..n {
-                let a = j * (n + 1) + i;
-                f.push([a, a + 1, a + n + 2]);
-                f.push([a, a + n + 2, a + n + 1]);
-            }
-        }
-        Mesh::new(v, f)
-    }
+    use crate::mesh::synth::square_grid as grid;
 
     #[test]
     fn obtuse_pair_is_flipped() {

@@ -94,21 +94,7 @@ mod tests {
     #[test]
     fn uniform_scaling_gives_constant_factor() {
         // A planar grid mapped by z ↦ z / 4: f = 16 everywhere.
-        let mut v = Vec::new();
-        for j in 0..4 {
-            for i in 0..4 {
-                v.push([i as f64, j as f64, 0.0]);
-            }
-        }
-        let mut f = Vec::new();
-        for j in 0..3u32 {
-            for i in 0..3u32 {
-                let a = j * 4 + i;
-                f.push([a, a + 1, a + 5]);
-                f.push([a, a + 5, a + 4]);
-            }
-        }
-        let m = Mesh::new(v, f);
+        let m = crate::mesh::synth::square_grid(3);
         let uv: Vec<[f64; 2]> = m
             .vertices
             .iter()

@@ -168,13 +168,8 @@ mod tests {
     use super::*;
     use crate::cp::mobius::Mobius;
     use crate::cp::search::search_directed;
-    use crate::cp::{prepare, PrepareParams};
-    use crate::mesh::synth::{self, CROWN_GENERA};
 
-    fn crown(genus: usize, seed: u64) -> Prepared {
-        let m = synth::crown(&CROWN_GENERA[genus], seed, 1500);
-        prepare(&m, &PrepareParams::default()).expect("prepare")
-    }
+    use crate::cp::test_crown as crown;
 
     #[test]
     fn smoothing_keeps_constant_fields_and_flattens_a_spike() {

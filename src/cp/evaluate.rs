@@ -113,13 +113,8 @@ pub fn evaluate_images(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cp::{prepare, PrepareParams};
-    use crate::mesh::synth::{self, CROWN_GENERA};
 
-    fn crown(genus: usize, seed: u64) -> Prepared {
-        let m = synth::crown(&CROWN_GENERA[genus], seed, 1500);
-        prepare(&m, &PrepareParams::default()).expect("prepare")
-    }
+    use crate::cp::test_crown as crown;
 
     #[test]
     fn the_identity_map_has_no_residual_and_maps_each_vertex_to_itself() {

@@ -51,3 +51,11 @@ pub use prepared::Prepared;
 pub use procrustes::{Handedness, Moments};
 pub use search::search_directed;
 pub use warp::DiskWarp;
+
+/// A prepared synthetic crown of 1,500 vertices (genus index, seed): the
+/// unit tests' fixture.
+#[cfg(test)]
+fn test_crown(genus: usize, seed: u64) -> Prepared {
+    let m = crate::mesh::synth::crown(&crate::mesh::synth::CROWN_GENERA[genus], seed, 1500);
+    prepare(&m, &PrepareParams::default()).expect("a synthetic crown prepares")
+}

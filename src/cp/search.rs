@@ -389,10 +389,7 @@ mod tests {
     use crate::cp::{prepare, PrepareParams};
     use crate::mesh::synth::{self, transform, CROWN_GENERA};
 
-    fn crown(genus: usize, seed: u64) -> Prepared {
-        let m = synth::crown(&CROWN_GENERA[genus], seed, 1500);
-        prepare(&m, &PrepareParams::default()).expect("prepare")
-    }
+    use crate::cp::test_crown as crown;
 
     #[test]
     fn perturbations_stay_inside_the_disk_and_zero_changes_nothing() {

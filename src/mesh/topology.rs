@@ -349,29 +349,7 @@ mod tests {
         )
     }
 
-    /// A square annulus: a 4 × 4 grid of unit squares with the middle one
-    /// (vertices 5, 6, 10, 9) left out, so the hole is short and the rim
-    /// long. Vertex `4j + i` is at `(i, j)`.
-    fn annulus() -> Mesh {
-        let mut v = Vec::new();
-        for j in 0..4 {
-            for i in 0..4 {
-                v.push([i as f64, j as f64, 0.0]);
-            }
-        }
-        let mut f = Vec::new();
-        for j in 0..3u32 {
-            for i in 0..3u32 {
-                if (i, j) == (1, 1) {
-                    continue;
-                }
-                let a = j * 4 + i;
-                f.push([a, a + 1, a + 5]);
-                f.push([a, a + 5, a + 4]);
-            }
-        }
-        Mesh::new(v, f)
-    }
+    use crate::mesh::synth::square_annulus as annulus;
 
     /// Two triangles touching only at vertex 2 (a bow tie), so their two
     /// boundary loops touch there.

@@ -234,6 +234,50 @@ pub fn crown(genus: &CrownGenus, seed: u64, target_vertices: usize) -> Mesh {
     mesh
 }
 
+/// An `n` × `n` grid of unit squares in the plane z = 0, two triangles
+/// each; vertex `(n + 1) j + i` is at `(i, j)`. A disk for unit tests.
+pub fn square_grid(n: u32) -> Mesh {
+    let mut v = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            v.push([i as f64, j as f64, 0.0]);
+        }
+    }
+    let mut f = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            let a = j * (n + 1) + i;
+            f.push([a, a + 1, a + n + 2]);
+            f.push([a, a + n + 2, a + n + 1]);
+        }
+    }
+    Mesh::new(v, f)
+}
+
+/// A square annulus: the 3 × 3 grid of unit squares without the middle one
+/// (vertices 5, 6, 10, 9), so the hole is short and the rim long; vertex
+/// `4j + i` is at `(i, j)`. Two boundary loops, for unit tests.
+pub fn square_annulus() -> Mesh {
+    let mut v = Vec::new();
+    for j in 0..4 {
+        for i in 0..4 {
+            v.push([i as f64, j as f64, 0.0]);
+        }
+    }
+    let mut f = Vec::new();
+    for j in 0..3u32 {
+        for i in 0..3u32 {
+            if (i, j) == (1, 1) {
+                continue;
+            }
+            let a = j * 4 + i;
+            f.push([a, a + 1, a + 5]);
+            f.push([a, a + 5, a + 4]);
+        }
+    }
+    Mesh::new(v, f)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
