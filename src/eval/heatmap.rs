@@ -256,8 +256,8 @@ pub fn default_cell_size(specimens: usize) -> u32 {
 
 /// Draw the heatmap: specimen `order[k]` at row and column `k`, each cell
 /// `cell × cell` pixels; `upper` (rows above the diagonal: right of it) and
-/// `lower` (matched to `upper` by name) each coloured with [`viridis`] over
-/// its own range; the diagonal cells in [`DIAGONAL_COLOUR`]. At each
+/// `lower` (matched to `upper` by name) each coloured with the viridis map over
+/// its own range; the diagonal cells white. At each
 /// position in `boundaries` (a group starts there) a one-pixel line in the
 /// diagonal colour separates the groups.
 pub fn heatmap(

@@ -226,7 +226,7 @@ pub fn write(path: &Path, landmarks: &Landmarks) -> Result<(), LandmarkError> {
 const LIBRARY_EXTENSIONS: [&str; 4] = ["csv", "fcsv", "mrk.json", "pp"];
 
 /// The landmark files of specimen `name` in the library folder `dir`
-/// (`dir/landmarks/<name>.<ext>` for each of [`LIBRARY_EXTENSIONS`] that
+/// (`dir/landmarks/<name>.<ext>` for each of `csv`, `fcsv`, `mrk.json`, `pp` that
 /// exists). More than one is ambiguous; the caller reports it.
 pub fn library_files(dir: &Path, name: &str) -> Vec<PathBuf> {
     let folder = dir.join("landmarks");
