@@ -121,7 +121,7 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
             dir.display(),
             preparation.reused(),
             preparation.reused() + preparation.prepared(),
-            preparation.prepared()
+            preparation.stored()
         );
     }
     Ok(code)

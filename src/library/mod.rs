@@ -162,9 +162,6 @@ pub enum PrepareError {
         #[source]
         source: MeshError,
     },
-    /// The prepared surface cannot be stored in the cache.
-    #[error(transparent)]
-    Cache(#[from] CacheError),
 }
 
 /// One reference that [`build`] left out, and why.
@@ -239,7 +236,7 @@ fn load_or_prepare(
 
 /// Prepared surfaces taken from a cache where the file and the settings
 /// are unchanged and prepared otherwise (then stored in the cache, so the
-/// next run finds them); counts both. Without a cache, every surface is
+/// next run finds them); counts each. Without a cache, every surface is
 /// prepared. Safe to share between threads.
 #[derive(Debug)]
 pub struct Preparation<'a> {
@@ -247,6 +244,7 @@ pub struct Preparation<'a> {
     settings: &'a Settings,
     reused: AtomicUsize,
     prepared: AtomicUsize,
+    stored: AtomicUsize,
 }
 
 impl<'a> Preparation<'a> {
@@ -257,6 +255,7 @@ impl<'a> Preparation<'a> {
             settings,
             reused: AtomicUsize::new(0),
             prepared: AtomicUsize::new(0),
+            stored: AtomicUsize::new(0),
         }
     }
 
@@ -264,14 +263,24 @@ impl<'a> Preparation<'a> {
     pub fn prepare(&self, member: &Member) -> Result<Prepared, PrepareError> {
         let loaded = load_or_prepare(member, self.cache, self.settings)?;
         match loaded.origin {
-            Origin::Cache => self.reused.fetch_add(1, Ordering::Relaxed),
-            Origin::Prepared => {
-                if let Some(cache) = self.cache {
-                    cache.put(&loaded.key, &loaded.reference)?;
-                }
-                self.prepared.fetch_add(1, Ordering::Relaxed)
+            Origin::Cache => {
+                self.reused.fetch_add(1, Ordering::Relaxed);
             }
-        };
+            Origin::Prepared => {
+                self.prepared.fetch_add(1, Ordering::Relaxed);
+                // The cache only saves time: a surface that cannot be
+                // stored is still good for this run.
+                match self.cache.map(|c| c.put(&loaded.key, &loaded.reference)) {
+                    Some(Ok(())) => {
+                        self.stored.fetch_add(1, Ordering::Relaxed);
+                    }
+                    Some(Err(e)) => {
+                        tracing::warn!(reference = %member.name, "not stored in the cache: {e}")
+                    }
+                    None => {}
+                }
+            }
+        }
         Ok(loaded.reference.prepared)
     }
 
@@ -305,6 +314,12 @@ impl<'a> Preparation<'a> {
     /// How many surfaces were prepared so far.
     pub fn prepared(&self) -> usize {
         self.prepared.load(Ordering::Relaxed)
+    }
+
+    /// How many of the prepared surfaces were stored in the cache (a
+    /// failure to store one is logged and does not stop the run).
+    pub fn stored(&self) -> usize {
+        self.stored.load(Ordering::Relaxed)
     }
 }
 
@@ -379,7 +394,6 @@ pub fn build(
                 keep.insert((m.name.clone(), loaded.key));
                 out.references.push(loaded.reference);
             }
-            Err(PrepareError::Cache(e)) => return Err(e),
             Err(error) => out.failures.push(Failure {
                 name: m.name.clone(),
                 error,
@@ -557,7 +571,7 @@ mod tests {
         let first = members(other.path()).unwrap();
         let p = Preparation::new(Some(&other_cache), &settings);
         p.prepare_all(&first, |_| {}).unwrap();
-        assert_eq!((p.reused(), p.prepared()), (0, 1));
+        assert_eq!((p.reused(), p.prepared(), p.stored()), (0, 1, 1));
         let p = Preparation::new(Some(&other_cache), &settings);
         p.prepare_all(&first, |_| {}).unwrap();
         assert_eq!((p.reused(), p.prepared()), (1, 0));
