@@ -9,7 +9,6 @@
 
 use morphoid::cp::CpParams;
 use morphoid::cwn::{self, CwnParams};
-use morphoid::eval::{leave_one_out, Labels};
 use rayon::prelude::*;
 
 /// Every third tooth (39): the matrix is well defined and nearest
@@ -71,14 +70,6 @@ fn leave_one_out_on_teeth(step: usize, floors: impl Fn(usize, usize, usize)) {
             assert!(m.values[i][j].is_finite() && m.values[i][j] >= 0.0);
         }
     }
-    let ranks: Vec<String> = ["order", "family", "genus"]
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
-    let labels = Labels::read(&dir.join("labels.csv"), Some(&ranks)).expect("labels");
-    let scores = leave_one_out(&m, &labels, &ranks);
-    for s in &scores {
-        println!("LOO {}: {}/{}", s.rank, s.correct, s.total);
-    }
+    let scores = crate::support::cp::leave_one_out_scores(&dir, &m);
     floors(scores[0].correct, scores[2].correct, scores[2].total);
 }

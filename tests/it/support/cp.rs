@@ -93,3 +93,19 @@ pub fn benchmark_pair() -> (Mesh, Mesh, &'static str) {
         }
     }
 }
+
+/// Leave-one-out nearest-neighbour scores of `matrix` at order, family and
+/// genus, against the real teeth's `labels.csv`; printed.
+pub fn leave_one_out_scores(
+    dir: &Path,
+    matrix: &morphoid::eval::DistanceMatrix,
+) -> Vec<morphoid::eval::RankScore> {
+    let ranks: Vec<String> = ["order", "family", "genus"].map(String::from).to_vec();
+    let labels =
+        morphoid::eval::Labels::read(&dir.join("labels.csv"), Some(&ranks)).expect("labels");
+    let scores = morphoid::eval::leave_one_out(matrix, &labels, &ranks);
+    for s in &scores {
+        println!("LOO {}: {}/{}", s.rank, s.correct, s.total);
+    }
+    scores
+}
