@@ -5,7 +5,12 @@
 //!
 //! 1. point clouds are triangulated ([`cloud::triangulate_point_cloud`]);
 //! 2. duplicate vertices are welded ([`weld::weld_vertices`]);
-//! 3. degenerate and duplicate faces go ([`faces`]);
+//! 3. degenerate and duplicate faces go ([`faces`]). A surface far above
+//!    the working resolution (a µCT export of millions of faces) is first
+//!    decimated once to eight times it
+//!    ([`resample::decimate_to_face_count`]; before welding when it shares
+//!    its vertices, else after), so that what follows costs the same
+//!    whatever the export's resolution;
 //! 4. the largest connected component by area is kept ([`components`]);
 //! 5. non-manifold edges and vertices are repaired ([`manifold`]);
 //! 6. face orientation is made consistent ([`orient`]);
@@ -37,6 +42,13 @@ use crate::mesh::{
     bbox_diagonal, boundary_loops, euler_characteristic, genus, longest_boundary_loop,
     surface_area, Mesh,
 };
+
+/// Surfaces of more than five times `2 × EARLY_DECIMATION_FACTOR ×
+/// target_vertices` faces are first decimated to `2 ×
+/// EARLY_DECIMATION_FACTOR × target_vertices` faces: eight times the
+/// working resolution keeps the shape well beyond what the working mesh
+/// can show.
+const EARLY_DECIMATION_FACTOR: usize = 8;
 
 /// Parameters of the cleaning pipeline.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -99,6 +111,9 @@ pub struct CleanReport {
     pub flipped_faces: usize,
     /// Whether the whole surface was reversed so its normals point outward.
     pub reversed_orientation: bool,
+    /// Faces of a surface far above the working resolution before its
+    /// first decimation (0 when there was none).
+    pub predecimated_faces: usize,
     /// The input was a point cloud and was triangulated.
     pub triangulated_point_cloud: bool,
     /// Edge flips made while improving triangle shapes.
@@ -225,6 +240,22 @@ fn make_disk(m: &Mesh, report: &mut CleanReport) -> Result<Mesh, CleanError> {
     }
 }
 
+/// A µCT-resolution export has millions of faces, hundreds of times the
+/// working resolution. The repairs are linear but not cheap, and the
+/// resampling's reference surface would hold the whole: one decimation to
+/// a few times the working resolution first bounds time and memory, and
+/// the working mesh is decimated from it as from any other surface.
+/// `None` when `m` is not far above the working resolution (or was
+/// decimated already).
+fn decimate_if_dense(m: &Mesh, opts: &CleanOptions, report: &mut CleanReport) -> Option<Mesh> {
+    let early_faces = 2 * EARLY_DECIMATION_FACTOR * opts.target_vertices;
+    if report.predecimated_faces > 0 || m.faces.len() <= 5 * early_faces {
+        return None;
+    }
+    report.predecimated_faces = m.faces.len();
+    Some(resample::decimate_to_face_count(m, early_faces))
+}
+
 /// Run the whole cleaning pipeline (see the module documentation).
 pub fn clean(mesh: &Mesh, opts: &CleanOptions) -> Result<Cleaned, CleanError> {
     validate(mesh)?;
@@ -235,7 +266,16 @@ pub fn clean(mesh: &Mesh, opts: &CleanOptions) -> Result<Cleaned, CleanError> {
     };
     let min = opts.min_elements.max(3);
     let tol = opts.weld_tolerance * bbox_diagonal(mesh);
-    let (mut m, welded) = weld::weld_vertices(mesh, tol);
+    // A surface that shares its vertices is decimated before anything
+    // else when it is far too dense: welding and the face checks then run
+    // on the decimated surface.
+    let decimated = if mesh.vertices.len() < mesh.faces.len() {
+        decimate_if_dense(mesh, opts, &mut report)
+    } else {
+        None
+    };
+    let (mut m, welded) = weld::weld_vertices(decimated.as_ref().unwrap_or(mesh), tol);
+    drop(decimated);
     report.welded_vertices = welded;
 
     if m.faces.is_empty() {
@@ -249,10 +289,16 @@ pub fn clean(mesh: &Mesh, opts: &CleanOptions) -> Result<Cleaned, CleanError> {
 
     let diag = bbox_diagonal(&m);
     let (m1, r1) = faces::remove_degenerate_faces(&m, 1e-14 * diag * diag);
-    let (m2, r2) = faces::remove_duplicate_faces(&m1);
+    drop(m);
+    let (mut m2, r2) = faces::remove_duplicate_faces(&m1);
+    drop(m1);
     report.removed_faces = r1 + r2;
     if m2.faces.len() < min {
         return Err(CleanError::TooFewFaces(m2.faces.len()));
+    }
+    // A triangle soup can only be decimated once welded.
+    if let Some(d) = decimate_if_dense(&m2, opts, &mut report) {
+        m2 = d;
     }
 
     let m3 = make_disk(&m2, &mut report)?;

@@ -49,6 +49,45 @@ fn separated_positions(mesh: &Mesh) -> Vec<[f32; 3]> {
     positions
 }
 
+/// One pass of meshoptimizer's simplifier (quadric error) of `mesh` (its
+/// positions and flattened indices given) towards `target_faces` faces;
+/// unreferenced vertices dropped.
+fn simplify(
+    mesh: &Mesh,
+    positions: &[[f32; 3]],
+    indices: &[u32],
+    target_faces: usize,
+    options: meshopt::SimplifyOptions,
+) -> Mesh {
+    let out = meshopt::simplify_decoder(
+        indices,
+        positions,
+        3 * target_faces.max(1),
+        1.0,
+        options,
+        None,
+    );
+    let faces: Vec<[u32; 3]> = out.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    super::faces::remove_unreferenced_vertices(&Mesh::new(mesh.vertices.clone(), faces))
+}
+
+/// Quadric-error edge-collapse decimation of `mesh` to about `target_faces`
+/// faces in one pass, for surfaces far above the working resolution (see
+/// [`decimate_to_vertex_count`] for the properties kept).
+pub fn decimate_to_face_count(mesh: &Mesh, target_faces: usize) -> Mesh {
+    let positions = separated_positions(mesh);
+    let indices: Vec<u32> = mesh.faces.iter().flatten().copied().collect();
+    // Not regularized: the working mesh is decimated from this one with
+    // regularization, and the pass over millions of faces is faster.
+    simplify(
+        mesh,
+        &positions,
+        &indices,
+        target_faces,
+        meshopt::SimplifyOptions::Regularize,
+    )
+}
+
 /// Quadric-error edge-collapse decimation (meshoptimizer's simplifier, with
 /// its regularizing option for even triangle sizes) to about
 /// `target_vertices` vertices. Boundary vertices only slide along the
@@ -61,17 +100,13 @@ pub fn decimate_to_vertex_count(mesh: &Mesh, target_vertices: usize) -> Mesh {
     let mut target_faces = (2 * target_vertices).max(1) as f64;
     let mut best: Option<(usize, Mesh)> = None;
     for _ in 0..6 {
-        let out = meshopt::simplify_decoder(
-            &indices,
+        let m = simplify(
+            mesh,
             &positions,
-            3 * target_faces.round() as usize,
-            1.0,
+            &indices,
+            target_faces.round() as usize,
             meshopt::SimplifyOptions::Regularize,
-            None,
         );
-        let faces: Vec<[u32; 3]> = out.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-        let m =
-            super::faces::remove_unreferenced_vertices(&Mesh::new(mesh.vertices.clone(), faces));
         let nv = m.vertices.len();
         let err = nv.abs_diff(target_vertices);
         let better = best.as_ref().is_none_or(|(e, _)| err < *e);

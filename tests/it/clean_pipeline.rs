@@ -209,3 +209,31 @@ fn report_round_trips_through_json() {
     assert_eq!(c.report.output_vertices, c.mesh.vertices.len());
     assert!(c.report.area > 0.0 && c.report.bbox_diagonal > 0.0);
 }
+
+#[test]
+fn a_surface_far_above_the_working_resolution_is_decimated_first_and_stays_on_the_surface() {
+    let original = crown(5000);
+    // Two midpoint subdivisions: ~80k vertices, 160k faces; with a working
+    // resolution of 500 vertices that is twenty times the early target.
+    let dense = synth::subdivide_midpoint(&original, 2);
+    let opts = CleanOptions {
+        target_vertices: 500,
+        ..CleanOptions::default()
+    };
+    let c = clean(&dense, &opts).expect("dense crown cleans");
+    assert_eq!(c.report.predecimated_faces, dense.faces.len());
+    assert_disk_on(&c.mesh, &original, 500);
+    // The same as a binary STL: the corners are shared as the file is read,
+    // so the early decimation comes before welding.
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("dense.stl");
+    morphoid::mesh::io::save(&path, &dense).expect("write stl");
+    let loaded = morphoid::mesh::io::load(&path).expect("load stl").mesh;
+    assert_eq!(loaded.vertices.len(), dense.vertices.len());
+    let c = clean(&loaded, &opts).expect("dense stl cleans");
+    assert_eq!(c.report.predecimated_faces, dense.faces.len());
+    assert_disk_on(&c.mesh, &original, 500);
+    // A working resolution near the input's: no early decimation.
+    let c = clean(&original, &CleanOptions::default()).expect("crown cleans");
+    assert_eq!(c.report.predecimated_faces, 0);
+}

@@ -7,8 +7,9 @@
 //! number or byte offset. No input makes a reader panic.
 //!
 //! Polygons are fan-triangulated. A file with vertices and no faces loads as
-//! a point cloud (a [`Mesh`] with empty `faces`). STL is a triangle soup: it
-//! loads with three unshared vertices per triangle, which cleaning welds.
+//! a point cloud (a [`Mesh`] with empty `faces`). STL has no shared
+//! vertices: ASCII STL loads as a triangle soup, which cleaning welds;
+//! binary STL shares bit-identical corners as it is read.
 
 mod obj;
 mod off;
@@ -139,6 +140,26 @@ pub fn load(path: &Path) -> Result<LoadedMesh, LoadError> {
             path: path.to_path_buf(),
             message: format!("file is {size} bytes, more than the limit of {MAX_FILE_BYTES}"),
         });
+    }
+    if format == Format::Stl {
+        // Big exports are binary STL: read record by record.
+        match stl::read_binary_file(path, size) {
+            Ok(Some(mesh)) => {
+                let mesh = validate(mesh).map_err(|message| LoadError::Invalid {
+                    path: path.to_path_buf(),
+                    message,
+                })?;
+                return Ok(LoadedMesh { mesh, format });
+            }
+            Ok(None) => {}
+            Err(stl::BinaryFileError::Io(source)) => return Err(io_err(source)),
+            Err(stl::BinaryFileError::Invalid(message)) => {
+                return Err(LoadError::Invalid {
+                    path: path.to_path_buf(),
+                    message,
+                })
+            }
+        }
     }
     let bytes = std::fs::read(path).map_err(io_err)?;
     load_bytes(&bytes, format, path)

@@ -1,5 +1,6 @@
-//! STL reader, binary and ASCII, as a triangle soup (three vertices per
-//! triangle; welding is left to cleaning).
+//! STL reader, binary and ASCII. ASCII STL loads as a triangle soup (three
+//! vertices per triangle; welding is left to cleaning); binary STL, the
+//! form big exports take, shares bit-identical corners while it is read.
 //!
 //! A file is binary exactly when its size is `84 + 50·n` for the triangle
 //! count `n` stored at byte 80: binary files often start with "solid" too,
@@ -10,6 +11,8 @@
 use super::text::{shorten, Tokens};
 use super::{push_fan, ParseResult};
 use crate::mesh::Mesh;
+use rustc_hash::FxHashMap as HashMap;
+use std::path::Path;
 
 /// Parse an STL file.
 pub(crate) fn read_stl(bytes: &[u8]) -> ParseResult<Mesh> {
@@ -60,11 +63,83 @@ fn binary_triangle_count(bytes: &[u8]) -> Option<usize> {
 
 fn read_binary(bytes: &[u8], n: usize) -> ParseResult<Mesh> {
     // The size check above bounds n by the file size.
-    let mut vertices = Vec::with_capacity(3 * n);
-    let mut faces = Vec::with_capacity(n);
-    for (t, record) in bytes[84..].chunks_exact(50).enumerate() {
-        for k in 0..3 {
-            let mut p = [0.0; 3];
+    let mut soup = SharedCorners::with_triangles(n);
+    for (t, record) in bytes[84..].chunks_exact(RECORD).enumerate() {
+        soup.push(t, record)?;
+    }
+    Ok(soup.into_mesh())
+}
+
+/// Bytes of one binary STL triangle record.
+const RECORD: usize = 50;
+
+/// Read a binary STL file of `size` bytes record by record, without
+/// holding the file in memory (a µCT export can be hundreds of megabytes).
+/// `Ok(None)` when the size does not match a binary STL (the caller reads
+/// it as ASCII); `Err` carries the I/O error or the message of a bad
+/// record, with the file name attached by the caller.
+pub(crate) fn read_binary_file(path: &Path, size: u64) -> Result<Option<Mesh>, BinaryFileError> {
+    use std::io::Read;
+    let mut file = std::io::BufReader::with_capacity(
+        RECORD * 4096,
+        std::fs::File::open(path).map_err(BinaryFileError::Io)?,
+    );
+    let mut header = [0u8; 84];
+    if size < 84 {
+        return Ok(None);
+    }
+    file.read_exact(&mut header).map_err(BinaryFileError::Io)?;
+    let n = u32::from_le_bytes([header[80], header[81], header[82], header[83]]) as u64;
+    if 84 + RECORD as u64 * n != size {
+        return Ok(None);
+    }
+    let mut soup = SharedCorners::with_triangles(n as usize);
+    let mut record = [0u8; RECORD];
+    for t in 0..n as usize {
+        file.read_exact(&mut record).map_err(BinaryFileError::Io)?;
+        soup.push(t, &record).map_err(BinaryFileError::Invalid)?;
+    }
+    Ok(Some(soup.into_mesh()))
+}
+
+/// Why [`read_binary_file`] failed.
+#[derive(Debug)]
+pub(crate) enum BinaryFileError {
+    /// Reading failed (or the file shrank while it was read).
+    Io(std::io::Error),
+    /// A record is unusable.
+    Invalid(String),
+}
+
+/// A binary STL's triangles as they are read: corners with bit-identical
+/// coordinates become one vertex. A µCT export holds millions of
+/// triangles, and a soup of three f64 vertices per triangle would take six
+/// times the memory of the shared vertices, only for cleaning to weld them
+/// again; merging identical positions is what welding does first anyway,
+/// whatever its tolerance.
+struct SharedCorners {
+    index: HashMap<[u32; 3], u32>,
+    vertices: Vec<[f64; 3]>,
+    faces: Vec<[u32; 3]>,
+}
+
+impl SharedCorners {
+    fn with_triangles(n: usize) -> Self {
+        // A closed surface has about half as many vertices as triangles.
+        let mut index = HashMap::default();
+        index.reserve(n / 2 + 8);
+        SharedCorners {
+            index,
+            vertices: Vec::with_capacity(n / 2 + 8),
+            faces: Vec::with_capacity(n),
+        }
+    }
+
+    /// Add triangle `t` from its 50-byte record.
+    fn push(&mut self, t: usize, record: &[u8]) -> ParseResult<()> {
+        let mut face = [0u32; 3];
+        for (k, corner) in face.iter_mut().enumerate() {
+            let mut p = [0.0f32; 3];
             for (c, value) in p.iter_mut().enumerate() {
                 let o = 12 + 12 * k + 4 * c;
                 let v =
@@ -72,17 +147,25 @@ fn read_binary(bytes: &[u8], n: usize) -> ParseResult<Mesh> {
                 if !v.is_finite() {
                     return Err(format!(
                         "triangle {t} has a non-finite coordinate (byte offset {})",
-                        84 + 50 * t + o
+                        84 + RECORD * t + o
                     ));
                 }
-                *value = v as f64;
+                // -0.0 and 0.0 are the same position.
+                *value = if v == 0.0 { 0.0 } else { v };
             }
-            vertices.push(p);
+            let vertices = &mut self.vertices;
+            *corner = *self.index.entry(p.map(f32::to_bits)).or_insert_with(|| {
+                vertices.push(p.map(f64::from));
+                (vertices.len() - 1) as u32
+            });
         }
-        let b = (3 * t) as u32;
-        faces.push([b, b + 1, b + 2]);
+        self.faces.push(face);
+        Ok(())
     }
-    Ok(Mesh::new(vertices, faces))
+
+    fn into_mesh(self) -> Mesh {
+        Mesh::new(self.vertices, self.faces)
+    }
 }
 
 /// Compare a keyword case-insensitively, with a message naming the line.

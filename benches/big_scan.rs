@@ -1,0 +1,100 @@
+//! What a µCT-resolution surface export costs, measured as users run it:
+//! a real tooth (J12) subdivided four times (~2.5 M triangles) written as
+//! binary STL (~128 MB), then `morphoid inspect` and `morphoid classify`
+//! (against the 116-tooth library, prepared once beforehand so the cache
+//! is warm) run as whole processes under `/usr/bin/time`: wall time and
+//! peak RSS of each. Without the real teeth, a synthetic crown and a
+//! synthetic library stand in.
+//!
+//! `cargo build --release && cargo bench --bench big_scan`
+
+use morphoid::mesh::io;
+use morphoid::mesh::synth::{self, LibrarySpec, CROWN_GENERA};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+#[allow(dead_code)]
+#[path = "../tests/it/support/mod.rs"]
+mod support;
+
+/// The `morphoid` binary of this build (`target/release/morphoid`).
+fn morphoid_binary() -> PathBuf {
+    let mut p = std::env::current_exe().expect("bench path");
+    p.pop(); // the bench's own file name
+    p.pop(); // deps
+    p.push("morphoid");
+    assert!(
+        p.is_file(),
+        "{} not found: run `cargo build --release` first",
+        p.display()
+    );
+    p
+}
+
+/// Run `morphoid ARGS` under `/usr/bin/time`; (seconds, peak RSS in MB).
+fn timed(bin: &Path, args: &[&str]) -> (f64, f64) {
+    let out = Command::new("/usr/bin/time")
+        .args(["-f", "TIME %e %M"])
+        .arg(bin)
+        .args(args)
+        .output()
+        .expect("/usr/bin/time runs (Debian package `time`)");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "morphoid {args:?} failed:\n{err}");
+    let line = err
+        .lines()
+        .rev()
+        .find(|l| l.starts_with("TIME "))
+        .expect("time's line");
+    let mut it = line.split_whitespace().skip(1);
+    let secs: f64 = it.next().and_then(|s| s.parse().ok()).expect("seconds");
+    let kb: f64 = it.next().and_then(|s| s.parse().ok()).expect("kilobytes");
+    (secs, kb / 1024.0)
+}
+
+fn main() {
+    // `cargo bench` passes `--bench`; nothing to parse.
+    let bin = morphoid_binary();
+    let tmp = tempfile::tempdir().expect("temp dir");
+    let (base, library) = match support::data::teeth_dir() {
+        Some(dir) => (
+            io::load(&dir.join("meshes").join("J12.ply"))
+                .expect("J12 loads")
+                .mesh,
+            dir,
+        ),
+        None => {
+            eprintln!("real teeth not found: synthetic crown and library");
+            let lib = tmp.path().join("library");
+            synth::write_synthetic_library(&lib, &LibrarySpec::default()).expect("library");
+            (synth::crown(&CROWN_GENERA[0], 1, 5000), lib)
+        }
+    };
+    let scan = tmp.path().join("big.stl");
+    {
+        let dense = synth::subdivide_midpoint(&base, 4);
+        io::save(&scan, &dense).expect("write the big scan");
+        println!(
+            "scan: {} triangles, {:.0} MB binary STL",
+            dense.face_count(),
+            std::fs::metadata(&scan).map(|m| m.len()).unwrap_or(0) as f64 / 1e6
+        );
+    }
+    let scan = scan.to_string_lossy().into_owned();
+    let lib = library.to_string_lossy().into_owned();
+    let cache = tmp.path().join("cache").to_string_lossy().into_owned();
+    let db = tmp.path().join("scans.db").to_string_lossy().into_owned();
+    let config = tmp.path().join("morphoid.toml");
+    std::fs::write(
+        &config,
+        format!("[database]\npath = {db:?}\n[library]\ndir = {lib:?}\ncache = {cache:?}\n"),
+    )
+    .expect("config");
+    let config = config.to_string_lossy().into_owned();
+    // Prepare the library once, so classify measures the scan, not the build.
+    timed(&bin, &["--config", &config, "library", "build"]);
+    let (t, rss) = timed(&bin, &["--config", &config, "inspect", &scan]);
+    println!("inspect  {t:6.2} s  peak RSS {rss:6.0} MB");
+    let (t, rss) = timed(&bin, &["--config", &config, "classify", &scan]);
+    println!("classify {t:6.2} s  peak RSS {rss:6.0} MB  (116 references from the cache)");
+}
