@@ -80,7 +80,7 @@ fn lines_since(d: &Daemon, from: usize) -> Vec<String> {
 /// The log lines during a fault: the fault once, nothing per retry.
 fn assert_quiet(during: &[String], what: &str) {
     let faults = during.iter().filter(|l| l.contains("unavailable")).count();
-    assert!(faults <= 1, "{what}: the fault logged {faults} times:\n{during:#?}");
+    assert_eq!(faults, 1, "{what}: the fault logged {faults} times:\n{during:#?}");
     assert!(
         during.len() <= 4,
         "{what}: {} lines during the fault:\n{during:#?}",
