@@ -114,7 +114,11 @@ fn main() {
         library.display(), if root_user { "yes (tmpfs)" } else { "no (needs root)" });
     let t0 = Instant::now();
     let mut daemon = Daemon::start(&env);
-    println!("daemon ready after {:.0} s ({} references)", t0.elapsed().as_secs_f64(), daemon.references());
+    println!(
+        "daemon ready after {:.0} s ({} references)",
+        t0.elapsed().as_secs_f64(),
+        daemon.references()
+    );
     let mut peak_rss_kb = 0u64;
     let mut kills = 0usize;
     let mut placed: Vec<String> = Vec::new();
@@ -138,16 +142,32 @@ fn main() {
             std::fs::rename(&staged, export.join(&name)).unwrap();
             placed.push(name);
             i += 1;
-            next_arrival = Instant::now() + Duration::from_secs_f64(rng.gen_range(0.0..2.0 * interval));
+            next_arrival =
+                Instant::now() + Duration::from_secs_f64(rng.gen_range(0.0..2.0 * interval));
         }
         // Faults: start one now and then, end it after its time.
         match &fault {
-            None if i < n && rng.gen_bool(0.01) => {
-                let kinds: &[&str] = if root_user { &["full", "locked", "kill"] } else { &["locked", "kill"] };
+            // One fault at a time, each after the last one drained.
+            None if i < n
+                && episodes.last().is_none_or(|e| e.drained.is_some())
+                && rng.gen_bool(0.003) =>
+            {
+                let kinds: &[&str] = if root_user {
+                    &["full", "locked", "kill"]
+                } else {
+                    &["locked", "kill"]
+                };
                 let kind = kinds[rng.gen_range(0..kinds.len())];
                 let lasts = Duration::from_secs_f64(rng.gen_range(5.0..25.0));
                 let lines = daemon.log_text().lines().count();
-                let mut ep = Episode { kind, started: Instant::now(), cleared: None, log_lines: lines, waiting_for: 0, drained: None };
+                let mut ep = Episode {
+                    kind,
+                    started: Instant::now(),
+                    cleared: None,
+                    log_lines: lines,
+                    waiting_for: 0,
+                    drained: None,
+                };
                 match kind {
                     "full" => {
                         let filler = fill(&dbdir, "filler");
@@ -187,9 +207,15 @@ fn main() {
             _ => {}
         }
         // Drains: every file that arrived before a fault cleared finished.
-        if episodes.iter().any(|e| e.cleared.is_some() && e.drained.is_none()) {
+        if episodes
+            .iter()
+            .any(|e| e.cleared.is_some() && e.drained.is_none())
+        {
             let done = finished_count(&db, &placed);
-            for e in episodes.iter_mut().filter(|e| e.cleared.is_some() && e.drained.is_none()) {
+            for e in episodes
+                .iter_mut()
+                .filter(|e| e.cleared.is_some() && e.drained.is_none())
+            {
                 if done.iter().take(e.waiting_for).all(|&d| d) {
                     e.drained = e.cleared.map(|c| c.elapsed());
                 }
@@ -222,27 +248,50 @@ fn main() {
             .unwrap();
         for row in it {
             let (path, status) = row.unwrap();
-            let name = Path::new(&path).file_name().unwrap().to_string_lossy().into_owned();
+            let name = Path::new(&path)
+                .file_name()
+                .unwrap()
+                .to_string_lossy()
+                .into_owned();
             rows.entry(name).or_default().push(status);
         }
     }
     let lost = placed
         .iter()
-        .filter(|p| !rows.get(*p).is_some_and(|s| s.iter().any(|s| s == "ok" || s == "error" || s == "duplicate")))
+        .filter(|p| {
+            !rows.get(*p).is_some_and(|s| {
+                s.iter()
+                    .any(|s| s == "ok" || s == "error" || s == "duplicate")
+            })
+        })
         .count();
     let duplicated = rows.values().filter(|s| s.len() > 1).count();
     let errors = rows.values().flatten().filter(|s| *s == "error").count();
-    println!("\nscans placed: {}, recorded: {}, errors: {errors}", placed.len(), rows.len());
+    println!(
+        "\nscans placed: {}, recorded: {}, errors: {errors}",
+        placed.len(),
+        rows.len()
+    );
     println!("lost: {lost}");
     println!("duplicated: {duplicated}");
-    println!("faults: {} (kill -9: {kills}), wall time {:.0} s", episodes.len(), wall.as_secs_f64());
+    println!(
+        "faults: {} (kill -9: {kills}), wall time {:.0} s",
+        episodes.len(),
+        wall.as_secs_f64()
+    );
     let mut worst = Duration::ZERO;
     let mut worst_rate: f64 = 0.0;
     for e in &episodes {
         let lasted = e.cleared.map(|c| c - e.started).unwrap_or_default();
-        let drained = e.drained.map_or("never".to_string(), |d| format!("{:.1} s", d.as_secs_f64()));
+        let drained = e
+            .drained
+            .map_or("never".to_string(), |d| format!("{:.1} s", d.as_secs_f64()));
         worst = worst.max(e.drained.unwrap_or(Duration::MAX));
-        let rate = if e.kind == "kill" { None } else { Some(e.log_lines as f64 / (lasted.as_secs_f64() / 60.0).max(1.0 / 60.0)) };
+        let rate = if e.kind == "kill" {
+            None
+        } else {
+            Some(e.log_lines as f64 / (lasted.as_secs_f64() / 60.0).max(1.0 / 60.0))
+        };
         if let Some(r) = rate {
             worst_rate = worst_rate.max(r);
         }
@@ -254,18 +303,24 @@ fn main() {
             if e.kind == "kill" { "-".to_string() } else { format!("{} ({:.1}/min)", e.log_lines, rate.unwrap_or(0.0)) }
         );
     }
-    println!("longest fault-clear → drained: {:.1} s", worst.as_secs_f64());
+    println!(
+        "longest fault-clear → drained: {:.1} s",
+        worst.as_secs_f64()
+    );
     println!("peak RSS: {:.0} MB", peak_rss_kb as f64 / 1024.0);
     println!("log lines per minute during faults (worst): {worst_rate:.1}");
 }
 
 /// For each placed file, whether it has a finished row.
 fn finished_count(db: &Path, placed: &[String]) -> Vec<bool> {
-    let Ok(conn) = Connection::open_with_flags(db, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY) else {
+    let Ok(conn) = Connection::open_with_flags(db, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY)
+    else {
         return vec![false; placed.len()];
     };
     let mut done = std::collections::HashSet::new();
-    if let Ok(mut stmt) = conn.prepare("SELECT path FROM scan WHERE status IN ('ok', 'error', 'duplicate')") {
+    if let Ok(mut stmt) =
+        conn.prepare("SELECT path FROM scan WHERE status IN ('ok', 'error', 'duplicate')")
+    {
         if let Ok(it) = stmt.query_map([], |r| r.get::<_, String>(0)) {
             for p in it.flatten() {
                 if let Some(n) = Path::new(&p).file_name() {

@@ -53,19 +53,15 @@ impl Health {
     /// `part` failed with `message`: logged (ERROR) when it was fine until
     /// now; a further failure while faulty is not logged again.
     pub fn fault(&self, part: Part, message: &str) {
-        let mut faults = self.faults();
-        if !faults.contains_key(&part) {
+        if let std::collections::btree_map::Entry::Vacant(slot) = self.faults().entry(part) {
             tracing::error!(
                 "{} unavailable: {message}; work is kept and retried until it recovers",
                 part.name()
             );
-            faults.insert(
-                part,
-                Fault {
-                    message: message.to_string(),
-                    since: Instant::now(),
-                },
-            );
+            slot.insert(Fault {
+                message: message.to_string(),
+                since: Instant::now(),
+            });
         }
     }
 

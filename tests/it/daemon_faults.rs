@@ -33,7 +33,11 @@ fn results_config(dir: &Path) -> String {
 /// Drop scan `i` (genus `i`) into the export folder as `s<i>.ply`.
 fn drop_scan(env: &Env, i: usize) -> String {
     let name = format!("s{i}.ply");
-    put(env, &env.export.join(&name), &scan_bytes(i, 1600 + i as u64));
+    put(
+        env,
+        &env.export.join(&name),
+        &scan_bytes(i, 1600 + i as u64),
+    );
     name
 }
 
@@ -74,13 +78,20 @@ fn assert_exactly_once(env: &Env, d: &Daemon, names: &[String], within: Duration
 
 /// Lines the daemon logged since `from` lines, for the fault's duration.
 fn lines_since(d: &Daemon, from: usize) -> Vec<String> {
-    d.log_text().lines().skip(from).map(str::to_string).collect()
+    d.log_text()
+        .lines()
+        .skip(from)
+        .map(str::to_string)
+        .collect()
 }
 
 /// The log lines during a fault: the fault once, nothing per retry.
 fn assert_quiet(during: &[String], what: &str) {
     let faults = during.iter().filter(|l| l.contains("unavailable")).count();
-    assert_eq!(faults, 1, "{what}: the fault logged {faults} times:\n{during:#?}");
+    assert_eq!(
+        faults, 1,
+        "{what}: the fault logged {faults} times:\n{during:#?}"
+    );
     assert!(
         during.len() <= 4,
         "{what}: {} lines during the fault:\n{during:#?}",

@@ -53,7 +53,10 @@ impl Mount {
     pub fn tmpfs(target: &Path, size: &str) -> Mount {
         std::fs::create_dir_all(target).unwrap();
         let t = target.to_str().unwrap();
-        run("mount", &["-t", "tmpfs", "-o", &format!("size={size}"), "tmpfs", t]);
+        run(
+            "mount",
+            &["-t", "tmpfs", "-o", &format!("size={size}"), "tmpfs", t],
+        );
         Mount {
             target: target.to_path_buf(),
             image: None,
