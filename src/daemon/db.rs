@@ -91,14 +91,16 @@ impl Db {
         }
     }
 
-    /// An operation failed with `e`: report it (once while it lasts) and,
-    /// when the storage failed, let go of the connection so the next use
-    /// opens the file afresh.
-    pub fn failed(&mut self, e: &StoreError) {
-        if e.is_storage_fault() {
+    /// An operation failed with `e`. When the storage failed: report it
+    /// (once while it lasts) and let go of the connection, so the next use
+    /// opens the file afresh; returns whether it did.
+    pub fn failed(&mut self, e: &StoreError) -> bool {
+        let storage = e.is_storage_fault();
+        if storage {
             self.store = None;
+            self.health.fault(Part::Database, &super::chain(e));
         }
-        self.health.fault(Part::Database, &super::chain(e));
+        storage
     }
 
     /// An operation worked: the database is healthy.

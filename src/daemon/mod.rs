@@ -352,26 +352,32 @@ impl<'a> Daemon<'a> {
                     continue;
                 }
             };
-            let queued = hashed.and_then(|(hash, size)| {
-                let mut db = db::lock(&self.db);
-                let out = match db.store() {
-                    Ok((store, _)) => intake::enqueue(store, &path, &hash, size),
-                    Err(source) => Err(intake::IntakeError::Queue {
-                        path: path.clone(),
-                        source,
-                    }),
-                };
-                match &out {
-                    Err(intake::IntakeError::Queue { source, .. }) => db.failed(source),
-                    Ok(_) => db.worked(),
-                    Err(_) => {}
+            let queued = match hashed {
+                Err(e) => (Err(e), false),
+                Ok((hash, size)) => {
+                    let mut db = db::lock(&self.db);
+                    let out = match db.store() {
+                        Ok((store, _)) => intake::enqueue(store, &path, &hash, size),
+                        Err(source) => Err(intake::IntakeError::Queue {
+                            path: path.clone(),
+                            source,
+                        }),
+                    };
+                    let storage = match &out {
+                        Err(intake::IntakeError::Queue { source, .. }) => db.failed(source),
+                        Ok(_) => {
+                            db.worked();
+                            false
+                        }
+                        Err(_) => false,
+                    };
+                    (out, storage)
                 }
-                out
-            });
+            };
             match queued {
-                Ok(Enqueued::New(_) | Enqueued::Duplicate { .. }) => new = true,
-                Ok(Enqueued::Existing(..)) => {}
-                Err(intake::IntakeError::Queue { .. }) => {
+                (Ok(Enqueued::New(_) | Enqueued::Duplicate { .. }), _) => new = true,
+                (Ok(Enqueued::Existing(..)), _) => {}
+                (Err(_), true) => {
                     // Kept, not dropped: queued when the database works
                     // again (the fault is logged once, by the health).
                     if !self.unqueued.contains(&path) {
@@ -379,10 +385,12 @@ impl<'a> Daemon<'a> {
                     }
                     failed = true;
                 }
-                Err(e) => {
+                (Err(e @ intake::IntakeError::Read { .. }), false) => {
+                    // Gone or unreadable: the next listing sees it again.
                     tracing::warn!("{e}");
                     self.folder.release(&path);
                 }
+                (Err(e), false) => tracing::error!("{e}"),
             }
         }
         if failed {

@@ -252,7 +252,11 @@ impl WorkerState {
                 return Step::Idle;
             }
             Err(e) => {
-                guard.failed(&e);
+                if !guard.failed(&e) {
+                    // Not the storage: the same request would fail again;
+                    // reported once, retried with the same backoff.
+                    self.health.fault(Part::Database, &super::chain(&e));
+                }
                 return Step::Fault;
             }
         };
