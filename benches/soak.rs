@@ -57,6 +57,10 @@ struct Episode {
     /// were finished.
     waiting_for: usize,
     drained: Option<Duration>,
+    /// Files finished when the fault cleared, and how long until the next
+    /// one finished (work resumed).
+    finished_at_clear: usize,
+    resumed: Option<Duration>,
 }
 
 fn main() {
@@ -189,6 +193,7 @@ fn main() {
                         ep.log_lines = daemon.log_text().lines().count();
                         ep.cleared = Some(Instant::now());
                         ep.waiting_for = placed.len();
+                        ep.finished_at_clear = count_true(&finished_count(&db, &placed));
                     }
                 }
                 episodes.push(ep);
@@ -203,6 +208,7 @@ fn main() {
                 }
                 ep.cleared = Some(Instant::now());
                 ep.waiting_for = placed.len();
+                ep.finished_at_clear = count_true(&finished_count(&db, &placed));
             }
             _ => {}
         }
@@ -228,6 +234,12 @@ fn main() {
     while Instant::now() < end && !finished_count(&db, &placed).iter().all(|&d| d) {
         std::thread::sleep(Duration::from_millis(500));
         let done = finished_count(&db, &placed);
+        let n_done = count_true(&done);
+        for e in episodes.iter_mut().filter(|e| e.resumed.is_none()) {
+            if n_done > e.finished_at_clear {
+                e.resumed = e.cleared.map(|c| c.elapsed());
+            }
+        }
         for e in episodes.iter_mut().filter(|e| e.drained.is_none()) {
             if done.iter().take(e.waiting_for).all(|&d| d) {
                 e.drained = e.cleared.map(|c| c.elapsed());
@@ -280,6 +292,7 @@ fn main() {
         wall.as_secs_f64()
     );
     let mut worst = Duration::ZERO;
+    let mut worst_resume = Duration::ZERO;
     let mut worst_rate: f64 = 0.0;
     for e in &episodes {
         let lasted = e.cleared.map(|c| c - e.started).unwrap_or_default();
@@ -287,6 +300,12 @@ fn main() {
             .drained
             .map_or("never".to_string(), |d| format!("{:.1} s", d.as_secs_f64()));
         worst = worst.max(e.drained.unwrap_or(Duration::MAX));
+        if let Some(r) = e.resumed {
+            worst_resume = worst_resume.max(r);
+        }
+        let resumed = e
+            .resumed
+            .map_or("-".to_string(), |d| format!("{:.1} s", d.as_secs_f64()));
         let rate = if e.kind == "kill" {
             None
         } else {
@@ -296,7 +315,7 @@ fn main() {
             worst_rate = worst_rate.max(r);
         }
         println!(
-            "  {:>6} at {:>6.0} s for {:>4.1} s: drained {drained} after it cleared; log lines during it: {}",
+            "  {:>6} at {:>6.0} s for {:>4.1} s: next scan finished {resumed} and all earlier ones {drained} after it cleared; log lines during it: {}",
             e.kind,
             (e.started - started).as_secs_f64(),
             lasted.as_secs_f64(),
@@ -309,6 +328,10 @@ fn main() {
     );
     println!("peak RSS: {:.0} MB", peak_rss_kb as f64 / 1024.0);
     println!("log lines per minute during faults (worst): {worst_rate:.1}");
+}
+
+fn count_true(v: &[bool]) -> usize {
+    v.iter().filter(|&&b| b).count()
 }
 
 /// For each placed file, whether it has a finished row.
