@@ -171,6 +171,8 @@ fn main() {
                     log_lines: lines,
                     waiting_for: 0,
                     drained: None,
+                    finished_at_clear: 0,
+                    resumed: None,
                 };
                 match kind {
                     "full" => {
