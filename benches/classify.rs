@@ -72,7 +72,7 @@ fn identify(store: &mut Store, classifier: &Classifier, path: &Path) -> ScanStat
         .enqueue(&path.display().to_string(), &hash, bytes.len() as u64)
         .expect("enqueue")
     {
-        Enqueued::New(id) | Enqueued::Existing(id, _) => id,
+        Enqueued::New(id) | Enqueued::Existing(id, _) | Enqueued::Duplicate { id, .. } => id,
     };
     let job = store
         .claim(id)

@@ -124,8 +124,22 @@ impl Classifier {
     }
 
     /// Record the references in the store (names, content, labels, state),
-    /// so that results can point at them.
+    /// so that results can point at them, and log what the build left out.
     pub fn register(&self, store: &mut Store, outcome: &BuildOutcome) -> Result<(), StoreError> {
+        self.register_references(store)?;
+        for f in &outcome.failures {
+            tracing::warn!(reference = %f.name, "reference left out: {}", f.error);
+        }
+        for (name, why) in &outcome.landmarks.problems {
+            tracing::warn!(reference = %name, "landmarks left out: {why}");
+        }
+        Ok(())
+    }
+
+    /// Record the references in the store (names, content, labels, state)
+    /// and mark the others removed: what a new or replaced database needs
+    /// before results can point at them. Registering again changes nothing.
+    pub fn register_references(&self, store: &mut Store) -> Result<(), StoreError> {
         for r in &self.references {
             let labels: store::Labels = self
                 .labels
@@ -143,12 +157,6 @@ impl Classifier {
         }
         let names: Vec<&str> = self.references.iter().map(|r| r.name.as_str()).collect();
         store.remove_references_except(&names)?;
-        for f in &outcome.failures {
-            tracing::warn!(reference = %f.name, "reference left out: {}", f.error);
-        }
-        for (name, why) in &outcome.landmarks.problems {
-            tracing::warn!(reference = %name, "landmarks left out: {why}");
-        }
         Ok(())
     }
 
@@ -294,6 +302,51 @@ impl Classifier {
     }
 }
 
+/// What identifying a job came to, before it is recorded: held by the
+/// daemon's worker until the database takes it.
+#[derive(Debug, Clone)]
+pub enum Finding {
+    /// The identification, to record as `ok`.
+    Identified(ScanOutcome),
+    /// Why the file cannot be identified, to record as `error`.
+    Failed(String),
+}
+
+/// Identify the file of a claimed job (no database access): the outcome
+/// with its total time, or the message of why it cannot be identified.
+pub fn identify_job(classifier: &Classifier, job: &Job) -> Finding {
+    let started = Instant::now();
+    match classifier.classify_file(Path::new(&job.path)) {
+        Ok(mut outcome) => {
+            outcome
+                .timings_ms
+                .insert("total".into(), started.elapsed().as_secs_f64() * 1e3);
+            Finding::Identified(outcome)
+        }
+        Err(e) => Finding::Failed(e.to_string()),
+    }
+}
+
+/// Record a finding of the running scan `scan_id` in one transaction
+/// (`ok` with the whole result, or `error`); returns the status recorded.
+/// On a database failure nothing is recorded and the scan stays running.
+pub fn record_finding(
+    store: &mut Store,
+    scan_id: i64,
+    finding: &Finding,
+) -> Result<ScanStatus, StoreError> {
+    match finding {
+        Finding::Identified(outcome) => {
+            store.complete(scan_id, outcome)?;
+            Ok(ScanStatus::Ok)
+        }
+        Finding::Failed(message) => {
+            store.fail(scan_id, message)?;
+            Ok(ScanStatus::Error)
+        }
+    }
+}
+
 /// Identify a claimed job and record the outcome: `ok` with the whole
 /// result (landmarks included), or `error` with the message. Returns the
 /// final status; only a database failure is an error (the job then stays
@@ -306,21 +359,8 @@ pub fn run_job(
     classifier: &Classifier,
     job: &Job,
 ) -> Result<ScanStatus, StoreError> {
-    let path = Path::new(&job.path);
-    let started = Instant::now();
-    let status = match classifier.classify_file(path) {
-        Ok(mut outcome) => {
-            outcome
-                .timings_ms
-                .insert("total".into(), started.elapsed().as_secs_f64() * 1e3);
-            store.complete(job.scan_id, &outcome)?;
-            ScanStatus::Ok
-        }
-        Err(e) => {
-            store.fail(job.scan_id, &e.to_string())?;
-            ScanStatus::Error
-        }
-    };
+    let finding = identify_job(classifier, job);
+    let status = record_finding(store, job.scan_id, &finding)?;
     if let Some(files) = &classifier.results {
         match store.scan(job.scan_id, NEAREST) {
             Ok(Some(record)) => {
@@ -381,7 +421,8 @@ pub fn identify_file(
             store.abandon(id)?;
             id
         }
-        store::Enqueued::Existing(id, _) => id,
+        // The record of a duplicate carries its earlier scan's result.
+        store::Enqueued::Existing(id, _) | store::Enqueued::Duplicate { id, .. } => id,
     };
     if let Some(job) = store.claim(id)? {
         run_job(store, classifier, &job)?;

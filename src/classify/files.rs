@@ -218,6 +218,7 @@ mod tests {
             ranks: Vec::new(),
             nearest: Vec::new(),
             landmarks: None,
+            duplicate_of: None,
         }
     }
 

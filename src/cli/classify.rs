@@ -120,6 +120,14 @@ pub fn summary(r: &ScanRecord) -> String {
             r.path,
             r.error.as_deref().unwrap_or("unknown")
         ),
+        ScanStatus::Duplicate => {
+            let (id, path) = r
+                .duplicate_of
+                .as_ref()
+                .map(|o| (o.id, o.path.as_str()))
+                .unwrap_or_default();
+            format!("{}: duplicate of scan {id} ({path})", r.path)
+        }
         s => format!("{}: {}", r.path, s.as_str()),
     }
 }

@@ -210,32 +210,42 @@ pub fn hash(path: &Path) -> Result<(String, u64), IntakeError> {
     })
 }
 
-/// Queue a hashed file; content already known is not queued again.
-/// Returns the new scan id, or `None` when the content was known.
+/// Queue a hashed file: a new scan, nothing when the file is already
+/// recorded, or a `duplicate` row (with an INFO line naming the earlier
+/// scan) when its content is another file's. Returns what the store did.
 pub fn enqueue(
     store: &mut Store,
     path: &Path,
     hash: &str,
     size: u64,
-) -> Result<Option<i64>, IntakeError> {
-    match store.enqueue(&path.display().to_string(), hash, size) {
-        Ok(Enqueued::New(id)) => {
-            tracing::debug!("{}: queued as scan {id}", path.display());
-            Ok(Some(id))
-        }
-        Ok(Enqueued::Existing(id, status)) => {
-            tracing::debug!(
-                "{}: content already known as scan {id} ({})",
-                path.display(),
-                status.as_str()
-            );
-            Ok(None)
-        }
-        Err(source) => Err(IntakeError::Queue {
+) -> Result<Enqueued, IntakeError> {
+    let queued = store
+        .enqueue(&path.display().to_string(), hash, size)
+        .map_err(|source| IntakeError::Queue {
             path: path.to_path_buf(),
             source,
-        }),
+        })?;
+    match queued {
+        Enqueued::New(id) => tracing::debug!("{}: queued as scan {id}", path.display()),
+        Enqueued::Existing(id, status) => tracing::debug!(
+            "{}: already recorded as scan {id} ({})",
+            path.display(),
+            status.as_str()
+        ),
+        Enqueued::Duplicate { id, of } => {
+            let earlier = store
+                .scan(of, 0)
+                .ok()
+                .flatten()
+                .map(|r| r.path)
+                .unwrap_or_default();
+            tracing::info!(
+                "{}: same content as scan {of} ({earlier}); recorded as scan {id}, a duplicate",
+                path.display()
+            );
+        }
     }
+    Ok(queued)
 }
 
 #[cfg(test)]

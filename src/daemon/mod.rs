@@ -18,30 +18,36 @@
 //! (when a file is complete), `intake` (which files become jobs), `glob`
 //! (`watch.ignore`), `worker`, `serial`.
 
+mod db;
 mod glob;
+mod health;
 mod intake;
 mod serial;
 mod settle;
 mod watch;
 mod worker;
 
+pub use health::BACKOFF_MAX as STORAGE_RETRY_MAX;
 pub use serial::{is_standard_baud, BACKOFF_MAX};
 pub use worker::MAX_ATTEMPTS;
 
 use crate::classify::{Classifier, ResultFiles};
 use crate::config::Config;
 use crate::library::BuildOutcome;
-use crate::store::{now_ms, utc_day_start_ms, Store, StoreError};
+use crate::store::{now_ms, utc_day_start_ms, Enqueued, Store, StoreError};
+use db::{Db, SharedDb};
+use health::{Backoff, Health};
 use regex::Regex;
 use sd_notify::NotifyState;
 use serial::SerialTrigger;
 use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::signal::unix::{signal, Signal, SignalKind};
 use tokio::sync::mpsc::{self, UnboundedReceiver, UnboundedSender};
 use tokio::time::{interval, interval_at, sleep, Instant, Interval, MissedTickBehavior};
 use watch::FolderWatch;
-use worker::Worker;
+use worker::{Setup, Worker};
 
 /// A job running longer than this is taken as hung: watchdog pings stop,
 /// so systemd restarts the daemon (and [`MAX_ATTEMPTS`] ends the loop).
@@ -228,7 +234,10 @@ async fn control_loop(loader: &dyn Loader) -> Result<(), DaemonError> {
                 let ready = daemon.folder.safety_rescan();
                 daemon.queue(ready).await;
             }
-            _ = timers.house.tick() => daemon.on_housekeeping(),
+            _ = timers.house.tick() => {
+                daemon.on_housekeeping();
+                daemon.retry_intake().await;
+            }
         }
     }
     daemon.stop().await;
@@ -239,8 +248,14 @@ async fn control_loop(loader: &dyn Loader) -> Result<(), DaemonError> {
 struct Daemon<'a> {
     loader: &'a dyn Loader,
     config: Config,
-    /// The control loop's connection (the worker has its own).
-    store: Store,
+    /// The database connection, shared with the worker.
+    db: SharedDb,
+    /// What is wrong with the storage, if anything.
+    health: Health,
+    /// Settled files that could not be queued (the database failed):
+    /// queued as soon as it works again, never dropped.
+    unqueued: Vec<PathBuf>,
+    intake_backoff: Backoff,
     worker: Worker,
     folder: FolderWatch,
     serial: Option<SerialTrigger>,
@@ -262,27 +277,36 @@ impl<'a> Daemon<'a> {
     async fn start(loader: &'a dyn Loader) -> Result<Daemon<'a>, DaemonError> {
         let config = loader.config()?;
         let trigger = compile_trigger(&config)?;
-        let db = config.database.path.clone();
-        let mut store = Store::open(&db)?;
-        let requeued = store.requeue_running()?;
-        if requeued > 0 {
-            tracing::info!("{requeued} scan(s) left running by an earlier run are pending again");
-        }
-        let classifier = load_library(loader, &config, &mut store)?;
+        let health = Health::default();
+        let mut db = Db::open(&config.database.path, health.clone())?;
+        let (classifier, files) = {
+            let (store, _) = db.store()?;
+            let requeued = store.requeue_running()?;
+            if requeued > 0 {
+                tracing::info!(
+                    "{requeued} scan(s) left running by an earlier run are pending again"
+                );
+            }
+            load_library(loader, &config, store)?
+        };
+        db.set_result_files(files.is_some());
         let references = classifier.references().len();
         tracing::info!(
             "library {} loaded: {references} references; watching {}",
             config.library.dir.display(),
             config.watch.dir.display()
         );
-        let worker = Worker::spawn(
-            Store::open(&db)?,
+        let db = Arc::new(Mutex::new(db));
+        let setup = Setup {
             classifier,
-            config.watch.quarantine.clone(),
-        )
-        .map_err(|source| DaemonError::Start {
-            what: "worker thread",
-            source,
+            files,
+            quarantine: config.watch.quarantine.clone(),
+        };
+        let worker = Worker::spawn(Arc::clone(&db), setup, health.clone()).map_err(|source| {
+            DaemonError::Start {
+                what: "worker thread",
+                source,
+            }
         })?;
         let (serial_tx, serial_rx) = mpsc::unbounded_channel::<String>();
         let serial = start_serial(&config, trigger.as_ref(), &serial_tx);
@@ -290,7 +314,10 @@ impl<'a> Daemon<'a> {
         let mut daemon = Daemon {
             loader,
             config,
-            store,
+            db,
+            health,
+            unqueued: Vec::new(),
+            intake_backoff: Backoff::default(),
             worker,
             folder,
             serial,
@@ -314,6 +341,7 @@ impl<'a> Daemon<'a> {
     /// file takes a while to read); wakes the worker when something is new.
     async fn queue(&mut self, ready: Vec<PathBuf>) {
         let mut new = false;
+        let mut failed = false;
         for path in ready {
             let p = path.clone();
             let hashed = match tokio::task::spawn_blocking(move || intake::hash(&p)).await {
@@ -324,19 +352,66 @@ impl<'a> Daemon<'a> {
                     continue;
                 }
             };
-            let queued = hashed
-                .and_then(|(hash, size)| intake::enqueue(&mut self.store, &path, &hash, size));
+            let queued = match hashed {
+                Err(e) => (Err(e), false),
+                Ok((hash, size)) => {
+                    let mut db = db::lock(&self.db);
+                    let out = match db.store() {
+                        Ok((store, _)) => intake::enqueue(store, &path, &hash, size),
+                        Err(source) => Err(intake::IntakeError::Queue {
+                            path: path.clone(),
+                            source,
+                        }),
+                    };
+                    let storage = match &out {
+                        Err(intake::IntakeError::Queue { source, .. }) => db.failed(source),
+                        Ok(_) => {
+                            db.worked();
+                            false
+                        }
+                        Err(_) => false,
+                    };
+                    (out, storage)
+                }
+            };
             match queued {
-                Ok(Some(_)) => new = true,
-                Ok(None) => {}
-                Err(e) => {
+                (Ok(Enqueued::New(_) | Enqueued::Duplicate { .. }), _) => new = true,
+                (Ok(Enqueued::Existing(..)), _) => {}
+                (Err(_), true) => {
+                    // Kept, not dropped: queued when the database works
+                    // again (the fault is logged once, by the health).
+                    if !self.unqueued.contains(&path) {
+                        self.unqueued.push(path);
+                    }
+                    failed = true;
+                }
+                (Err(e @ intake::IntakeError::Read { .. }), false) => {
+                    // Gone or unreadable: the next listing sees it again.
                     tracing::warn!("{e}");
                     self.folder.release(&path);
                 }
+                (Err(e), false) => tracing::error!("{e}"),
             }
+        }
+        if failed {
+            self.intake_backoff.failed();
         }
         if new {
             self.worker.wake();
+        }
+    }
+
+    /// Queue again the files the database refused, when their wait is up.
+    async fn retry_intake(&mut self) {
+        if self.unqueued.is_empty() || !self.intake_backoff.ready() {
+            return;
+        }
+        let paths = std::mem::take(&mut self.unqueued);
+        let n = paths.len();
+        self.queue(paths).await;
+        if self.unqueued.is_empty() {
+            self.intake_backoff.succeeded();
+            tracing::info!("{n} file(s) held while the database failed are queued");
         }
     }
 
@@ -346,12 +421,26 @@ impl<'a> Daemon<'a> {
     async fn on_reload(&mut self) {
         tracing::info!("reloading the configuration and the library");
         notify(&[NotifyState::Reloading]);
-        let reloaded = with_watchdog_pings(self.watchdog, || reload(self.loader, &mut self.store));
+        let db = Arc::clone(&self.db);
+        let reloaded = with_watchdog_pings(self.watchdog, || {
+            let mut db = db::lock(&db);
+            let out = match db.store() {
+                Ok((store, _)) => reload(self.loader, store),
+                Err(e) => Err(e.into()),
+            };
+            if let Ok((_, _, files, _)) = &out {
+                db.set_result_files(files.is_some());
+            }
+            out
+        });
         match reloaded {
-            Ok((config, classifier, trigger)) => {
+            Ok((config, classifier, files, trigger)) => {
                 self.references = classifier.references().len();
-                self.worker
-                    .reload(classifier, config.watch.quarantine.clone());
+                self.worker.reload(Setup {
+                    classifier,
+                    files,
+                    quarantine: config.watch.quarantine.clone(),
+                });
                 if config.serial != self.config.serial {
                     // Dropping the old trigger stops its thread.
                     drop(self.serial.take());
@@ -428,11 +517,22 @@ impl<'a> Daemon<'a> {
             .last_status_at
             .is_none_or(|t| t.elapsed() >= STATUS_INTERVAL)
         {
-            let status = status_line(
-                &self.store,
-                self.references,
-                self.worker.progress().current(),
-            );
+            let mut status = match self.db.try_lock() {
+                Ok(mut db) => match db.store() {
+                    Ok((store, _)) => {
+                        status_line(store, self.references, self.worker.progress().current())
+                    }
+                    Err(_) => self.last_status.clone(),
+                },
+                // The worker is using the connection: keep the last line.
+                Err(_) => self.last_status.clone(),
+            };
+            if let Some(p) = status.find("; degraded:") {
+                status.truncate(p);
+            }
+            if let Some(degraded) = self.health.summary() {
+                status = format!("{status}; {degraded}");
+            }
             if status != self.last_status {
                 notify(&[NotifyState::Status(&status)]);
                 self.last_status = status;
@@ -454,7 +554,9 @@ impl<'a> Daemon<'a> {
         }
         if !self.worker.is_finished() {
             if let Some(id) = self.worker.progress().current() {
-                match self.store.abandon(id) {
+                let mut db = db::lock(&self.db);
+                let abandoned = db.store().and_then(|(store, _)| store.abandon(id));
+                match abandoned {
                     Ok(()) => {
                         tracing::info!("scan {id} abandoned; it is pending for the next start")
                     }
@@ -465,14 +567,14 @@ impl<'a> Daemon<'a> {
     }
 }
 
-/// The classifier of `config`'s library, its references recorded in the
-/// store and its result files set up. The build report is logged and
-/// dropped here: the daemon keeps only the classifier.
+/// The classifier of `config`'s library with its references recorded in
+/// the store, and the result files it configures. The build report is
+/// logged and dropped here: the daemon keeps only the classifier.
 fn load_library(
     loader: &dyn Loader,
     config: &Config,
     store: &mut Store,
-) -> Result<Classifier, DaemonError> {
+) -> Result<(Classifier, Option<ResultFiles>), DaemonError> {
     let (classifier, outcome) = loader.library(config)?;
     classifier.register(store, &outcome)?;
     let results = config
@@ -480,18 +582,19 @@ fn load_library(
         .dir
         .clone()
         .map(|dir| ResultFiles::new(dir, Some(config.watch.dir.clone())));
-    Ok(classifier.with_result_files(results))
+    Ok((classifier, results))
 }
 
+/// What a reload gives: the configuration, its classifier, result files
+/// and serial trigger.
+type Reloaded = (Config, Classifier, Option<ResultFiles>, Option<Regex>);
+
 /// Re-read the configuration and load its library (SIGHUP).
-fn reload(
-    loader: &dyn Loader,
-    store: &mut Store,
-) -> Result<(Config, Classifier, Option<Regex>), DaemonError> {
+fn reload(loader: &dyn Loader, store: &mut Store) -> Result<Reloaded, DaemonError> {
     let config = loader.config()?;
     let trigger = compile_trigger(&config)?;
-    let classifier = load_library(loader, &config, store)?;
-    Ok((config, classifier, trigger))
+    let (classifier, files) = load_library(loader, &config, store)?;
+    Ok((config, classifier, files, trigger))
 }
 
 /// Run `work`, pinging the watchdog from a helper thread meanwhile: a

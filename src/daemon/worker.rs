@@ -1,12 +1,21 @@
 //! The worker: a dedicated thread that owns the classifier (the library is
-//! loaded once and replaced only on reload) and its own database
-//! connection, claims pending jobs one at a time and runs them through
-//! `classify::run_job`. The numerical work (itself parallel on rayon's
-//! pool) thus never runs on the async control loop, which stays free for
-//! signals, the watchdog and the folder.
+//! loaded once and replaced only on reload), claims pending jobs one at a
+//! time through the daemon's database connection and identifies them. The
+//! numerical work (itself parallel on rayon's pool) thus never runs on the
+//! async control loop, which stays free for signals, the watchdog and the
+//! folder.
+//!
+//! Storage faults never lose work: a job is identified only after its
+//! claim committed; its finding is held in memory until the transaction
+//! that records it (and moves the row from `running` to `ok` or `error`)
+//! commits, retried with [`Backoff`] meanwhile. Result files are written
+//! from the database's list of due ones, so a results folder that cannot
+//! be written gets them once it can.
 
-use crate::classify::{self, Classifier, NEAREST};
-use crate::store::{now_ms, ScanStatus, Store};
+use super::db::{self, SharedDb};
+use super::health::{Backoff, Health, Part};
+use crate::classify::{self, Classifier, Finding, ResultFiles, NEAREST};
+use crate::store::{now_ms, Job, ScanStatus, Store, StoreError};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
@@ -19,12 +28,29 @@ use std::time::{Duration, Instant};
 /// instead of being tried for ever.
 pub const MAX_ATTEMPTS: u32 = 3;
 
+/// How often the worker looks for work nobody told it about (jobs queued
+/// by another process, `morphoid retry`).
+const IDLE_WAKE: Duration = Duration::from_secs(5);
+
+/// Result files written per pass, so jobs are not held up behind a backlog.
+const FILES_PER_PASS: usize = 16;
+
+/// What the worker works with; replaced as a whole on reload.
+pub struct Setup {
+    /// The prepared library.
+    pub classifier: Classifier,
+    /// Where result files go, if anywhere.
+    pub files: Option<ResultFiles>,
+    /// Where unusable files are moved, if anywhere.
+    pub quarantine: Option<PathBuf>,
+}
+
 /// Messages to the worker thread.
 enum ToWorker {
     /// New jobs may be pending.
     Wake,
-    /// Use this classifier and quarantine folder from the next job on.
-    Reload(Box<Classifier>, Option<PathBuf>),
+    /// Use this setup from the next job on.
+    Reload(Box<Setup>),
 }
 
 /// What the worker shares with the control loop: the scan it is
@@ -60,18 +86,26 @@ pub struct Worker {
 }
 
 impl Worker {
-    /// Start the worker on its own connection to the database.
-    pub fn spawn(
-        store: Store,
-        classifier: Classifier,
-        quarantine: Option<PathBuf>,
-    ) -> std::io::Result<Self> {
+    /// Start the worker on the daemon's database connection.
+    pub fn spawn(db: SharedDb, setup: Setup, health: Health) -> std::io::Result<Self> {
         let (tx, rx) = mpsc::channel();
         let progress = Progress::default();
         let shared = progress.clone();
         let thread = std::thread::Builder::new()
             .name("morphoid-worker".into())
-            .spawn(move || worker_loop(store, classifier, quarantine, rx, shared))?;
+            .spawn(move || {
+                let mut w = WorkerState {
+                    db,
+                    setup,
+                    health,
+                    progress: shared,
+                    held: None,
+                    backoff: Backoff::default(),
+                    files_backoff: Backoff::default(),
+                    registered: 0,
+                };
+                w.run(rx)
+            })?;
         Ok(Worker {
             tx: Some(tx),
             thread,
@@ -86,11 +120,11 @@ impl Worker {
         }
     }
 
-    /// Hand the worker a new classifier and quarantine folder (SIGHUP);
-    /// the job in progress finishes with the old one.
-    pub fn reload(&self, classifier: Classifier, quarantine: Option<PathBuf>) {
+    /// Hand the worker a new setup (SIGHUP); the job in progress finishes
+    /// with the old one.
+    pub fn reload(&self, setup: Setup) {
         if let Some(tx) = &self.tx {
-            let _ = tx.send(ToWorker::Reload(Box::new(classifier), quarantine));
+            let _ = tx.send(ToWorker::Reload(Box::new(setup)));
         }
     }
 
@@ -112,81 +146,230 @@ impl Worker {
     }
 }
 
-/// The worker: claim pending jobs one at a time and identify them.
-fn worker_loop(
-    mut store: Store,
-    mut classifier: Classifier,
-    mut quarantine: Option<PathBuf>,
-    rx: Receiver<ToWorker>,
+/// A job identified but not recorded yet.
+struct Held {
+    job: Job,
+    finding: Finding,
+    secs: f64,
+}
+
+/// What one step of the worker came to.
+enum Step {
+    /// Something was done; look for more.
+    Worked,
+    /// Nothing to do.
+    Idle,
+    /// The database failed; wait before trying again.
+    Fault,
+}
+
+/// The worker thread's state.
+struct WorkerState {
+    db: SharedDb,
+    setup: Setup,
+    health: Health,
     progress: Progress,
-) {
-    let stop = progress.stop.clone();
-    loop {
-        // A periodic wake-up also catches jobs queued by another process
-        // (`morphoid retry`, for instance).
-        match rx.recv_timeout(Duration::from_secs(5)) {
-            Ok(ToWorker::Reload(c, q)) => {
-                classifier = *c;
-                quarantine = q;
-            }
-            Ok(ToWorker::Wake) | Err(RecvTimeoutError::Timeout) => {}
-            Err(RecvTimeoutError::Disconnected) => return,
-        }
-        while !stop.load(Ordering::SeqCst) {
-            while let Ok(msg) = rx.try_recv() {
-                if let ToWorker::Reload(c, q) = msg {
-                    classifier = *c;
-                    quarantine = q;
-                }
-            }
-            let job = match store.claim_next() {
-                Ok(Some(job)) => job,
-                Ok(None) => break,
-                Err(e) => {
-                    tracing::error!("cannot claim a job: {e}");
-                    std::thread::sleep(Duration::from_secs(1));
-                    break;
-                }
+    /// The finding waiting for the database.
+    held: Option<Held>,
+    /// Retries of database operations.
+    backoff: Backoff,
+    /// Retries of result files.
+    files_backoff: Backoff,
+    /// The connection generation the references were registered on.
+    registered: u64,
+}
+
+impl WorkerState {
+    fn run(&mut self, rx: Receiver<ToWorker>) {
+        let stop = self.progress.stop.clone();
+        loop {
+            let wait = if self.backoff.failing() {
+                self.backoff.remaining()
+            } else if self.files_backoff.failing() {
+                self.files_backoff.remaining().min(IDLE_WAKE)
+            } else {
+                IDLE_WAKE
             };
-            if job.attempts > MAX_ATTEMPTS {
-                let message = format!(
-                    "{}: given up after {} attempts that did not finish (the daemon died on it)",
-                    job.path,
-                    job.attempts - 1
-                );
-                tracing::error!("{message}");
-                if let Err(e) = store.fail(job.scan_id, &message) {
-                    tracing::error!("{}: cannot record the failure: {e}", job.path);
+            match rx.recv_timeout(wait) {
+                Ok(ToWorker::Reload(setup)) => self.setup = *setup,
+                Ok(ToWorker::Wake) | Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => {
+                    // Stopping: a finding not recorded yet gets a last try.
+                    if self.held.is_some() {
+                        let _ = self.step();
+                    }
+                    return;
                 }
-                continue;
             }
-            progress.started_ms.store(now_ms(), Ordering::SeqCst);
-            progress.current.store(job.scan_id, Ordering::SeqCst);
-            let started = Instant::now();
-            let status = classify::run_job(&mut store, &classifier, &job);
-            let secs = started.elapsed().as_secs_f64();
-            progress.current.store(0, Ordering::SeqCst);
-            match status {
-                Ok(ScanStatus::Ok) => log_result(&store, job.scan_id, &job.path, secs),
-                Ok(_) => {
-                    let message = store
-                        .scan(job.scan_id, 0)
-                        .ok()
-                        .flatten()
-                        .and_then(|r| r.error)
-                        .unwrap_or_default();
-                    tracing::warn!("{}: error after {secs:.1} s: {message}", job.path);
-                    if let Some(q) = &quarantine {
-                        move_to_quarantine(Path::new(&job.path), q);
+            while !stop.load(Ordering::SeqCst) {
+                while let Ok(msg) = rx.try_recv() {
+                    if let ToWorker::Reload(setup) = msg {
+                        self.setup = *setup;
                     }
                 }
-                Err(e) => tracing::error!("{}: cannot record the result: {e}", job.path),
+                if !self.backoff.ready() {
+                    break;
+                }
+                match self.step() {
+                    Step::Worked => self.backoff.succeeded(),
+                    Step::Idle => {
+                        self.backoff.succeeded();
+                        break;
+                    }
+                    Step::Fault => {
+                        self.backoff.failed();
+                        break;
+                    }
+                }
+            }
+            if stop.load(Ordering::SeqCst) {
+                if self.held.is_some() {
+                    let _ = self.step();
+                }
+                return;
             }
         }
-        if stop.load(Ordering::SeqCst) {
-            return;
+    }
+
+    /// Record the held finding, else write due result files, else claim
+    /// and identify the next job (outside the lock: the control loop
+    /// queues files meanwhile).
+    fn step(&mut self) -> Step {
+        let db = Arc::clone(&self.db);
+        let mut guard = db::lock(&db);
+        let next = match guard.store() {
+            Ok((store, generation)) => self.step_on(store, generation),
+            Err(e) => Err(e),
+        };
+        let job = match next {
+            Ok(Next::Claimed(job)) => job,
+            Ok(Next::Worked) => {
+                guard.worked();
+                return Step::Worked;
+            }
+            Ok(Next::Idle) => {
+                guard.worked();
+                return Step::Idle;
+            }
+            Err(e) => {
+                if !guard.failed(&e) {
+                    // Not the storage: the same request would fail again;
+                    // reported once, retried with the same backoff.
+                    self.health.fault(Part::Database, &super::chain(&e));
+                }
+                return Step::Fault;
+            }
+        };
+        guard.worked();
+        drop(guard);
+        self.progress.started_ms.store(now_ms(), Ordering::SeqCst);
+        self.progress.current.store(job.scan_id, Ordering::SeqCst);
+        let started = Instant::now();
+        let finding = classify::identify_job(&self.setup.classifier, &job);
+        let secs = started.elapsed().as_secs_f64();
+        self.progress.current.store(0, Ordering::SeqCst);
+        self.held = Some(Held { job, finding, secs });
+        Step::Worked
+    }
+
+    fn step_on(&mut self, store: &mut Store, generation: u64) -> Result<Next, StoreError> {
+        if generation != self.registered {
+            // A new connection may be to a new file: results need the
+            // references registered.
+            self.setup.classifier.register_references(store)?;
+            self.registered = generation;
+        }
+        if let Some(held) = self.held.take() {
+            match classify::record_finding(store, held.job.scan_id, &held.finding) {
+                Ok(status) => self.recorded(store, &held, status),
+                Err(e @ (StoreError::WrongStatus { .. } | StoreError::NoSuchScan(_))) => {
+                    // Recorded already, or the database file was replaced:
+                    // never a second result; a file the database does not
+                    // know is queued again by the next listing.
+                    tracing::warn!("{}: identification not recorded: {e}", held.job.path);
+                }
+                Err(e) => {
+                    self.held = Some(held);
+                    return Err(e);
+                }
+            }
+            return Ok(Next::Worked);
+        }
+        if self.files_backoff.ready() && self.write_due_files(store)? {
+            return Ok(Next::Worked);
+        }
+        let Some(job) = store.claim_next()? else {
+            return Ok(Next::Idle);
+        };
+        if job.attempts > MAX_ATTEMPTS {
+            let message = format!(
+                "{}: given up after {} attempts that did not finish (the daemon died on it)",
+                job.path,
+                job.attempts - 1
+            );
+            tracing::error!("{message}");
+            self.held = Some(Held {
+                job,
+                finding: Finding::Failed(message),
+                secs: 0.0,
+            });
+            return Ok(Next::Worked);
+        }
+        Ok(Next::Claimed(job))
+    }
+
+    /// The log line of a recorded job, and the quarantine of a failed one.
+    fn recorded(&self, store: &Store, held: &Held, status: ScanStatus) {
+        let (job, secs) = (&held.job, held.secs);
+        match (&held.finding, status) {
+            (_, ScanStatus::Ok) => log_result(store, job.scan_id, &job.path, secs),
+            (Finding::Failed(message), _) => {
+                tracing::warn!("{}: error after {secs:.1} s: {message}", job.path);
+                if let Some(q) = &self.setup.quarantine {
+                    move_to_quarantine(Path::new(&job.path), q);
+                }
+            }
+            _ => {}
         }
     }
+
+    /// Write the due result files (a few per pass); `true` when some were
+    /// written. A folder that cannot be written is reported once and tried
+    /// again later; jobs go on meanwhile.
+    fn write_due_files(&mut self, store: &mut Store) -> Result<bool, StoreError> {
+        let Some(files) = &self.setup.files else {
+            return Ok(false);
+        };
+        let due = store.files_due(FILES_PER_PASS)?;
+        let mut wrote = false;
+        for id in due {
+            let Some(record) = store.scan(id, NEAREST)? else {
+                continue;
+            };
+            match files.write(&record) {
+                Ok(_) => {
+                    store.files_written(id)?;
+                    self.health.clear(Part::Results);
+                    self.files_backoff.succeeded();
+                    wrote = true;
+                }
+                Err(e) => {
+                    self.health.fault(Part::Results, &super::chain(&e));
+                    self.files_backoff.failed();
+                    return Ok(false);
+                }
+            }
+        }
+        Ok(wrote)
+    }
+}
+
+/// What [`WorkerState::step_on`] came to.
+enum Next {
+    Worked,
+    Idle,
+    /// A job whose claim has committed, to identify now.
+    Claimed(Job),
 }
 
 /// One info line per identified scan: file, nearest taxon per rank with

@@ -387,7 +387,11 @@ pub fn build(
                 match loaded.origin {
                     Origin::Cache => out.reused += 1,
                     Origin::Prepared => {
-                        cache.put(&loaded.key, &loaded.reference)?;
+                        // The cache only saves time: a full or failing
+                        // disk must not stop the library from loading.
+                        if let Err(e) = cache.put(&loaded.key, &loaded.reference) {
+                            tracing::warn!(reference = %m.name, "not stored in the cache: {e}");
+                        }
                         out.prepared += 1;
                     }
                 }
@@ -400,7 +404,10 @@ pub fn build(
             }),
         }
     }
-    out.removed = cache.retain(&keep)?;
+    out.removed = cache.retain(&keep).unwrap_or_else(|e| {
+        tracing::warn!("stale cache entries not removed: {e}");
+        0
+    });
     let names: Vec<String> = library.members.iter().map(|m| m.name.clone()).collect();
     out.landmarks = crate::landmarks::load_library(&library.dir, &names);
     Ok(out)

@@ -79,3 +79,36 @@ pub enum StoreError {
     #[error("corrupt database: {0}")]
     Corrupt(String),
 }
+
+impl StoreError {
+    /// Whether the storage failed rather than the request: the disk is
+    /// full, an I/O error, the file or its folder is read-only, another
+    /// connection holds the lock, the file cannot be opened (deleted,
+    /// replaced, not a database). The same operation may succeed later on a
+    /// fresh connection; anything else (a scan in the wrong state, a bad
+    /// value) will fail again.
+    pub fn is_storage_fault(&self) -> bool {
+        use rusqlite::ErrorCode as C;
+        let source = match self {
+            StoreError::Open { .. } => return true,
+            StoreError::Sqlite(e) => e,
+            _ => return false,
+        };
+        matches!(
+            source.sqlite_error_code(),
+            Some(
+                C::DiskFull
+                    | C::SystemIoFailure
+                    | C::ReadOnly
+                    | C::DatabaseBusy
+                    | C::DatabaseLocked
+                    | C::CannotOpen
+                    | C::FileLockingProtocolFailed
+                    | C::NotADatabase
+                    | C::DatabaseCorrupt
+                    | C::PermissionDenied
+                    | C::OutOfMemory
+            )
+        )
+    }
+}

@@ -74,7 +74,8 @@ mod types;
 pub use error::StoreError;
 pub use schema::{migrate, APPLICATION_ID, MIGRATIONS, SCHEMA_VERSION};
 pub use types::{
-    Enqueued, Job, Labels, ReferenceRecord, ReferenceState, ScanRecord, ScanStatus, StatusCounts,
+    Enqueued, Job, Labels, Original, ReferenceRecord, ReferenceState, ScanRecord, ScanStatus,
+    StatusCounts,
 };
 
 use rusqlite::{Connection, OptionalExtension};
@@ -94,6 +95,9 @@ pub const DEFAULT_NEAREST: usize = 5;
 pub struct Store {
     conn: Connection,
     path: PathBuf,
+    /// Whether finishing a scan marks its result files as due
+    /// ([`Store::set_result_files`]).
+    result_files: bool,
 }
 
 impl std::fmt::Debug for Store {
@@ -144,7 +148,35 @@ impl Store {
         Ok(Store {
             conn,
             path: path.to_path_buf(),
+            result_files: false,
         })
+    }
+
+    /// Whether this connection marks the result files of every scan it
+    /// finishes (`complete`, `fail`, a duplicate's `enqueue`) as due, in
+    /// the same transaction; [`Store::files_due`] lists them until
+    /// [`Store::files_written`]. A daemon with a results folder sets it, so
+    /// a result file that cannot be written now is written later.
+    pub fn set_result_files(&mut self, on: bool) {
+        self.result_files = on;
+    }
+
+    /// How long a write waits for another connection's lock before it
+    /// fails as busy (default 10 s). The daemon waits less, so that its
+    /// control loop is never held up long; the job is retried instead.
+    pub fn set_busy_timeout(&mut self, timeout: Duration) -> Result<(), StoreError> {
+        Ok(self.conn.busy_timeout(timeout)?)
+    }
+
+    /// Write a consistent copy of the whole database to the new file
+    /// `target` (`VACUUM INTO`): how the daemon puts back a database file
+    /// deleted under its open connection.
+    pub fn copy_to(&self, target: &Path) -> Result<(), StoreError> {
+        let target = target
+            .to_str()
+            .ok_or_else(|| StoreError::Corrupt(format!("{} is not UTF-8", target.display())))?;
+        self.conn.execute("VACUUM INTO ?1", [target])?;
+        Ok(())
     }
 
     /// The database file.

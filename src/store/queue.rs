@@ -11,11 +11,13 @@ use rusqlite::{params, Connection, OptionalExtension, Row, TransactionBehavior};
 const JOB_COLUMNS: &str = "id, path, content_hash, size, attempts";
 
 impl Store {
-    /// Add a pending scan for the file at `path` with this content, unless
-    /// the content is already known: then nothing is added and the existing
-    /// scan is returned, whatever its status (the same bytes are identified
-    /// once; use [`Store::retry`] to identify them again). A changed file
-    /// has a new hash and is enqueued.
+    /// Add a pending scan for the file at `path` with this content. Content
+    /// already known is not identified again: the same file (the content's
+    /// scan at this path, or a duplicate row of it) returns the existing
+    /// row, whatever its status; the same content at another path gets its
+    /// own row with status `duplicate`, pointing at the earlier scan (use
+    /// [`Store::retry`] to identify the content again). A changed file has
+    /// a new hash and is enqueued.
     pub fn enqueue(
         &mut self,
         path: &str,
@@ -26,15 +28,44 @@ impl Store {
         let tx = self
             .conn
             .transaction_with_behavior(TransactionBehavior::Immediate)?;
-        let existing: Option<(i64, String)> = tx
+        let known: Option<(i64, String, String)> = tx
             .query_row(
-                "SELECT id, status FROM scan WHERE content_hash = ?1",
+                "SELECT id, status, path FROM scan
+                 WHERE content_hash = ?1 AND status <> 'duplicate'",
                 [content_hash],
-                |r| Ok((r.get("id")?, r.get("status")?)),
+                |r| Ok((r.get("id")?, r.get("status")?, r.get("path")?)),
             )
             .optional()?;
-        let out = match existing {
-            Some((id, status)) => Enqueued::Existing(id, parse_status(&status)?),
+        let out = match known {
+            Some((id, status, known_path)) if known_path == path => {
+                Enqueued::Existing(id, parse_status(&status)?)
+            }
+            Some((of, _, _)) => {
+                let again: Option<i64> = tx
+                    .query_row(
+                        "SELECT id FROM scan
+                         WHERE content_hash = ?1 AND path = ?2 AND status = 'duplicate'",
+                        params![content_hash, path],
+                        |r| r.get("id"),
+                    )
+                    .optional()?;
+                match again {
+                    Some(id) => Enqueued::Existing(id, ScanStatus::Duplicate),
+                    None => {
+                        let now = now_ms();
+                        tx.execute(
+                            "INSERT INTO scan (path, content_hash, size, status, created_at,
+                                               finished_at, duplicate_of, files_due)
+                             VALUES (?1, ?2, ?3, 'duplicate', ?4, ?4, ?5, ?6)",
+                            params![path, content_hash, size, now, of, self.result_files],
+                        )?;
+                        Enqueued::Duplicate {
+                            id: tx.last_insert_rowid(),
+                            of,
+                        }
+                    }
+                }
+            }
             None => {
                 tx.execute(
                     "INSERT INTO scan (path, content_hash, size, status, created_at)
@@ -49,30 +80,54 @@ impl Store {
     }
 
     /// Take the oldest pending scan: mark it running (atomically, so two
-    /// workers never get the same one) and return it. `None` when nothing
-    /// is pending.
+    /// workers never get the same one) and return it once the claim has
+    /// committed: a job is never worked on under a claim that did not
+    /// reach the database. `None` when nothing is pending.
     pub fn claim_next(&mut self) -> Result<Option<Job>, StoreError> {
-        let mut stmt = self.conn.prepare(&format!(
-            "UPDATE scan SET status = 'running', started_at = ?1, attempts = attempts + 1
-             WHERE id = (SELECT id FROM scan WHERE status = 'pending' ORDER BY id LIMIT 1)
-             RETURNING {JOB_COLUMNS}"
-        ))?;
-        let mut rows = stmt.query([now_ms()])?;
-        rows.next()?.map(job_from_row).transpose()
+        self.claim_where(
+            "(SELECT id FROM scan WHERE status = 'pending' ORDER BY id LIMIT 1)",
+            None,
+        )
     }
 
     /// Take this particular scan if it is pending (what one-shot `classify`
     /// does with the scan it has just enqueued, leaving the rest of the
-    /// queue alone). `None` when it is not pending: running elsewhere, or
-    /// already finished (read it with [`Store::scan`]).
+    /// queue alone), once the claim has committed. `None` when it is not
+    /// pending: running elsewhere, or already finished (read it with
+    /// [`Store::scan`]).
     pub fn claim(&mut self, scan_id: i64) -> Result<Option<Job>, StoreError> {
-        let mut stmt = self.conn.prepare(&format!(
-            "UPDATE scan SET status = 'running', started_at = ?1, attempts = attempts + 1
-             WHERE id = ?2 AND status = 'pending'
-             RETURNING {JOB_COLUMNS}"
-        ))?;
-        let mut rows = stmt.query(params![now_ms(), scan_id])?;
-        rows.next()?.map(job_from_row).transpose()
+        self.claim_where("?2 AND status = 'pending'", Some(scan_id))
+    }
+
+    /// Mark the scan `id = <target>` running in its own transaction and
+    /// return it after the commit. The row is read to the end inside the
+    /// transaction: an `UPDATE … RETURNING` whose implicit commit fails
+    /// (a full disk, an I/O error) would otherwise hand out a job whose
+    /// claim never happened.
+    fn claim_where(
+        &mut self,
+        target: &str,
+        scan_id: Option<i64>,
+    ) -> Result<Option<Job>, StoreError> {
+        let tx = self
+            .conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)?;
+        let job = {
+            let mut stmt = tx.prepare(&format!(
+                "UPDATE scan SET status = 'running', started_at = ?1, attempts = attempts + 1
+                 WHERE id = {target}
+                 RETURNING {JOB_COLUMNS}"
+            ))?;
+            let mut rows = match scan_id {
+                Some(id) => stmt.query(params![now_ms(), id])?,
+                None => stmt.query(params![now_ms()])?,
+            };
+            let job = rows.next()?.map(job_from_row).transpose()?;
+            while rows.next()?.is_some() {}
+            job
+        };
+        tx.commit()?;
+        Ok(job)
     }
 
     /// Record the identification of a running scan: status `ok`, timings,
@@ -91,9 +146,9 @@ impl Store {
         insert_outcome(&tx, scan_id, outcome)?;
         tx.execute(
             "UPDATE scan SET status = 'ok', error = NULL, finished_at = ?2,
-                    timings = ?3, cleaning = ?4
+                    timings = ?3, cleaning = ?4, files_due = ?5
              WHERE id = ?1",
-            params![scan_id, now_ms(), timings, cleaning],
+            params![scan_id, now_ms(), timings, cleaning, self.result_files],
         )?;
         tx.commit()?;
         Ok(())
@@ -114,8 +169,9 @@ impl Store {
             });
         }
         tx.execute(
-            "UPDATE scan SET status = 'error', error = ?2, finished_at = ?3 WHERE id = ?1",
-            params![scan_id, message, now_ms()],
+            "UPDATE scan SET status = 'error', error = ?2, finished_at = ?3, files_due = ?4
+             WHERE id = ?1",
+            params![scan_id, message, now_ms(), self.result_files],
         )?;
         tx.commit()?;
         Ok(())
@@ -181,6 +237,30 @@ impl Store {
             [scan_id],
         )?;
         tx.commit()?;
+        Ok(())
+    }
+}
+
+impl Store {
+    /// Up to `limit` scans whose result files are due and can be written
+    /// now, oldest first: finished scans, and duplicates whose earlier scan
+    /// has finished (a duplicate's result is the earlier scan's).
+    pub fn files_due(&self, limit: usize) -> Result<Vec<i64>, StoreError> {
+        let limit = i64::try_from(limit).unwrap_or(i64::MAX);
+        let mut stmt = self.conn.prepare_cached(
+            "SELECT s.id AS id FROM scan s LEFT JOIN scan o ON o.id = s.duplicate_of
+             WHERE s.files_due = 1
+               AND (s.status IN ('ok', 'error') OR o.status IN ('ok', 'error'))
+             ORDER BY s.id LIMIT ?1",
+        )?;
+        let ids = stmt.query_map([limit], |r| r.get("id"))?;
+        Ok(ids.collect::<Result<_, _>>()?)
+    }
+
+    /// Record that the result files of scan `scan_id` are written.
+    pub fn files_written(&mut self, scan_id: i64) -> Result<(), StoreError> {
+        self.conn
+            .execute("UPDATE scan SET files_due = 0 WHERE id = ?1", [scan_id])?;
         Ok(())
     }
 }

@@ -2,7 +2,7 @@
 //! ones, and the counts behind a status line.
 
 use super::{
-    from_json, parse_status, ScanRecord, ScanStatus, StatusCounts, Store, StoreError,
+    from_json, parse_status, Original, ScanRecord, ScanStatus, StatusCounts, Store, StoreError,
     DEFAULT_NEAREST,
 };
 use crate::library::{LandmarkPoint, Nearest, RankResult, ScanLandmarks};
@@ -12,7 +12,7 @@ use std::collections::BTreeMap;
 
 /// The `scan` columns [`scan_from_row`] reads.
 const SCAN_COLUMNS: &str = "id, path, content_hash, size, status, error, attempts, \
-     created_at, started_at, finished_at, timings, cleaning";
+     created_at, started_at, finished_at, timings, cleaning, duplicate_of";
 
 impl Store {
     /// The scan with this id, with its result and `nearest_count` nearest
@@ -76,6 +76,7 @@ impl Store {
                 ScanStatus::Running => counts.running = n,
                 ScanStatus::Ok => counts.ok = n,
                 ScanStatus::Error => counts.error = n,
+                ScanStatus::Duplicate => counts.duplicate = n,
             }
         }
         Ok(counts)
@@ -144,19 +145,37 @@ fn scan_from_row(r: &Row<'_>) -> Result<ScanRecord, StoreError> {
         ranks: Vec::new(),
         nearest: Vec::new(),
         landmarks: None,
+        duplicate_of: r.get::<_, Option<i64>>("duplicate_of")?.map(|id| Original {
+            id,
+            path: String::new(),
+            status: ScanStatus::Pending,
+        }),
     })
 }
 
 /// Fill `record`'s ranks, its `nearest_count` nearest references and its
-/// carried landmarks.
+/// carried landmarks; a duplicate's are those of the earlier scan it points
+/// at, whose path, status and error it gets too.
 fn load_result(
     conn: &Connection,
     record: &mut ScanRecord,
     nearest_count: usize,
 ) -> Result<(), StoreError> {
-    record.ranks = ranks_of(conn, record.id)?;
-    record.nearest = nearest_of(conn, record.id, nearest_count)?;
-    record.landmarks = landmarks_of(conn, record.id)?;
+    let mut of = record.id;
+    if let Some(original) = &mut record.duplicate_of {
+        let (path, status, error): (String, String, Option<String>) = conn
+            .prepare_cached("SELECT path, status, error FROM scan WHERE id = ?1")?
+            .query_row([original.id], |r| {
+                Ok((r.get("path")?, r.get("status")?, r.get("error")?))
+            })?;
+        original.path = path;
+        original.status = parse_status(&status)?;
+        record.error = error;
+        of = original.id;
+    }
+    record.ranks = ranks_of(conn, of)?;
+    record.nearest = nearest_of(conn, of, nearest_count)?;
+    record.landmarks = landmarks_of(conn, of)?;
     Ok(())
 }
 

@@ -6,7 +6,7 @@
 //! version. Append new migrations at the end; never edit a published one.
 
 use super::StoreError;
-use rusqlite::{Connection, TransactionBehavior};
+use rusqlite::{Connection, OptionalExtension, TransactionBehavior};
 use std::path::Path;
 
 /// `PRAGMA application_id` of a morphoid database ("MRPH"), so that a
@@ -14,7 +14,7 @@ use std::path::Path;
 pub const APPLICATION_ID: i32 = 0x4d52_5048;
 
 /// The migrations, in order; migration k (1-based) is `MIGRATIONS[k - 1]`.
-pub const MIGRATIONS: &[&str] = &[MIGRATION_1, MIGRATION_2];
+pub const MIGRATIONS: &[&str] = &[MIGRATION_1, MIGRATION_2, MIGRATION_3];
 
 /// The schema version this build writes and understands.
 pub const SCHEMA_VERSION: u32 = MIGRATIONS.len() as u32;
@@ -103,11 +103,68 @@ CREATE TABLE landmark (
 CREATE INDEX landmark_reference ON landmark (reference_id);
 "#;
 
+/// Migration 3: a file whose content equals an earlier scan's gets its own
+/// row (status `duplicate`, `duplicate_of` the earlier scan), so the content
+/// hash is unique among the other rows only; `files_due` marks a finished
+/// scan whose result files are still to be written (set in the transaction
+/// that finishes it, cleared once they are). SQLite cannot change a CHECK
+/// constraint in place: the table is rebuilt (foreign keys are off during
+/// migrations, so the results pointing at scans are kept).
+const MIGRATION_3: &str = r#"
+CREATE TABLE scan_new (
+    id           INTEGER PRIMARY KEY AUTOINCREMENT,
+    path         TEXT NOT NULL,
+    content_hash TEXT NOT NULL,
+    size         INTEGER NOT NULL CHECK (size >= 0),
+    status       TEXT NOT NULL DEFAULT 'pending'
+                 CHECK (status IN ('pending', 'running', 'ok', 'error', 'duplicate')),
+    error        TEXT,
+    attempts     INTEGER NOT NULL DEFAULT 0,
+    created_at   INTEGER NOT NULL,
+    started_at   INTEGER,
+    finished_at  INTEGER,
+    timings      TEXT CHECK (timings IS NULL OR json_valid(timings)),
+    cleaning     TEXT CHECK (cleaning IS NULL OR json_valid(cleaning)),
+    duplicate_of INTEGER REFERENCES scan (id),
+    files_due    INTEGER NOT NULL DEFAULT 0 CHECK (files_due IN (0, 1)),
+    CHECK ((status IN ('ok', 'error', 'duplicate')) = (finished_at IS NOT NULL)),
+    CHECK ((status = 'error') = (error IS NOT NULL)),
+    CHECK ((status = 'duplicate') = (duplicate_of IS NOT NULL))
+);
+INSERT INTO scan_new (id, path, content_hash, size, status, error, attempts, created_at,
+                      started_at, finished_at, timings, cleaning)
+    SELECT id, path, content_hash, size, status, error, attempts, created_at,
+           started_at, finished_at, timings, cleaning FROM scan;
+DROP TABLE scan;
+ALTER TABLE scan_new RENAME TO scan;
+-- One identified row per content; each further file of that content once.
+CREATE UNIQUE INDEX scan_content ON scan (content_hash) WHERE status <> 'duplicate';
+CREATE UNIQUE INDEX scan_duplicate ON scan (content_hash, path) WHERE status = 'duplicate';
+CREATE INDEX scan_status ON scan (status, id);
+CREATE INDEX scan_finished_at ON scan (finished_at);
+CREATE INDEX scan_duplicate_of ON scan (duplicate_of) WHERE duplicate_of IS NOT NULL;
+CREATE INDEX scan_files_due ON scan (id) WHERE files_due = 1;
+"#;
+
 /// Bring the database on `conn` to [`SCHEMA_VERSION`]: refuse a file of
 /// another application or of a newer morphoid, then apply the missing
 /// migrations, each in its own immediate transaction. Running it on an
 /// up-to-date database changes nothing. `path` names the file in errors.
 pub fn migrate(conn: &mut Connection, path: &Path) -> Result<u32, StoreError> {
+    // A table rebuild must not cascade its DROP into the rows that point at
+    // it; the pragma cannot change inside a transaction, so it is set
+    // around them, and each migration checks the keys before it commits.
+    let enforced: bool = conn.query_row("PRAGMA foreign_keys", [], |r| r.get(0))?;
+    conn.pragma_update(None, "foreign_keys", false)?;
+    let out = apply_migrations(conn, path);
+    let restored = conn.pragma_update(None, "foreign_keys", enforced);
+    let version = out?;
+    restored?;
+    Ok(version)
+}
+
+/// The loop of [`migrate`], with foreign keys off.
+fn apply_migrations(conn: &mut Connection, path: &Path) -> Result<u32, StoreError> {
     loop {
         // IMMEDIATE: two processes opening a fresh file at once must not
         // both apply migration 1.
@@ -133,6 +190,15 @@ pub fn migrate(conn: &mut Connection, path: &Path) -> Result<u32, StoreError> {
             return Ok(found);
         };
         tx.execute_batch(sql)?;
+        let dangling: Option<String> = tx
+            .query_row("PRAGMA foreign_key_check", [], |r| r.get("table"))
+            .optional()?;
+        if let Some(table) = dangling {
+            return Err(StoreError::Corrupt(format!(
+                "migration {} leaves a dangling foreign key in table {table}",
+                found + 1
+            )));
+        }
         tx.pragma_update(None, "user_version", found + 1)?;
         tx.pragma_update(None, "application_id", APPLICATION_ID)?;
         tx.commit()?;

@@ -9,7 +9,8 @@ use std::fmt;
 /// Taxon per rank of a reference (`None`: unknown, `NA` in `labels.csv`).
 pub type Labels = BTreeMap<String, Option<String>>;
 
-/// Where a scan is in its life: `pending` → `running` → `ok` | `error`.
+/// Where a scan is in its life: `pending` → `running` → `ok` | `error`;
+/// a file with the content of an earlier scan is `duplicate` from the start.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ScanStatus {
@@ -21,6 +22,9 @@ pub enum ScanStatus {
     Ok,
     /// The scan could not be used; the message says why.
     Error,
+    /// The file's content is an earlier scan's: it is not identified
+    /// again, its row points at that scan and shares its result.
+    Duplicate,
 }
 
 impl ScanStatus {
@@ -31,6 +35,7 @@ impl ScanStatus {
             ScanStatus::Running => "running",
             ScanStatus::Ok => "ok",
             ScanStatus::Error => "error",
+            ScanStatus::Duplicate => "duplicate",
         }
     }
 
@@ -41,6 +46,7 @@ impl ScanStatus {
             "running" => Some(ScanStatus::Running),
             "ok" => Some(ScanStatus::Ok),
             "error" => Some(ScanStatus::Error),
+            "duplicate" => Some(ScanStatus::Duplicate),
             _ => None,
         }
     }
@@ -142,16 +148,25 @@ pub struct Job {
 pub enum Enqueued {
     /// A new pending scan with this id.
     New(i64),
-    /// This content is already known (at this or another path): the
-    /// existing scan's id and status. Nothing was added.
+    /// This file is already recorded (the same content at the same path,
+    /// or a duplicate row of it): that scan's id and status. Nothing was
+    /// added.
     Existing(i64, ScanStatus),
+    /// The content is an earlier scan's, at another path: a new row with
+    /// status `duplicate` was added.
+    Duplicate {
+        /// The new row.
+        id: i64,
+        /// The earlier scan of the same content.
+        of: i64,
+    },
 }
 
 impl Enqueued {
     /// The scan id, new or existing.
     pub fn scan_id(&self) -> i64 {
         match *self {
-            Enqueued::New(id) | Enqueued::Existing(id, _) => id,
+            Enqueued::New(id) | Enqueued::Existing(id, _) | Enqueued::Duplicate { id, .. } => id,
         }
     }
 }
@@ -192,6 +207,22 @@ pub struct ScanRecord {
     /// Landmarks carried onto the scan (`None`: the nearest reference has
     /// none, or the scan has no result).
     pub landmarks: Option<ScanLandmarks>,
+    /// For a `duplicate`: the earlier scan of the same content, whose
+    /// result (ranks, nearest, landmarks, error) this record carries.
+    pub duplicate_of: Option<Original>,
+}
+
+/// The earlier scan a duplicate points at.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Original {
+    /// Its row id.
+    pub id: i64,
+    /// Its file path.
+    #[serde(rename = "scan")]
+    pub path: String,
+    /// Its status (the duplicate's result is known once it is `ok` or
+    /// `error`).
+    pub status: ScanStatus,
 }
 
 /// `{"taxon", "reference", "distance", "runner_up", "margin"}` of one rank.
@@ -231,14 +262,23 @@ impl Serialize for RanksJson<'_> {
 /// "y", "z"}, …]` and `"landmarks_reference"` when landmarks were carried
 /// onto the scan), `{"scan", "status": "error",
 /// "error"}` for an error, `{"scan", "status"}` while pending or running;
-/// each with the scan's `id` too.
+/// each with the scan's `id` too. A `duplicate` adds `"duplicate_of":
+/// {"id", "scan", "status"}` and the earlier scan's result in the same
+/// fields (or its `"error"`).
 impl Serialize for ScanRecord {
     fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
         let mut map = serializer.serialize_map(None)?;
         map.serialize_entry("scan", &self.path)?;
         map.serialize_entry("id", &self.id)?;
         map.serialize_entry("status", &self.status)?;
-        match self.status {
+        let shown = match (&self.status, &self.duplicate_of) {
+            (ScanStatus::Duplicate, Some(original)) => {
+                map.serialize_entry("duplicate_of", original)?;
+                original.status
+            }
+            (status, _) => *status,
+        };
+        match shown {
             ScanStatus::Ok => {
                 map.serialize_entry("ranks", &RanksJson(&self.ranks))?;
                 map.serialize_entry("nearest", &self.nearest)?;
@@ -252,7 +292,7 @@ impl Serialize for ScanRecord {
             ScanStatus::Error => {
                 map.serialize_entry("error", self.error.as_deref().unwrap_or(""))?;
             }
-            ScanStatus::Pending | ScanStatus::Running => {}
+            ScanStatus::Pending | ScanStatus::Running | ScanStatus::Duplicate => {}
         }
         map.end()
     }
@@ -269,4 +309,6 @@ pub struct StatusCounts {
     pub ok: u64,
     /// Failed.
     pub error: u64,
+    /// Files with the content of an earlier scan.
+    pub duplicate: u64,
 }

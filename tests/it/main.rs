@@ -22,6 +22,7 @@ mod cp_invariance;
 mod cp_prepare_all;
 mod cp_synthetic;
 mod cwn_teeth;
+mod daemon_faults;
 mod daemon_files;
 mod daemon_load;
 mod daemon_notify;

@@ -87,12 +87,11 @@ fn version_1_database(path: &std::path::Path) {
 
 #[test]
 fn version_1_database_is_upgraded_without_losing_rows() {
-    assert_eq!(SCHEMA_VERSION, 2);
     let (_dir, path) = temp_db();
     version_1_database(&path);
 
     let mut store = Store::open(&path).expect("open upgrades");
-    assert_eq!(store.schema_version().expect("version"), 2);
+    assert_eq!(store.schema_version().expect("version"), SCHEMA_VERSION);
     store.check_integrity().expect("integrity");
     let old = store.scan(1, 5).expect("read").expect("old scan kept");
     assert_eq!(old.status, ScanStatus::Ok);
@@ -127,7 +126,7 @@ fn version_1_database_is_upgraded_without_losing_rows() {
 
     // Reopening an upgraded file changes nothing.
     let store = Store::open(&path).expect("reopen");
-    assert_eq!(store.schema_version().expect("version"), 2);
+    assert_eq!(store.schema_version().expect("version"), SCHEMA_VERSION);
     assert_eq!(
         store.scan(1, 5).expect("read").expect("kept").ranks,
         old.ranks

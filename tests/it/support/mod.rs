@@ -4,5 +4,6 @@ pub mod clean;
 pub mod cp;
 pub mod daemon;
 pub mod data;
+pub mod faults;
 pub mod lm;
 pub mod store;
