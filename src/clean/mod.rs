@@ -35,6 +35,8 @@ pub mod resample;
 mod union_find;
 pub mod weld;
 
+pub use cloud::{CloudError, CloudReport};
+
 use crate::mesh::{
     bbox_diagonal, boundary_loops, euler_characteristic, genus, longest_boundary_loop,
     surface_area, Mesh,
