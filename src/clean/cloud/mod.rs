@@ -188,7 +188,9 @@ pub fn reconstruct_surface(
     };
     let nets = surface_nets(&grid, &nodes, &values);
     let projected = reconstruct::project_to_zero_set(&samples, &nets, width, PROJECTION_STEPS);
-    let surface = reconstruct::trim_to_samples(&samples, &projected, TRIM_GAP, TRIM_OFFSET);
+    let among = reconstruct::among_samples(&samples, &projected, TRIM_GAP, TRIM_OFFSET);
+    let trimmed = reconstruct::trim_from_boundary(&projected, &among);
+    let surface = reconstruct::drop_nonmanifold(&trimmed, 5);
     if surface.faces.len() < 3 {
         return Err(CloudError::NoSurface(surface.faces.len()));
     }

@@ -223,20 +223,19 @@ pub fn project_to_zero_set(
     Mesh::new(vertices, mesh.faces.clone())
 }
 
-/// Keep the triangles that lie among the samples: the nearest sample is
+/// Whether each triangle lies among the samples: the nearest sample is
 /// within `max_gap` of its local spacing of the triangle's centroid, and
 /// the centroid of the nearest samples is, along the triangle's plane,
 /// within `max_offset` local spacings of it (past the edge of the sampled
 /// region all samples lie on one side, so that centroid moves away).
-pub fn trim_to_samples(
+pub fn among_samples(
     samples: &OrientedSamples,
     mesh: &Mesh,
     max_gap: f64,
     max_offset: f64,
-) -> Mesh {
+) -> Vec<bool> {
     let points = samples.neighbours.points();
-    let keep: Vec<bool> = mesh
-        .faces
+    mesh.faces
         .par_iter()
         .map(|f| {
             let [a, b, c] = f.map(|i| mesh.vertices[i as usize]);
@@ -262,14 +261,125 @@ pub fn trim_to_samples(
             }
             gap <= max_gap * s && norm(offset) <= max_offset * s
         })
+        .collect()
+}
+
+/// Trim the surface to the sampled region: drop the triangles that are
+/// not `among` the samples and are reached from the surface's boundary
+/// across such triangles. A triangle not among the samples but enclosed
+/// by ones that are (a gap in a random sampling) stays, so trimming makes
+/// no holes.
+pub fn trim_from_boundary(mesh: &Mesh, among: &[bool]) -> Mesh {
+    use crate::mesh::{triangle_adjacency, NO_TRIANGLE};
+    let adjacency = triangle_adjacency(&mesh.faces);
+    let mut outside = vec![false; mesh.faces.len()];
+    let mut stack: Vec<usize> = (0..mesh.faces.len())
+        .filter(|&f| !among[f] && adjacency[f].contains(&NO_TRIANGLE))
         .collect();
+    for &f in &stack {
+        outside[f] = true;
+    }
+    while let Some(f) = stack.pop() {
+        for &g in &adjacency[f] {
+            let g = g as usize;
+            if g < mesh.faces.len() && !among[g] && !outside[g] {
+                outside[g] = true;
+                stack.push(g);
+            }
+        }
+    }
     let faces = mesh
         .faces
         .iter()
-        .zip(&keep)
-        .filter(|(_, &k)| k)
+        .zip(&outside)
+        .filter(|(_, &o)| !o)
         .map(|(f, _)| *f)
         .collect();
+    crate::clean::faces::remove_unreferenced_vertices(&Mesh::new(mesh.vertices.clone(), faces))
+}
+
+/// Drop the triangles that make the surface non-manifold, where surface
+/// nets meets two sheets in one cell: all triangles on an edge with more
+/// than two, and at a vertex whose triangles form several fans, all but
+/// the largest fan. Repeated until nothing changes (at most `rounds`
+/// times). The holes left are small; cleaning fills them.
+pub fn drop_nonmanifold(mesh: &Mesh, rounds: usize) -> Mesh {
+    use crate::mesh::edge_key;
+    let mut faces = mesh.faces.clone();
+    for _ in 0..rounds {
+        let mut drop = vec![false; faces.len()];
+        let edges = crate::mesh::edge_face_map(&Mesh::new(Vec::new(), faces.clone()));
+        for list in edges.values() {
+            if list.len() > 2 {
+                for &f in list {
+                    drop[f as usize] = true;
+                }
+            }
+        }
+        let mut around: Vec<Vec<usize>> = vec![Vec::new(); mesh.vertices.len()];
+        for (f, t) in faces.iter().enumerate() {
+            for &v in t {
+                around[v as usize].push(f);
+            }
+        }
+        for (v, list) in around.iter().enumerate() {
+            if list.len() < 2 {
+                continue;
+            }
+            // Fans: the triangles at v joined across the edges from v.
+            let mut fan: Vec<usize> = (0..list.len()).collect();
+            fn root(fan: &mut [usize], mut i: usize) -> usize {
+                while fan[i] != i {
+                    fan[i] = fan[fan[i]];
+                    i = fan[i];
+                }
+                i
+            }
+            let mut by_edge: FxHashMap<crate::mesh::EdgeKey, usize> = FxHashMap::default();
+            for (k, &f) in list.iter().enumerate() {
+                for &w in &faces[f] {
+                    if w as usize == v {
+                        continue;
+                    }
+                    match by_edge.get(&edge_key(v as u32, w)) {
+                        Some(&other) => {
+                            let (a, b) = (root(&mut fan, k), root(&mut fan, other));
+                            fan[a.max(b)] = a.min(b);
+                        }
+                        None => {
+                            by_edge.insert(edge_key(v as u32, w), k);
+                        }
+                    }
+                }
+            }
+            let roots: Vec<usize> = (0..list.len()).map(|k| root(&mut fan, k)).collect();
+            let mut sizes: FxHashMap<usize, usize> = FxHashMap::default();
+            for &r in &roots {
+                *sizes.entry(r).or_default() += 1;
+            }
+            if sizes.len() < 2 {
+                continue;
+            }
+            let largest = sizes
+                .iter()
+                .max_by_key(|&(r, n)| (*n, std::cmp::Reverse(*r)))
+                .map_or(0, |(r, _)| *r);
+            for (k, &f) in list.iter().enumerate() {
+                if roots[k] != largest {
+                    drop[f] = true;
+                }
+            }
+        }
+        if !drop.contains(&true) {
+            break;
+        }
+        faces = faces
+            .iter()
+            .zip(&drop)
+            .filter(|(_, &d)| !d)
+            .map(|(f, _)| *f)
+            .collect();
+    }
     crate::clean::faces::remove_unreferenced_vertices(&Mesh::new(mesh.vertices.clone(), faces))
 }
 
