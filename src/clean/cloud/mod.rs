@@ -104,7 +104,7 @@ pub fn reconstruct_surface(
 ) -> Result<(Mesh, CloudReport), CloudError> {
     let total = points.len();
     let too_few = |left: usize| CloudError::TooFewInliers { left, total };
-    let (_, _, spreads) = principal_axes(points).ok_or(too_few(total))?;
+    let spreads = principal_axes(points).ok_or(too_few(total))?.spreads;
     if spreads[1] <= DEGENERATE_SPREAD * spreads[0] {
         return Err(CloudError::Collinear);
     }

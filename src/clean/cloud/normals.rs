@@ -17,11 +17,20 @@ pub struct LocalPlane {
     pub residual: f64,
 }
 
-/// Principal axes of a point set: `(centroid, [axis of largest spread,
-/// second, normal], spreads)`, the spreads being the variances along the
-/// axes in the same order and the normal `u × v`. `None` for fewer than
-/// three points.
-pub fn principal_axes(points: &[[f64; 3]]) -> Option<([f64; 3], [[f64; 3]; 3], [f64; 3])> {
+/// The principal axes of a point set.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PrincipalAxes {
+    /// Mean of the points.
+    pub centroid: [f64; 3],
+    /// Axis of largest spread, second, and their cross product (the
+    /// normal, least spread).
+    pub axes: [[f64; 3]; 3],
+    /// Variances along the axes, in the same order.
+    pub spreads: [f64; 3],
+}
+
+/// Principal axes of a point set (`None` for fewer than three points).
+pub fn principal_axes(points: &[[f64; 3]]) -> Option<PrincipalAxes> {
     if points.len() < 3 {
         return None;
     }
@@ -46,16 +55,20 @@ pub fn principal_axes(points: &[[f64; 3]]) -> Option<([f64; 3], [[f64; 3]; 3], [
     };
     let (u, v) = (axis(0), axis(1));
     let spreads = order.map(|k| eig.eigenvalues[k].max(0.0));
-    Some((c, [u, v, cross(u, v)], spreads))
+    Some(PrincipalAxes {
+        centroid: c,
+        axes: [u, v, cross(u, v)],
+        spreads,
+    })
 }
 
 /// The least-squares plane of `points` (`None` for fewer than three).
 pub fn local_plane(points: &[[f64; 3]]) -> Option<LocalPlane> {
-    let (centroid, [_, _, normal], spreads) = principal_axes(points)?;
+    let axes = principal_axes(points)?;
     Some(LocalPlane {
-        centroid,
-        normal,
-        residual: spreads[2].sqrt(),
+        centroid: axes.centroid,
+        normal: axes.axes[2],
+        residual: axes.spreads[2].sqrt(),
     })
 }
 
