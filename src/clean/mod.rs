@@ -3,7 +3,9 @@
 //! [`clean`] runs the steps below in order; each is a pure function over
 //! [`Mesh`] in its own submodule and can be used alone:
 //!
-//! 1. point clouds are triangulated ([`cloud::triangulate_point_cloud`]);
+//! 1. point clouds are reconstructed into a surface
+//!    ([`cloud::reconstruct_surface`]: outliers removed, oriented normals,
+//!    an implicit surface trimmed to the points);
 //! 2. duplicate vertices are welded ([`weld::weld_vertices`]);
 //! 3. degenerate and duplicate faces go ([`faces`]). A surface far above
 //!    the working resolution (a µCT export of millions of faces) is first
@@ -38,6 +40,8 @@ pub mod resample;
 mod union_find;
 pub mod weld;
 
+pub use cloud::{CloudError, CloudReport};
+
 use crate::mesh::{
     bbox_diagonal, boundary_loops, euler_characteristic, genus, longest_boundary_loop,
     surface_area, Mesh,
@@ -63,9 +67,6 @@ pub struct CleanOptions {
     pub min_elements: usize,
     /// Rounds of edge flips + tangential relaxation after resampling.
     pub relax_iterations: usize,
-    /// Point clouds: triangles with an edge longer than this many median
-    /// edge lengths are dropped.
-    pub cloud_max_edge_factor: f64,
 }
 
 impl Default for CleanOptions {
@@ -75,7 +76,6 @@ impl Default for CleanOptions {
             weld_tolerance: 1e-6,
             min_elements: 20,
             relax_iterations: 3,
-            cloud_max_edge_factor: 3.0,
         }
     }
 }
@@ -122,6 +122,8 @@ pub struct CleanReport {
     pub area: f64,
     /// Bounding-box diagonal of the output.
     pub bbox_diagonal: f64,
+    /// What the point-cloud reconstruction did (point clouds only).
+    pub cloud: Option<cloud::CloudReport>,
 }
 
 /// A cleaned mesh and the report of what was done.
@@ -151,9 +153,9 @@ pub enum CleanError {
     /// Too few faces to form a surface.
     #[error("too few faces ({0}) to form a surface")]
     TooFewFaces(usize),
-    /// A point cloud that no plane triangulation can follow.
-    #[error("the point cloud could not be triangulated (all points on a line?)")]
-    CloudTriangulation,
+    /// A point cloud with no surface to reconstruct.
+    #[error("the point cloud cannot be made into a surface: {0}")]
+    Cloud(#[from] cloud::CloudError),
     /// A coordinate is NaN or infinite.
     #[error("vertex {0} has a non-finite coordinate")]
     NonFinite(usize),
@@ -282,9 +284,10 @@ pub fn clean(mesh: &Mesh, opts: &CleanOptions) -> Result<Cleaned, CleanError> {
         if m.vertices.len() < min {
             return Err(CleanError::TooFewPoints(m.vertices.len()));
         }
-        m = cloud::triangulate_point_cloud(&m.vertices, opts.cloud_max_edge_factor)
-            .ok_or(CleanError::CloudTriangulation)?;
+        let (surface, cloud_report) = cloud::reconstruct_surface(&m.vertices, min)?;
+        m = surface;
         report.triangulated_point_cloud = true;
+        report.cloud = Some(cloud_report);
     }
 
     let diag = bbox_diagonal(&m);

@@ -47,6 +47,9 @@ struct Report {
     area: f64,
     bbox_diagonal: f64,
     repairs: Repairs,
+    /// Point clouds: points in, outliers removed, triangles made.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    cloud: Option<morphoid::clean::CloudReport>,
     timings_ms: Timings,
 }
 
@@ -91,6 +94,7 @@ impl Report {
                 triangulated_point_cloud: r.triangulated_point_cloud,
                 edge_flips: r.edge_flips,
             },
+            cloud: r.cloud.clone(),
             timings_ms,
         }
     }

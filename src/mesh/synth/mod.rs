@@ -14,7 +14,8 @@
 //!
 //! [`transform`] holds pure functions that move, damage or resample a mesh
 //! (rigid motions, mirror images, flipped faces, triangle soups, debris,
-//! holes, point clouds, a closed sphere), and [`bad_inputs`]
+//! holes, point clouds, a closed sphere), [`scanner`] scanner-like
+//! point clouds (noise, outliers) and a crown with overhanging walls, and [`bad_inputs`]
 //! writes the malformed files the daemon must survive; [`library`] writes a
 //! labelled reference library of crowns. [`unit_disk`] and
 //! [`subdivide_midpoint`] are re-exported from [`crate::mesh`] for the
@@ -22,11 +23,13 @@
 
 pub mod bad_inputs;
 pub mod library;
+pub mod scanner;
 pub mod transform;
 
 pub use crate::mesh::unit_disk;
 pub use bad_inputs::write_bad_inputs;
 pub use library::{write_synthetic_library, LibrarySpec, Specimen};
+pub use scanner::{overhanging_crown, scanner_cloud, ScannerCloud};
 pub use transform::{
     add_debris, closed_sphere, flip_faces, mirror, punch_hole, rigid_motion, scale,
     subdivide_midpoint, to_point_cloud, triangle_soup, RigidMotion,
