@@ -20,7 +20,7 @@
 //!    boundary loop towards the body of the surface, e.g. out of a tooth
 //!    crown);
 //! 10. the mesh is resampled to the working resolution with well-shaped
-//!    triangles ([`resample`]).
+//!     triangles ([`resample`]).
 
 // Coordinate loops `for d in 0..3` read more clearly than zipped iterators.
 #![allow(clippy::needless_range_loop)]

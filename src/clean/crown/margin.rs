@@ -64,7 +64,7 @@ fn crease_image(samples: &[CreaseSample], band: &Band) -> Vec<Vec<f64>> {
     let bin = (band.high - band.low) / b as f64;
     let mut image = vec![vec![0.0; b]; s];
     for c in samples {
-        if !(c.height >= band.low && c.height < band.high) || !(c.weight > 0.0) {
+        if !(c.height >= band.low && c.height < band.high && c.weight > 0.0) {
             continue;
         }
         let k = (((c.height - band.low) / bin) as usize).min(b - 1);

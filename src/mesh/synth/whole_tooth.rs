@@ -172,7 +172,8 @@ pub fn whole_tooth(
         .map(|&v| height(crown.vertices[v as usize]))
         .fold(f64::MAX, f64::min);
     let crown_height = top - low;
-    if !(crown_height > 1e-9 * bbox_diagonal(crown).max(f64::MIN_POSITIVE)) {
+    let min_height = 1e-9 * bbox_diagonal(crown).max(f64::MIN_POSITIVE);
+    if crown_height.is_nan() || crown_height <= min_height {
         return Err(WholeToothError::Degenerate);
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
