@@ -45,8 +45,8 @@ pub use crown::{CrownError, CrownMode, CrownReport};
 
 /// A surface whose longest boundary loop is shorter than this many times
 /// the square root of its area is a closed surface with holes, not a
-/// cropped crown (whose boundary runs all around it: 2.3–5.1 on the 116
-/// real crowns).
+/// cropped crown (whose boundary runs all around it: 1.9–2.7 on every
+/// 10th of the real crowns).
 pub const NEARLY_CLOSED: f64 = 0.6;
 
 /// Parameters of the cleaning pipeline.
