@@ -8,10 +8,22 @@ use crate::mesh::{boundary_loops_by_length, Mesh};
 /// centroid, oriented like the surrounding faces. Expects a consistently oriented manifold
 /// mesh. Returns the mesh and the number of holes filled.
 pub fn fill_holes_except_longest(mesh: &Mesh) -> (Mesh, usize) {
+    fill_loops(mesh, 1)
+}
+
+/// Fill every boundary loop, closing the surface (see
+/// [`fill_holes_except_longest`] for how). Returns the mesh and the number
+/// of holes filled.
+pub fn fill_all_holes(mesh: &Mesh) -> (Mesh, usize) {
+    fill_loops(mesh, 0)
+}
+
+/// Fill the boundary loops after the `keep` longest.
+fn fill_loops(mesh: &Mesh, keep: usize) -> (Mesh, usize) {
     let loops = boundary_loops_by_length(mesh);
     let mut out = mesh.clone();
     let mut filled = 0;
-    for lp in loops.iter().skip(1) {
+    for lp in loops.iter().skip(keep) {
         let n = lp.len();
         if n < 3 {
             continue;

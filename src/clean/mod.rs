@@ -16,15 +16,18 @@
 //! 4. the largest connected component by area is kept ([`components`]);
 //! 5. non-manifold edges and vertices are repaired ([`manifold`]);
 //! 6. face orientation is made consistent ([`orient`]);
-//! 7. all boundary loops but the longest (by geometric length) are filled
+//! 7. a closed surface (or a nearly closed one: every hole short, see
+//!    [`NEARLY_CLOSED`]) is taken for a whole tooth and cut to its crown at
+//!    the cervical margin ([`crown`], unless `crown = "off"`);
+//! 8. all boundary loops but the longest (by geometric length) are filled
 //!    ([`holes`]); the surface must then be a disk (one loop, Euler
 //!    characteristic 1);
-//! 8. the orientation is chosen so that normals point outward
+//! 9. the orientation is chosen so that normals point outward
 //!    ([`orient::normals_point_outward`]: the vector area points from the
 //!    boundary loop towards the body of the surface, e.g. out of a tooth
 //!    crown);
-//! 9. the mesh is resampled to the working resolution with well-shaped
-//!    triangles ([`resample`]).
+//! 10. the mesh is resampled to the working resolution with well-shaped
+//!     triangles ([`resample`]).
 
 // Coordinate loops `for d in 0..3` read more clearly than zipped iterators.
 #![allow(clippy::needless_range_loop)]
@@ -32,6 +35,7 @@
 pub mod closest;
 pub mod cloud;
 pub mod components;
+pub mod crown;
 pub mod faces;
 pub mod holes;
 pub mod manifold;
@@ -43,9 +47,16 @@ pub mod weld;
 pub use cloud::{CloudError, CloudReport};
 
 use crate::mesh::{
-    bbox_diagonal, boundary_loops, euler_characteristic, genus, longest_boundary_loop,
-    surface_area, Mesh,
+    bbox_diagonal, boundary_loop_length, boundary_loops, euler_characteristic, genus,
+    longest_boundary_loop, surface_area, Mesh,
 };
+pub use crown::{CrownError, CrownMode, CrownReport};
+
+/// A surface whose longest boundary loop is shorter than this many times
+/// the square root of its area is a closed surface with holes, not a
+/// cropped crown (whose boundary runs all around it: 1.9–2.7 on every
+/// 10th of the real crowns).
+pub const NEARLY_CLOSED: f64 = 0.6;
 
 /// Surfaces of more than five times `2 × EARLY_DECIMATION_FACTOR ×
 /// target_vertices` faces are first decimated to `2 ×
@@ -67,6 +78,9 @@ pub struct CleanOptions {
     pub min_elements: usize,
     /// Rounds of edge flips + tangential relaxation after resampling.
     pub relax_iterations: usize,
+    /// Closed surfaces (whole teeth): `auto` cuts the crown at the
+    /// cervical margin, `off` refuses them.
+    pub crown: CrownMode,
 }
 
 impl Default for CleanOptions {
@@ -76,6 +90,7 @@ impl Default for CleanOptions {
             weld_tolerance: 1e-6,
             min_elements: 20,
             relax_iterations: 3,
+            crown: CrownMode::Auto,
         }
     }
 }
@@ -124,6 +139,8 @@ pub struct CleanReport {
     pub bbox_diagonal: f64,
     /// What the point-cloud reconstruction did (point clouds only).
     pub cloud: Option<cloud::CloudReport>,
+    /// The crown cut from a closed whole tooth, if the input was one.
+    pub crown: Option<CrownReport>,
 }
 
 /// A cleaned mesh and the report of what was done.
@@ -139,8 +156,11 @@ pub struct Cleaned {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CleanError {
     /// The surface is closed (no boundary).
-    #[error("the surface is closed (no boundary loop); a disk-type surface is needed")]
+    #[error("the surface is closed (no boundary loop) and crown extraction is off; set [clean] crown = \"auto\" to cut a whole tooth at its cervical margin, or crop the crown to a disk-type surface")]
     Closed,
+    /// A closed surface whose crown could not be cut.
+    #[error(transparent)]
+    Crown(#[from] CrownError),
     /// The surface has handles (genus > 0).
     #[error("the surface has {0} handle(s) (Euler characteristic {1} with one boundary loop); a disk-type surface is needed")]
     Handles(i64, i64),
@@ -203,7 +223,7 @@ fn validate(mesh: &Mesh) -> Result<(), CleanError> {
 /// Steps 4–8: largest component, manifold repair, consistent orientation,
 /// hole filling, disk test and outward orientation, with counts added to
 /// `report`.
-fn make_disk(m: &Mesh, report: &mut CleanReport) -> Result<Mesh, CleanError> {
+fn make_disk(m: &Mesh, report: &mut CleanReport, crown: CrownMode) -> Result<Mesh, CleanError> {
     let min = 3;
     let (m3, d1) = components::largest_component_by_area(m);
     let (m4, ne) = manifold::repair_nonmanifold_edges(&m3);
@@ -219,9 +239,7 @@ fn make_disk(m: &Mesh, report: &mut CleanReport) -> Result<Mesh, CleanError> {
     let (m8, flipped) =
         orient::orient_faces_consistently(&m7).map_err(|_| CleanError::NonOrientable)?;
     report.flipped_faces += flipped;
-    if boundary_loops(&m8).is_empty() {
-        return Err(CleanError::Closed);
-    }
+    let m8 = cut_whole_tooth(m8, report, crown)?;
     let (m9, filled) = holes::fill_holes_except_longest(&m8);
     report.filled_holes += filled;
     let chi = euler_characteristic(&m9);
@@ -256,6 +274,33 @@ fn decimate_if_dense(m: &Mesh, opts: &CleanOptions, report: &mut CleanReport) ->
     }
     report.predecimated_faces = m.faces.len();
     Some(resample::decimate_to_face_count(m, early_faces))
+}
+
+/// Step 7: a closed or nearly closed surface is cut to its crown (holes
+/// filled first, counted in the crown report); anything else is returned
+/// unchanged.
+fn cut_whole_tooth(
+    m: Mesh,
+    report: &mut CleanReport,
+    crown: CrownMode,
+) -> Result<Mesh, CleanError> {
+    let longest = longest_boundary_loop(&m).map(|lp| boundary_loop_length(&m, &lp));
+    let whole = match longest {
+        None => true,
+        Some(len) => crown == CrownMode::Auto && len < NEARLY_CLOSED * surface_area(&m).sqrt(),
+    };
+    if !whole {
+        return Ok(m);
+    }
+    if crown == CrownMode::Off {
+        return Err(CleanError::Closed);
+    }
+    let (closed, filled) = holes::fill_all_holes(&m);
+    let cut = crown::extract_crown(&closed)?;
+    let mut crown_report = cut.report;
+    crown_report.filled_holes = filled;
+    report.crown = Some(crown_report);
+    Ok(cut.mesh)
 }
 
 /// Run the whole cleaning pipeline (see the module documentation).
@@ -304,7 +349,7 @@ pub fn clean(mesh: &Mesh, opts: &CleanOptions) -> Result<Cleaned, CleanError> {
         m2 = d;
     }
 
-    let m3 = make_disk(&m2, &mut report)?;
+    let m3 = make_disk(&m2, &mut report, opts.crown)?;
 
     // Decimation may merge vertices that share a position (copies made by
     // the vertex split) and create non-manifold spots: repair again.
@@ -312,7 +357,7 @@ pub fn clean(mesh: &Mesh, opts: &CleanOptions) -> Result<Cleaned, CleanError> {
     let m4 = if resampled.vertices.len() == m3.vertices.len() {
         resampled
     } else {
-        make_disk(&resampled, &mut CleanReport::default())?
+        make_disk(&resampled, &mut CleanReport::default(), CrownMode::Off)?
     };
     let reference = resample::SurfaceReference::new(&m3).ok_or(CleanError::TooFewFaces(0))?;
     let (out, flips) = resample::improve_triangles(&m4, &reference, opts.relax_iterations);

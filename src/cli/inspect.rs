@@ -2,7 +2,7 @@
 
 use super::common::ConfigFile;
 use anyhow::{Context, Result};
-use morphoid::clean::{self, CleanOptions, CleanReport};
+use morphoid::clean::{self, CleanOptions, CleanReport, CrownReport};
 use morphoid::mesh::io::{self, Format};
 use serde::Serialize;
 use std::path::PathBuf;
@@ -50,6 +50,9 @@ struct Report {
     /// Point clouds: points in, outliers removed, triangles made.
     #[serde(skip_serializing_if = "Option::is_none")]
     cloud: Option<morphoid::clean::CloudReport>,
+    /// The crown cut from a closed whole tooth (absent for a crop).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    crown: Option<CrownReport>,
     timings_ms: Timings,
 }
 
@@ -95,6 +98,7 @@ impl Report {
                 edge_flips: r.edge_flips,
             },
             cloud: r.cloud.clone(),
+            crown: r.crown.clone(),
             timings_ms,
         }
     }
@@ -191,6 +195,21 @@ fn print_human(r: &Report) {
         "  area {:.6}, bounding-box diagonal {:.6}",
         r.area, r.bbox_diagonal
     );
+    if let Some(c) = &r.crown {
+        println!(
+            "  crown cut from a closed whole tooth ({}): kept area {:.6}, removed {:.6} ({} faces), crease {:.1}°, cut at {:.2}–{:.2} of the tooth's length (mean {:.2}), filled {} holes, removed {} handles",
+            c.method,
+            c.kept_area,
+            c.removed_area,
+            c.removed_faces,
+            c.crease_degrees,
+            c.cut_height_min,
+            c.cut_height_max,
+            c.cut_height_mean,
+            c.filled_holes,
+            c.removed_handles
+        );
+    }
     println!(
         "  load {:.1} ms, clean {:.1} ms",
         r.timings_ms.load, r.timings_ms.clean

@@ -42,7 +42,17 @@ fn assert_disk_on(m: &Mesh, original: &Mesh, target: usize) {
 
 #[test]
 fn sphere_is_rejected_as_closed() {
-    let err = clean(&transform::closed_sphere(642), &CleanOptions::default()).unwrap_err();
+    // Crown extraction finds no tooth crown on a sphere; with it off, the
+    // sphere is refused for being closed.
+    let sphere = transform::closed_sphere(642);
+    let err = clean(&sphere, &CleanOptions::default()).unwrap_err();
+    assert!(matches!(err, CleanError::Crown(_)), "{err:?}");
+    assert!(err.to_string().contains("closed surface"));
+    let off = CleanOptions {
+        crown: morphoid::clean::CrownMode::Off,
+        ..CleanOptions::default()
+    };
+    let err = clean(&sphere, &off).unwrap_err();
     assert_eq!(err, CleanError::Closed);
     assert!(err.to_string().contains("closed"));
 }

@@ -7,6 +7,7 @@ mod support;
 
 mod classify_result_files;
 mod clean_cloud;
+mod clean_crown;
 mod clean_pipeline;
 mod clean_teeth;
 mod clean_variants;

@@ -1,0 +1,171 @@
+//! The plain geometry the crown extraction reads: face normals, areas and
+//! centroids, the signed turn across every interior edge, area-weighted
+//! principal axes and cylindrical coordinates about an axis.
+
+use crate::mesh::{cross, dot, norm, sub, triangle_normal2, EdgeMap, Mesh};
+
+/// Per-face and per-edge geometry of a closed, consistently oriented mesh.
+pub(super) struct SurfaceGeometry {
+    /// Area of every face.
+    pub areas: Vec<f64>,
+    /// Centroid of every face.
+    pub centroids: Vec<[f64; 3]>,
+    /// The edges with their faces.
+    pub edges: EdgeMap,
+    /// Signed turn angle (radians) across every edge shared by exactly two
+    /// faces: positive where the surface is convex (a ridge), negative
+    /// where it is concave (a crease), 0 elsewhere.
+    pub turn: Vec<f64>,
+}
+
+impl SurfaceGeometry {
+    pub fn new(mesh: &Mesh) -> Self {
+        let mut normals = Vec::with_capacity(mesh.faces.len());
+        let mut areas = Vec::with_capacity(mesh.faces.len());
+        let mut centroids = Vec::with_capacity(mesh.faces.len());
+        for f in &mesh.faces {
+            let p = f.map(|v| mesh.vertices[v as usize]);
+            let n2 = triangle_normal2(p[0], p[1], p[2]);
+            let len = norm(n2);
+            normals.push(if len > 0.0 {
+                n2.map(|x| x / len)
+            } else {
+                [0.0; 3]
+            });
+            areas.push(0.5 * len);
+            centroids.push([0, 1, 2].map(|d| (p[0][d] + p[1][d] + p[2][d]) / 3.0));
+        }
+        let edges = EdgeMap::new(&mesh.faces);
+        let turn = (0..edges.len())
+            .map(|e| match edges.faces_of(e) {
+                &[f, g] => signed_turn(mesh, &normals, f as usize, g as usize, edges.edge(e)),
+                _ => 0.0,
+            })
+            .collect();
+        Self {
+            areas,
+            centroids,
+            edges,
+            turn,
+        }
+    }
+}
+
+/// The vertex of face `f` that is not on the edge `(a, b)`.
+fn opposite(face: [u32; 3], (a, b): (u32, u32)) -> u32 {
+    face.into_iter()
+        .find(|&v| v != a && v != b)
+        .unwrap_or(face[0])
+}
+
+/// Angle between the normals of faces `f` and `g` across their shared
+/// edge, positive when `g` bends away below `f`'s plane (convex).
+fn signed_turn(mesh: &Mesh, normals: &[[f64; 3]], f: usize, g: usize, edge: (u32, u32)) -> f64 {
+    let (nf, ng) = (normals[f], normals[g]);
+    let angle = norm(cross(nf, ng)).atan2(dot(nf, ng));
+    let o = opposite(mesh.faces[g], edge);
+    let side = dot(
+        nf,
+        sub(mesh.vertices[o as usize], mesh.vertices[edge.0 as usize]),
+    );
+    if side < 0.0 {
+        angle
+    } else {
+        -angle
+    }
+}
+
+/// Six times the signed volume enclosed by a closed surface (positive when
+/// its normals point outward).
+pub(super) fn signed_volume6(mesh: &Mesh) -> f64 {
+    mesh.faces
+        .iter()
+        .map(|f| {
+            let p = f.map(|v| mesh.vertices[v as usize]);
+            dot(p[0], cross(p[1], p[2]))
+        })
+        .sum()
+}
+
+/// Area-weighted centroid and principal axes of a surface (face centroids
+/// weighted by face area), largest spread first.
+pub(super) fn area_weighted_axes(geo: &SurfaceGeometry) -> Option<([f64; 3], [[f64; 3]; 3])> {
+    let total: f64 = geo.areas.iter().sum();
+    if !(total > 0.0) {
+        return None;
+    }
+    let mut c = [0.0; 3];
+    for (p, a) in geo.centroids.iter().zip(&geo.areas) {
+        for d in 0..3 {
+            c[d] += p[d] * a / total;
+        }
+    }
+    let mut cov = nalgebra::Matrix3::<f64>::zeros();
+    for (p, a) in geo.centroids.iter().zip(&geo.areas) {
+        let q = nalgebra::Vector3::new(p[0] - c[0], p[1] - c[1], p[2] - c[2]);
+        cov += q * q.transpose() * *a;
+    }
+    let eig = nalgebra::SymmetricEigen::new(cov);
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&i, &j| eig.eigenvalues[j].total_cmp(&eig.eigenvalues[i]));
+    let axis = |k: usize| {
+        let col = eig.eigenvectors.column(order[k]);
+        [col[0], col[1], col[2]]
+    };
+    Some((c, [axis(0), axis(1), axis(2)]))
+}
+
+/// Cylindrical coordinates about the axis through `centre` along the unit
+/// vector `axis`: `(angle, radius, height)`.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Cylinder {
+    centre: [f64; 3],
+    axis: [f64; 3],
+    u: [f64; 3],
+    v: [f64; 3],
+}
+
+impl Cylinder {
+    pub fn new(centre: [f64; 3], axis: [f64; 3]) -> Self {
+        let helper = if axis[0].abs() < 0.9 {
+            [1.0, 0.0, 0.0]
+        } else {
+            [0.0, 1.0, 0.0]
+        };
+        let u = cross(axis, helper);
+        let un = norm(u);
+        let u = u.map(|x| x / un);
+        Self {
+            centre,
+            axis,
+            u,
+            v: cross(axis, u),
+        }
+    }
+
+    pub fn axis(&self) -> [f64; 3] {
+        self.axis
+    }
+
+    pub fn height(&self, p: [f64; 3]) -> f64 {
+        dot(sub(p, self.centre), self.axis)
+    }
+
+    /// `(angle in (−π, π], distance from the axis)`.
+    pub fn polar(&self, p: [f64; 3]) -> (f64, f64) {
+        let d = sub(p, self.centre);
+        let (x, y) = (dot(d, self.u), dot(d, self.v));
+        (y.atan2(x), x.hypot(y))
+    }
+
+    /// The unit direction of increasing angle at `p` (zero on the axis).
+    pub fn around(&self, p: [f64; 3]) -> [f64; 3] {
+        let t = cross(self.axis, sub(p, self.centre));
+        let n = norm(t);
+        if n > 0.0 {
+            t.map(|x| x / n)
+        } else {
+            [0.0; 3]
+        }
+    }
+}
