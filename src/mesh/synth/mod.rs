@@ -16,13 +16,15 @@
 //! (rigid motions, mirror images, flipped faces, triangle soups, debris,
 //! holes, point clouds, a closed sphere), and [`bad_inputs`]
 //! writes the malformed files the daemon must survive; [`library`] writes a
-//! labelled reference library of crowns. [`unit_disk`] and
+//! labelled reference library of crowns. [`whole_tooth`] builds a closed
+//! whole tooth (crown, neck, roots) below a crown. [`unit_disk`] and
 //! [`subdivide_midpoint`] are re-exported from [`crate::mesh`] for the
 //! generator's users.
 
 pub mod bad_inputs;
 pub mod library;
 pub mod transform;
+mod whole_tooth;
 
 pub use crate::mesh::unit_disk;
 pub use bad_inputs::write_bad_inputs;
@@ -31,6 +33,7 @@ pub use transform::{
     add_debris, closed_sphere, flip_faces, mirror, punch_hole, rigid_motion, scale,
     subdivide_midpoint, to_point_cloud, triangle_soup, RigidMotion,
 };
+pub use whole_tooth::{whole_tooth, WholeTooth, WholeToothError, WholeToothParams};
 
 use super::disk::{ring_count, ring_disk};
 use super::Mesh;
