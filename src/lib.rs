@@ -36,6 +36,6 @@ pub mod hash;
 pub mod landmarks;
 pub mod library;
 pub mod mesh;
-pub mod volume;
 pub mod pipeline;
 pub mod store;
+pub mod volume;

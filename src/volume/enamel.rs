@@ -42,7 +42,9 @@ pub fn density_below_surface(
         .map(|(p, n)| {
             let sum: f64 = depths
                 .iter()
-                .map(|d| f64::from(grid.trilinear([p[0] - d * n[0], p[1] - d * n[1], p[2] - d * n[2]])))
+                .map(|d| {
+                    f64::from(grid.trilinear([p[0] - d * n[0], p[1] - d * n[1], p[2] - d * n[2]]))
+                })
                 .sum();
             sum / depths.len().max(1) as f64 - threshold
         })
@@ -170,8 +172,8 @@ pub fn largest_part(mesh: &Mesh) -> (Mesh, usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::{boundary_loops, surface_area};
     use crate::mesh::synth::closed_sphere;
+    use crate::mesh::{boundary_loops, surface_area};
 
     #[test]
     fn cutting_a_sphere_at_its_equator_keeps_a_hemisphere() {
@@ -182,7 +184,12 @@ mod tests {
         assert_eq!(parts, 1);
         assert_eq!(boundary_loops(&part).len(), 1);
         assert!(part.vertices.iter().all(|p| p[2] >= 0.1 - 1e-9));
-        let r = s.vertices.iter().map(|p| crate::mesh::norm(*p)).sum::<f64>() / s.vertices.len() as f64;
+        let r = s
+            .vertices
+            .iter()
+            .map(|p| crate::mesh::norm(*p))
+            .sum::<f64>()
+            / s.vertices.len() as f64;
         let cap = 2.0 * std::f64::consts::PI * r * (r - 0.1);
         assert!((surface_area(&part) / cap - 1.0).abs() < 0.03);
     }

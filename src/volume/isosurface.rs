@@ -60,13 +60,15 @@ pub fn isosurface(grid: &Grid, iso: f32) -> Mesh {
                 if inside == 0 || inside == 8 {
                     continue;
                 }
-                let corner_pos = |c: usize| position(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1));
+                let corner_pos =
+                    |c: usize| position(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1));
                 let mut pending: Vec<([u32; 3], [f64; 3])> = Vec::new();
                 let mut vertex = |a: usize, b: usize| -> u32 {
                     let (ia, ib) = (idx[a], idx[b]);
                     let key = ia.min(ib) as u64 * total + ia.max(ib) as u64;
                     *on_edge.entry(key).or_insert_with(|| {
-                        let t = f64::from((iso - val[a]) / (val[b] - val[a])).clamp(1e-3, 1.0 - 1e-3);
+                        let t =
+                            f64::from((iso - val[a]) / (val[b] - val[a])).clamp(1e-3, 1.0 - 1e-3);
                         let (pa, pb) = (corner_pos(a), corner_pos(b));
                         vertices.push([
                             pa[0] + t * (pb[0] - pa[0]),
@@ -115,7 +117,11 @@ pub fn isosurface(grid: &Grid, iso: f32) -> Mesh {
                 for (t, outward) in pending {
                     let [a, b, c] = t.map(|v| vertices[v as usize]);
                     let n = cross(sub(b, a), sub(c, a));
-                    faces.push(if dot(n, outward) >= 0.0 { t } else { [t[0], t[2], t[1]] });
+                    faces.push(if dot(n, outward) >= 0.0 {
+                        t
+                    } else {
+                        [t[0], t[2], t[1]]
+                    });
                 }
             }
         }

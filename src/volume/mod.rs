@@ -29,7 +29,7 @@ pub use reduce::{reduction_factor, BlockAverage};
 pub use segment::{connected_components, specimen_mask, SegmentReport};
 pub use source::{VolumeFormat, VolumeInfo};
 pub use stack::natural_order;
-pub use threshold::{otsu, thresholds, Histogram, Thresholds};
+pub use threshold::{enamel_threshold, foreground_threshold, otsu, Histogram, Thresholds};
 
 use crate::mesh::{surface_area, Mesh};
 use source::SliceSource;
@@ -50,7 +50,7 @@ pub struct VolumeOptions {
 impl Default for VolumeOptions {
     fn default() -> Self {
         VolumeOptions {
-            working_voxels: 160,
+            working_voxels: 200,
             enamel: true,
         }
     }
@@ -188,7 +188,11 @@ pub fn read_working_grid(
         if slice.len() != info.dims[0] * info.dims[1] {
             return Err(VolumeError::Invalid {
                 path: path.to_path_buf(),
-                problem: format!("a slice has {} samples, {} expected", slice.len(), info.dims[0] * info.dims[1]),
+                problem: format!(
+                    "a slice has {} samples, {} expected",
+                    slice.len(),
+                    info.dims[0] * info.dims[1]
+                ),
             });
         }
         reducer.push(&slice);
@@ -217,19 +221,34 @@ pub fn surface_from_grid(
     opts: &VolumeOptions,
 ) -> Result<(Mesh, Thresholds, SegmentReport, GridSurfaceReport), SegmentError> {
     let t = Instant::now();
-    let th = thresholds(&grid.values).ok_or(SegmentError::Uniform)?;
-    let fg = th.foreground as f32;
-    let mask: Vec<bool> = grid.values.iter().map(|&v| v > fg).collect();
+    let fg = foreground_threshold(&grid.values).ok_or(SegmentError::Uniform)?;
+    let mask: Vec<bool> = grid.values.iter().map(|&v| f64::from(v) > fg).collect();
     let (mask, seg) = specimen_mask(&mask, grid.dims).ok_or(SegmentError::Empty)?;
     if seg.kept_voxels < 8 {
         return Err(SegmentError::TooSmall(seg.kept_voxels));
     }
+    let interior: Vec<f32> = interior_samples(&mask, grid.dims, 2)
+        .into_iter()
+        .map(|i| grid.values[i])
+        .collect();
+    let th = Thresholds {
+        foreground: fg,
+        enamel: enamel_threshold(&interior),
+    };
+    let fg = fg as f32;
     // The grey values give the surface its sub-voxel position; the mask
     // decides which side each sample is on.
-    let margin = 1e-3 * (grid.values.iter().copied().fold(f32::MIN, f32::max) - fg).abs().max(1e-6);
+    let margin = 1e-3
+        * (grid.values.iter().copied().fold(f32::MIN, f32::max) - fg)
+            .abs()
+            .max(1e-6);
     let mut field = grid.clone();
     for (v, &m) in field.values.iter_mut().zip(&mask) {
-        *v = if m { v.max(fg + margin) } else { v.min(fg - margin) };
+        *v = if m {
+            v.max(fg + margin)
+        } else {
+            v.min(fg - margin)
+        };
     }
     let segment_ms = ms(t);
     let t = Instant::now();
@@ -264,6 +283,36 @@ pub fn surface_from_grid(
     };
     report.crown_ms = ms(t);
     Ok((mesh, th, seg, report))
+}
+
+/// The samples of `mask` at least `depth` steps (6-connected) from any
+/// sample outside it.
+fn interior_samples(mask: &[bool], dims: [usize; 3], depth: usize) -> Vec<usize> {
+    let mut inner = mask.to_vec();
+    let plane = dims[0] * dims[1];
+    for _ in 0..depth {
+        let prev = inner.clone();
+        for (i, v) in inner.iter_mut().enumerate() {
+            if !*v {
+                continue;
+            }
+            let (x, y, z) = (i % dims[0], (i / dims[0]) % dims[1], i / plane);
+            let border = x == 0
+                || y == 0
+                || z == 0
+                || x + 1 == dims[0]
+                || y + 1 == dims[1]
+                || z + 1 == dims[2];
+            *v = !border
+                && prev[i - 1]
+                && prev[i + 1]
+                && prev[i - dims[0]]
+                && prev[i + dims[0]]
+                && prev[i - plane]
+                && prev[i + plane];
+        }
+    }
+    (0..inner.len()).filter(|&i| inner[i]).collect()
 }
 
 /// What [`surface_from_grid`] measured.

@@ -56,19 +56,32 @@ impl NiftiFile {
             _ => return Err(invalid("not a NIfTI-1 file (sizeof_hdr is not 348)".into())),
         };
         if &h[344..347] != b"n+1" {
-            return Err(invalid("not a single-file NIfTI-1 (magic is not \"n+1\")".into()));
+            return Err(invalid(
+                "not a single-file NIfTI-1 (magic is not \"n+1\")".into(),
+            ));
         }
         let i16_at = |o: usize| {
             let b = [h[o], h[o + 1]];
-            if little { i16::from_le_bytes(b) } else { i16::from_be_bytes(b) }
+            if little {
+                i16::from_le_bytes(b)
+            } else {
+                i16::from_be_bytes(b)
+            }
         };
         let f32_at = |o: usize| {
             let b = [h[o], h[o + 1], h[o + 2], h[o + 3]];
-            if little { f32::from_le_bytes(b) } else { f32::from_be_bytes(b) }
+            if little {
+                f32::from_le_bytes(b)
+            } else {
+                f32::from_be_bytes(b)
+            }
         };
         let ndim = i16_at(40);
         let d: Vec<i16> = (1..=7).map(|k| i16_at(40 + 2 * k)).collect();
-        if !(3..=7).contains(&ndim) || d[..3].iter().any(|&x| x < 1) || d[3..(ndim as usize)].iter().any(|&x| x > 1) {
+        if !(3..=7).contains(&ndim)
+            || d[..3].iter().any(|&x| x < 1)
+            || d[3..(ndim as usize)].iter().any(|&x| x > 1)
+        {
             return Err(invalid(format!(
                 "dimensions {:?}: a single 3D volume is needed",
                 &d[..ndim.clamp(0, 7) as usize]
@@ -87,7 +100,11 @@ impl NiftiFile {
         };
         let voxel_size = [1, 2, 3].map(|k| {
             let v = f64::from(f32_at(76 + 4 * k)).abs();
-            if v > 0.0 && v.is_finite() { v } else { 1.0 }
+            if v > 0.0 && v.is_finite() {
+                v
+            } else {
+                1.0
+            }
         });
         let unit = match h[123] & 0x07 {
             1 => "m",
@@ -97,7 +114,9 @@ impl NiftiFile {
         };
         let offset = f32_at(108);
         if !(offset >= 348.0 && offset < (1u64 << 32) as f32) {
-            return Err(invalid(format!("vox_offset {offset} lies inside the header")));
+            return Err(invalid(format!(
+                "vox_offset {offset} lies inside the header"
+            )));
         }
         let skip = offset as u64 - 348;
         std::io::copy(&mut reader.by_ref().take(skip), &mut std::io::sink()).map_err(io)?;

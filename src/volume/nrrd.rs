@@ -20,7 +20,9 @@ fn sample_type(name: &str) -> Option<SampleType> {
     Some(match name {
         "uchar" | "unsigned char" | "uint8" | "uint8_t" => SampleType::U8,
         "signed char" | "int8" | "int8_t" => SampleType::I8,
-        "ushort" | "unsigned short" | "unsigned short int" | "uint16" | "uint16_t" => SampleType::U16,
+        "ushort" | "unsigned short" | "unsigned short int" | "uint16" | "uint16_t" => {
+            SampleType::U16
+        }
         "short" | "short int" | "signed short" | "signed short int" | "int16" | "int16_t" => {
             SampleType::I16
         }
@@ -50,7 +52,8 @@ impl NrrdFile {
         if !line.starts_with("NRRD000") {
             return Err(invalid("not an NRRD file (no NRRD000x magic)".into()));
         }
-        let (mut kind, mut dims, mut encoding, mut little) = (None, None, String::from("raw"), true);
+        let (mut kind, mut dims, mut encoding, mut little) =
+            (None, None, String::from("raw"), true);
         let mut spacing = [1.0f64; 3];
         let mut unit = String::from("voxel");
         let mut header_bytes = line.len();
@@ -59,7 +62,9 @@ impl NrrdFile {
             let n = reader.read_line(&mut line).map_err(io)?;
             header_bytes += n;
             if n == 0 {
-                return Err(invalid("the header has no end (no blank line before the data)".into()));
+                return Err(invalid(
+                    "the header has no end (no blank line before the data)".into(),
+                ));
             }
             if header_bytes > 1 << 20 {
                 return Err(invalid("header longer than 1 MiB".into()));
@@ -88,10 +93,15 @@ impl NrrdFile {
                 "sizes" => {
                     let s: Vec<usize> = value
                         .split_whitespace()
-                        .map(|t| t.parse().map_err(|_| invalid(format!("bad sizes \"{value}\""))))
+                        .map(|t| {
+                            t.parse()
+                                .map_err(|_| invalid(format!("bad sizes \"{value}\"")))
+                        })
                         .collect::<Result<_, _>>()?;
                     if s.len() != 3 || s.iter().any(|&d| d == 0) {
-                        return Err(invalid(format!("sizes \"{value}\": three positive sizes needed")));
+                        return Err(invalid(format!(
+                            "sizes \"{value}\": three positive sizes needed"
+                        )));
                     }
                     dims = Some([s[0], s[1], s[2]]);
                 }
@@ -130,7 +140,9 @@ impl NrrdFile {
                     }
                 }
                 "data file" | "datafile" => {
-                    return Err(invalid("detached data files are not supported; save as a single .nrrd".into()))
+                    return Err(invalid(
+                        "detached data files are not supported; save as a single .nrrd".into(),
+                    ))
                 }
                 _ => {}
             }
@@ -140,7 +152,11 @@ impl NrrdFile {
         let reader: Box<dyn Read> = match encoding.as_str() {
             "raw" => Box::new(reader),
             "gzip" | "gz" => Box::new(flate2::bufread::MultiGzDecoder::new(reader)),
-            other => return Err(invalid(format!("unsupported encoding \"{other}\" (raw or gzip)"))),
+            other => {
+                return Err(invalid(format!(
+                    "unsupported encoding \"{other}\" (raw or gzip)"
+                )))
+            }
         };
         Ok(NrrdFile {
             info: VolumeInfo {

@@ -78,7 +78,10 @@ fn on_border(i: usize, dims: [usize; 3]) -> bool {
 /// what was dropped and filled. `None` when `mask` is empty.
 pub fn specimen_mask(mask: &[bool], dims: [usize; 3]) -> Option<(Vec<bool>, SegmentReport)> {
     let (labels, sizes) = connected_components(mask, dims);
-    let (largest, &kept) = sizes.iter().enumerate().max_by_key(|&(i, s)| (*s, usize::MAX - i))?;
+    let (largest, &kept) = sizes
+        .iter()
+        .enumerate()
+        .max_by_key(|&(i, s)| (*s, usize::MAX - i))?;
     let mut out: Vec<bool> = labels.iter().map(|&l| l == largest as u32).collect();
     // Background reachable from the border is outside; the rest is cavity.
     let background: Vec<bool> = out.iter().map(|&m| !m).collect();

@@ -79,7 +79,10 @@ pub fn slice_files(dir: &Path) -> Result<(Vec<PathBuf>, VolumeFormat), VolumeErr
         .flatten()
         .map(|e| e.path())
         .filter(|p| p.is_file())
-        .filter(|p| !p.file_name().is_some_and(|n| n.to_string_lossy().starts_with('.')))
+        .filter(|p| {
+            !p.file_name()
+                .is_some_and(|n| n.to_string_lossy().starts_with('.'))
+        })
         .filter_map(|p| slice_format(&p).map(|f| (p, f)))
         .collect();
     let invalid = |problem: String| VolumeError::Invalid {
@@ -87,7 +90,9 @@ pub fn slice_files(dir: &Path) -> Result<(Vec<PathBuf>, VolumeFormat), VolumeErr
         problem,
     };
     let Some(&(_, format)) = files.first() else {
-        return Err(invalid("no slice files (.tif, .tiff, .png, .bmp) in the folder".into()));
+        return Err(invalid(
+            "no slice files (.tif, .tiff, .png, .bmp) in the folder".into(),
+        ));
     };
     if let Some((p, f)) = files.iter().find(|(_, f)| *f != format) {
         return Err(invalid(format!(
@@ -120,11 +125,16 @@ pub fn slice_files(dir: &Path) -> Result<(Vec<PathBuf>, VolumeFormat), VolumeErr
 }
 
 fn name(p: &Path) -> String {
-    p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()
+    p.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
 }
 
 /// One decoded slice: width, height, bits per sample, values.
-fn read_image(path: &Path, format: VolumeFormat) -> Result<(usize, usize, u16, Vec<f32>), VolumeError> {
+fn read_image(
+    path: &Path,
+    format: VolumeFormat,
+) -> Result<(usize, usize, u16, Vec<f32>), VolumeError> {
     match format {
         VolumeFormat::Tiff => read_tiff(path),
         _ => read_other(path),
@@ -205,17 +215,29 @@ fn read_other(path: &Path) -> Result<(usize, usize, u16, Vec<f32>), VolumeError>
         })?;
     let (w, h) = (img.width() as usize, img.height() as usize);
     let (bits, values) = match img {
-        image::DynamicImage::ImageLuma8(g) => (8, g.into_raw().into_iter().map(f32::from).collect()),
+        image::DynamicImage::ImageLuma8(g) => {
+            (8, g.into_raw().into_iter().map(f32::from).collect())
+        }
         image::DynamicImage::ImageLuma16(g) => {
             (16, g.into_raw().into_iter().map(f32::from).collect())
         }
         other if other.color().bytes_per_pixel() / other.color().channel_count() == 1 => (
             8,
-            other.to_luma8().into_raw().into_iter().map(f32::from).collect(),
+            other
+                .to_luma8()
+                .into_raw()
+                .into_iter()
+                .map(f32::from)
+                .collect(),
         ),
         other => (
             16,
-            other.to_luma16().into_raw().into_iter().map(f32::from).collect(),
+            other
+                .to_luma16()
+                .into_raw()
+                .into_iter()
+                .map(f32::from)
+                .collect(),
         ),
     };
     Ok((w, h, bits, values))

@@ -12,11 +12,9 @@ pub struct Histogram {
 impl Histogram {
     /// The histogram of `values` in `bins` bins between their extremes.
     pub fn of(values: &[f32], bins: usize) -> Histogram {
-        let (lo, hi) = values
-            .iter()
-            .fold((f64::MAX, f64::MIN), |(a, b), &v| {
-                (a.min(f64::from(v)), b.max(f64::from(v)))
-            });
+        let (lo, hi) = values.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| {
+            (a.min(f64::from(v)), b.max(f64::from(v)))
+        });
         let (lo, hi) = if lo <= hi { (lo, hi) } else { (0.0, 0.0) };
         let width = ((hi - lo) / bins as f64).max(f64::MIN_POSITIVE);
         let mut counts = vec![0u64; bins.max(1)];
@@ -48,7 +46,11 @@ pub fn otsu(hist: &Histogram, range: std::ops::Range<usize>) -> Option<(usize, f
     if total <= 0.0 || counts.iter().filter(|&&c| c > 0).count() < 2 {
         return None;
     }
-    let sum: f64 = counts.iter().enumerate().map(|(i, &c)| i as f64 * c as f64).sum();
+    let sum: f64 = counts
+        .iter()
+        .enumerate()
+        .map(|(i, &c)| i as f64 * c as f64)
+        .sum();
     let mean = sum / total;
     let var: f64 = counts
         .iter()
@@ -90,32 +92,35 @@ pub struct Thresholds {
 /// normal distribution).
 const TWO_MATERIALS: f64 = 0.8;
 
-/// The thresholds of `values`: Otsu's threshold, then, if the part above
-/// it (or below it) is itself clearly two materials, Otsu's threshold
-/// there too. `None` when all values are equal.
-pub fn thresholds(values: &[f32]) -> Option<Thresholds> {
+/// The threshold between background and specimen: Otsu's threshold, or,
+/// when the part below it is itself clearly two materials (enamel so
+/// bright that Otsu split it from dentine and air), Otsu's threshold
+/// there. `None` when all values are equal.
+pub fn foreground_threshold(values: &[f32]) -> Option<f64> {
     const BINS: usize = 256;
     let hist = Histogram::of(values, BINS);
     if hist.is_flat() {
         return None;
     }
     let (t, _) = otsu(&hist, 0..BINS)?;
-    let upper = otsu(&hist, t + 1..BINS).filter(|&(_, e)| e > TWO_MATERIALS);
-    let lower = otsu(&hist, 0..t + 1).filter(|&(_, e)| e > TWO_MATERIALS);
-    Some(match (upper, lower) {
-        (Some((u, _)), _) => Thresholds {
-            foreground: hist.edge(t),
-            enamel: Some(hist.edge(u)),
+    Some(
+        match otsu(&hist, 0..t + 1).filter(|&(_, e)| e > TWO_MATERIALS) {
+            Some((l, _)) => hist.edge(l),
+            None => hist.edge(t),
         },
-        (None, Some((l, _))) => Thresholds {
-            foreground: hist.edge(l),
-            enamel: Some(hist.edge(t)),
-        },
-        (None, None) => Thresholds {
-            foreground: hist.edge(t),
-            enamel: None,
-        },
-    })
+    )
+}
+
+/// The threshold between dentine and enamel among the `interior` values of
+/// the specimen (away from its surface, so that the blur between air and
+/// tooth does not count as a material), when they are clearly two
+/// materials.
+pub fn enamel_threshold(interior: &[f32]) -> Option<f64> {
+    const BINS: usize = 256;
+    let hist = Histogram::of(interior, BINS);
+    otsu(&hist, 0..BINS)
+        .filter(|&(_, e)| e > TWO_MATERIALS)
+        .map(|(t, _)| hist.edge(t))
 }
 
 #[cfg(test)]
@@ -137,13 +142,14 @@ mod tests {
 
     #[test]
     fn two_and_three_materials_are_told_apart() {
-        let two = thresholds(&noisy(&[(0.1, 8000), (0.5, 2000)], 0.03)).unwrap();
-        assert!(two.foreground > 0.2 && two.foreground < 0.4, "{two:?}");
-        assert_eq!(two.enamel, None);
-        let three = thresholds(&noisy(&[(0.1, 8000), (0.5, 2000), (0.85, 600)], 0.03)).unwrap();
-        assert!(three.foreground > 0.2 && three.foreground < 0.4, "{three:?}");
-        let e = three.enamel.unwrap();
-        assert!(e > 0.6 && e < 0.75, "{three:?}");
-        assert_eq!(thresholds(&[1.0; 50]), None);
+        let two = foreground_threshold(&noisy(&[(0.1, 8000), (0.5, 2000)], 0.03)).unwrap();
+        assert!(two > 0.15 && two < 0.4, "{two}");
+        let three = foreground_threshold(&noisy(&[(0.1, 8000), (0.5, 2000), (0.85, 600)], 0.03));
+        let three = three.unwrap();
+        assert!(three > 0.15 && three < 0.4, "{three}");
+        assert_eq!(foreground_threshold(&[1.0; 50]), None);
+        assert_eq!(enamel_threshold(&noisy(&[(0.5, 2000)], 0.03)), None);
+        let e = enamel_threshold(&noisy(&[(0.5, 2000), (0.85, 600)], 0.03)).unwrap();
+        assert!(e > 0.55 && e < 0.75, "{e}");
     }
 }

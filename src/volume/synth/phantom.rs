@@ -69,7 +69,9 @@ pub fn inside_mask(mesh: &Mesh, grid: &Grid) -> Vec<bool> {
             xs.sort_by(f64::total_cmp);
             let mut out = vec![false; nx];
             for pair in xs.chunks_exact(2) {
-                let lo = ((pair[0] - grid.origin[0]) / grid.spacing[0]).ceil().max(0.0) as usize;
+                let lo = ((pair[0] - grid.origin[0]) / grid.spacing[0])
+                    .ceil()
+                    .max(0.0) as usize;
                 let hi = ((pair[1] - grid.origin[0]) / grid.spacing[0]).floor();
                 if hi < 0.0 {
                     continue;
@@ -86,7 +88,8 @@ pub fn inside_mask(mesh: &Mesh, grid: &Grid) -> Vec<bool> {
 
 fn span(c: [f64; 3], n: usize) -> (usize, usize) {
     let lo = c.iter().copied().fold(f64::MAX, f64::min).ceil().max(0.0) as usize;
-    let hi = (c.iter().copied().fold(f64::MIN, f64::max).floor() + 1.0).clamp(0.0, n as f64) as usize;
+    let hi =
+        (c.iter().copied().fold(f64::MIN, f64::max).floor() + 1.0).clamp(0.0, n as f64) as usize;
     (lo.min(n), hi)
 }
 
@@ -108,7 +111,9 @@ pub fn gaussian_blur(grid: &mut Grid, sigma: f64) {
         return;
     }
     let r = (3.0 * sigma).ceil() as i64;
-    let kernel: Vec<f64> = (-r..=r).map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp()).collect();
+    let kernel: Vec<f64> = (-r..=r)
+        .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp())
+        .collect();
     let sum: f64 = kernel.iter().sum();
     let kernel: Vec<f64> = kernel.iter().map(|k| k / sum).collect();
     let dims = grid.dims;
@@ -134,7 +139,10 @@ pub fn gaussian_blur(grid: &mut Grid, sigma: f64) {
 pub fn phantom(tooth: &WholeTooth, params: &PhantomParams) -> Grid {
     let mesh = &tooth.mesh;
     let (lo, hi) = bounding_box(mesh).unwrap_or(([0.0; 3], [1.0; 3]));
-    let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+    let extent = (0..3)
+        .map(|a| hi[a] - lo[a])
+        .fold(0.0, f64::max)
+        .max(f64::MIN_POSITIVE);
     let across = params.voxels_across.max(4);
     let h = extent / (across - 1) as f64;
     let m = params.margin as f64;
@@ -157,7 +165,11 @@ pub fn phantom(tooth: &WholeTooth, params: &PhantomParams) -> Grid {
         if depth[i] as usize > shell {
             return;
         }
-        let (x, y, z) = (i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1]));
+        let (x, y, z) = (
+            i % dims[0],
+            (i / dims[0]) % dims[1],
+            i / (dims[0] * dims[1]),
+        );
         let p = [0, 1, 2].map(|a| origin[a] + [x, y, z][a] as f64 * h);
         if let Some(t) = &tri {
             let c = t.closest_point(p);
@@ -211,7 +223,12 @@ mod tests {
         let g = Grid::filled([40, 40, 40], [-1.3; 3], [2.6 / 39.0; 3], 0.0);
         let inside = inside_mask(&s, &g);
         let vol = inside.iter().filter(|&&b| b).count() as f64 * (2.6f64 / 39.0).powi(3);
-        let r = s.vertices.iter().map(|p| crate::mesh::norm(*p)).sum::<f64>() / s.vertices.len() as f64;
+        let r = s
+            .vertices
+            .iter()
+            .map(|p| crate::mesh::norm(*p))
+            .sum::<f64>()
+            / s.vertices.len() as f64;
         let expected = 4.0 / 3.0 * std::f64::consts::PI * r.powi(3);
         assert!((vol / expected - 1.0).abs() < 0.03, "{vol} vs {expected}");
     }

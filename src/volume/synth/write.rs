@@ -65,9 +65,8 @@ pub fn write_volume(
     spec: &StackSpec,
 ) -> std::io::Result<[f64; 3]> {
     let dims = spec.dims.unwrap_or(grid.dims);
-    let voxel = [0, 1, 2].map(|a| {
-        grid.spacing[a] * (grid.dims[a].max(2) - 1) as f64 / (dims[a].max(2) - 1) as f64
-    });
+    let voxel = [0, 1, 2]
+        .map(|a| grid.spacing[a] * (grid.dims[a].max(2) - 1) as f64 / (dims[a].max(2) - 1) as f64);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(spec.seed);
     let slice = |z: usize, rng: &mut rand_chacha::ChaCha8Rng| -> Vec<f32> {
         let mut out = Vec::with_capacity(dims[0] * dims[1]);
@@ -87,8 +86,16 @@ pub fn write_volume(
         }
         out
     };
-    let to8 = |s: &[f32]| s.iter().map(|v| (v * 255.0).round() as u8).collect::<Vec<u8>>();
-    let to16 = |s: &[f32]| s.iter().map(|v| (v * 65535.0).round() as u16).collect::<Vec<u16>>();
+    let to8 = |s: &[f32]| {
+        s.iter()
+            .map(|v| (v * 255.0).round() as u8)
+            .collect::<Vec<u8>>()
+    };
+    let to16 = |s: &[f32]| {
+        s.iter()
+            .map(|v| (v * 65535.0).round() as u16)
+            .collect::<Vec<u16>>()
+    };
     let (w, h) = (dims[0] as u32, dims[1] as u32);
     let other = |e: Box<dyn std::error::Error + Send + Sync>| std::io::Error::other(e);
     match format {
@@ -139,7 +146,10 @@ pub fn write_volume(
                 u = spec.unit
             )?;
             let mut sink: Box<dyn Write> = if gzip {
-                Box::new(flate2::write::GzEncoder::new(out, flate2::Compression::fast()))
+                Box::new(flate2::write::GzEncoder::new(
+                    out,
+                    flate2::Compression::fast(),
+                ))
             } else {
                 Box::new(out)
             };
@@ -153,7 +163,10 @@ pub fn write_volume(
         SynthFormat::Nifti { gzip } => {
             let file = std::io::BufWriter::new(std::fs::File::create(path)?);
             let mut sink: Box<dyn Write> = if gzip {
-                Box::new(flate2::write::GzEncoder::new(file, flate2::Compression::fast()))
+                Box::new(flate2::write::GzEncoder::new(
+                    file,
+                    flate2::Compression::fast(),
+                ))
             } else {
                 Box::new(file)
             };
@@ -174,7 +187,16 @@ pub fn write_volume(
 fn nifti_header(dims: [usize; 3], voxel: [f64; 3], unit: &str) -> Vec<u8> {
     let mut h = vec![0u8; 352];
     h[0..4].copy_from_slice(&348i32.to_le_bytes());
-    let dim: [i16; 8] = [3, dims[0] as i16, dims[1] as i16, dims[2] as i16, 1, 1, 1, 1];
+    let dim: [i16; 8] = [
+        3,
+        dims[0] as i16,
+        dims[1] as i16,
+        dims[2] as i16,
+        1,
+        1,
+        1,
+        1,
+    ];
     for (k, d) in dim.iter().enumerate() {
         h[40 + 2 * k..42 + 2 * k].copy_from_slice(&d.to_le_bytes());
     }
