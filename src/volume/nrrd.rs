@@ -98,7 +98,7 @@ impl NrrdFile {
                                 .map_err(|_| invalid(format!("bad sizes \"{value}\"")))
                         })
                         .collect::<Result<_, _>>()?;
-                    if s.len() != 3 || s.iter().any(|&d| d == 0) {
+                    if s.len() != 3 || s.contains(&0) {
                         return Err(invalid(format!(
                             "sizes \"{value}\": three positive sizes needed"
                         )));
