@@ -317,3 +317,46 @@ mod tests {
         assert_eq!(slice_number(Path::new("a/img.tif")), None);
     }
 }
+
+#[cfg(test)]
+mod bad_input_tests {
+    use super::*;
+
+    fn write_png(dir: &Path, name: &str, w: u32, h: u32) {
+        image::GrayImage::from_pixel(w, h, image::Luma([7u8]))
+            .save(dir.join(name))
+            .unwrap();
+    }
+
+    #[test]
+    fn gaps_single_slices_unequal_sizes_and_truncation_are_named_errors() {
+        let d = tempfile::tempdir().unwrap();
+        write_png(d.path(), "s_001.png", 4, 4);
+        let e = slice_files(d.path()).unwrap_err().to_string();
+        assert!(e.contains("only 1 slice"), "{e}");
+        write_png(d.path(), "s_003.png", 4, 4);
+        let e = slice_files(d.path()).unwrap_err().to_string();
+        assert!(e.contains("jumps from 1") && e.contains("s_003.png"), "{e}");
+        write_png(d.path(), "s_002.png", 5, 4);
+        let mut folder = SliceFolder::open(d.path()).unwrap();
+        let mut s = Vec::new();
+        folder.next_slice(&mut s).unwrap();
+        let e = folder.next_slice(&mut s).unwrap_err().to_string();
+        assert!(e.contains("s_002.png") && e.contains("unequal size"), "{e}");
+
+        let t = tempfile::tempdir().unwrap();
+        for z in 0..2 {
+            let f = std::fs::File::create(t.path().join(format!("a{z}.tif"))).unwrap();
+            let mut enc = tiff::encoder::TiffEncoder::new(f).unwrap();
+            enc.write_image::<tiff::encoder::colortype::Gray16>(8, 8, &[9u16; 64])
+                .unwrap();
+        }
+        let p = t.path().join("a1.tif");
+        let bytes = std::fs::read(&p).unwrap();
+        std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
+        let mut folder = SliceFolder::open(t.path()).unwrap();
+        folder.next_slice(&mut s).unwrap();
+        let e = folder.next_slice(&mut s).unwrap_err().to_string();
+        assert!(e.contains("a1.tif"), "{e}");
+    }
+}
