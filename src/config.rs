@@ -23,6 +23,8 @@ pub struct Config {
     pub clean: crate::clean::CleanOptions,
     /// cP engine parameters.
     pub cp: crate::cp::CpParams,
+    /// Slice stacks and volume files.
+    pub volume: crate::volume::VolumeOptions,
     /// Optional result files (absent: the database only).
     pub results: Results,
 }
@@ -207,6 +209,7 @@ impl Config {
         Settings {
             clean: self.clean.clone(),
             cp: self.cp.clone(),
+            volume: self.volume.clone(),
         }
     }
 

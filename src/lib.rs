@@ -38,3 +38,4 @@ pub mod library;
 pub mod mesh;
 pub mod pipeline;
 pub mod store;
+pub mod volume;

@@ -6,6 +6,7 @@ use crate::clean::{self, CleanError, CleanOptions, CleanReport};
 use crate::cp::{self, CpError, CpParams, Prepared};
 use crate::mesh::io::{self, LoadError};
 use crate::mesh::Mesh;
+use crate::volume::{self, VolumeError, VolumeOptions, VolumeReport};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -17,6 +18,9 @@ pub struct Settings {
     pub clean: CleanOptions,
     /// cP engine parameters.
     pub cp: CpParams,
+    /// Slice stacks and volume files.
+    #[serde(default)]
+    pub volume: VolumeOptions,
 }
 
 /// Wall time of each stage, in milliseconds.
@@ -41,6 +45,9 @@ pub struct PreparedSurface {
     pub cleaning: CleanReport,
     /// Time spent in each stage.
     pub timings: StageTimings,
+    /// What was done to a volume (slice folder, NRRD, NIfTI); `None` for
+    /// a surface file.
+    pub volume: Option<VolumeReport>,
 }
 
 /// Why a file could not be prepared; every message names the file.
@@ -49,6 +56,9 @@ pub enum PipelineError {
     /// The file could not be read (the message names the file).
     #[error(transparent)]
     Load(#[from] LoadError),
+    /// The volume could not be read or segmented (the message names it).
+    #[error(transparent)]
+    Volume(#[from] VolumeError),
     /// The surface could not be made disk-type.
     #[error("{path}: {source}")]
     Clean {
@@ -69,24 +79,43 @@ pub enum PipelineError {
 
 /// The specimen name of a surface file: its stem (`a/B03.ply` → `B03`).
 pub fn specimen_name(path: &Path) -> String {
-    path.file_stem()
+    let stem = path
+        .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default()
+        .unwrap_or_default();
+    // `x.nii.gz` is specimen `x`.
+    match stem.strip_suffix(".nii") {
+        Some(s)
+            if path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("gz")) =>
+        {
+            s.to_string()
+        }
+        _ => stem,
+    }
 }
 
 /// Load, clean and prepare the surface in `path`; the prepared surface is
-/// named after the file stem.
+/// named after the file stem. A folder of slices, `.nrrd`, `.nii` or
+/// `.nii.gz` is a volume: it is segmented into a surface first
+/// ([`volume::surface_from_path`]), and its report is kept.
 pub fn prepare_file(path: &Path, settings: &Settings) -> Result<PreparedSurface, PipelineError> {
     let name = specimen_name(path);
     let t = Instant::now();
-    let loaded = {
+    let (mesh, volume_report) = if volume::is_volume_path(path) {
+        let _s = tracing::debug_span!("volume", scan = %name).entered();
+        let s = volume::surface_from_path(path, &settings.volume)?;
+        (s.mesh, Some(s.report))
+    } else {
         let _s = tracing::debug_span!("load", scan = %name).entered();
-        io::load(path)?
+        (io::load(path)?.mesh, None)
     };
     let load_ms = ms(t);
-    prepare_mesh(&loaded.mesh, &name, settings)
+    prepare_mesh(&mesh, &name, settings)
         .map(|mut p| {
             p.timings.load = load_ms;
+            p.volume = volume_report;
             p
         })
         .map_err(|e| match e {
@@ -139,6 +168,7 @@ pub fn prepare_mesh(
             clean: clean_ms,
             prepare: ms(t),
         },
+        volume: None,
     })
 }
 

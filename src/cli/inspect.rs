@@ -4,6 +4,7 @@ use super::common::ConfigFile;
 use anyhow::{Context, Result};
 use morphoid::clean::{self, CleanOptions, CleanReport, CrownReport};
 use morphoid::mesh::io::{self, Format};
+use morphoid::volume::{self, VolumeOptions, VolumeReport};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -12,7 +13,8 @@ use std::time::Instant;
 /// Arguments of `morphoid inspect`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The surface file (OBJ, PLY, STL or OFF).
+    /// The surface file (OBJ, PLY, STL or OFF), or a volume: a folder of
+    /// TIFF/PNG/BMP slices, `.nrrd`, `.nii`, `.nii.gz`.
     mesh: PathBuf,
     /// Print the report as JSON on stdout.
     #[arg(long)]
@@ -54,6 +56,9 @@ struct Report {
     #[serde(skip_serializing_if = "Option::is_none")]
     crown: Option<CrownReport>,
     timings_ms: Timings,
+    /// Slice folder or volume file: what segmentation did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    volume: Option<VolumeReport>,
 }
 
 /// The rarer repairs, grouped so that the top level stays readable.
@@ -68,12 +73,12 @@ struct Repairs {
 }
 
 impl Report {
-    fn new(file: String, format: Format, r: &CleanReport, timings_ms: Timings) -> Self {
+    fn new(file: String, format: Option<Format>, r: &CleanReport, timings_ms: Timings) -> Self {
         Report {
             status: "ok",
             file,
             input: Counts {
-                format: Some(format),
+                format,
                 vertices: r.input_vertices,
                 faces: r.input_faces,
             },
@@ -100,6 +105,7 @@ impl Report {
             cloud: r.cloud.clone(),
             crown: r.crown.clone(),
             timings_ms,
+            volume: None,
         }
     }
 }
@@ -121,11 +127,12 @@ struct Timings {
 /// Run `morphoid inspect`.
 pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     let _span = tracing::info_span!("inspect", scan = %args.mesh.display()).entered();
-    let mut opts = config.load()?.clean;
+    let config = config.load()?;
+    let mut opts = config.clean;
     if let Some(n) = args.target_vertices {
         opts.target_vertices = n;
     }
-    match inspect(&args, &opts) {
+    match inspect(&args, &opts, &config.volume) {
         Ok(report) => {
             if args.json {
                 println!("{}", serde_json::to_string_pretty(&report)?);
@@ -150,26 +157,33 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     }
 }
 
-fn inspect(args: &Args, opts: &CleanOptions) -> Result<Report> {
+fn inspect(args: &Args, opts: &CleanOptions, volume_opts: &VolumeOptions) -> Result<Report> {
     let t0 = Instant::now();
-    let loaded = io::load(&args.mesh)?;
+    let (mesh, format, volume_report) = if volume::is_volume_path(&args.mesh) {
+        let s = volume::surface_from_path(&args.mesh, volume_opts)?;
+        (s.mesh, None, Some(s.report))
+    } else {
+        let loaded = io::load(&args.mesh)?;
+        (loaded.mesh, Some(loaded.format), None)
+    };
     let t_load = t0.elapsed();
-    let cleaned =
-        clean::clean(&loaded.mesh, opts).with_context(|| format!("{}", args.mesh.display()))?;
+    let cleaned = clean::clean(&mesh, opts).with_context(|| format!("{}", args.mesh.display()))?;
     let t_clean = t0.elapsed() - t_load;
     if let Some(out) = &args.write_clean {
         io::save(out, &cleaned.mesh)
             .with_context(|| format!("writing the cleaned surface of {}", args.mesh.display()))?;
     }
-    Ok(Report::new(
+    let mut report = Report::new(
         args.mesh.display().to_string(),
-        loaded.format,
+        format,
         &cleaned.report,
         Timings {
             load: t_load.as_secs_f64() * 1e3,
             clean: t_clean.as_secs_f64() * 1e3,
         },
-    ))
+    );
+    report.volume = volume_report;
+    Ok(report)
 }
 
 fn print_human(r: &Report) {

@@ -45,3 +45,4 @@ mod lm_propagate;
 mod store_basic;
 mod store_crash;
 mod store_landmarks;
+mod volume_teeth;

@@ -1,0 +1,393 @@
+//! Slice stacks and volumes (a folder of TIFF/PNG/BMP slices, NRRD,
+//! NIfTI-1) to a surface the cleaning step takes.
+//!
+//! Stages, each its own submodule: a reader yields slices one at a time
+//! (`stack`, `nrrd`, `nifti`), `reduce` averages them into blocks on the
+//! fly (memory is the working grid plus one slice), `threshold` finds the
+//! specimen and enamel levels (Otsu), `segment` keeps the largest
+//! component and fills internal cavities, `isosurface` extracts the closed
+//! surface (marching tetrahedra), and `enamel` cuts the crown where the
+//! surface lies over enamel. Without enamel contrast the closed surface is
+//! returned for the cleaning step's own crown extraction.
+
+mod enamel;
+mod grid;
+mod isosurface;
+mod nifti;
+mod nrrd;
+mod reduce;
+mod segment;
+mod source;
+mod stack;
+pub mod synth;
+mod threshold;
+
+pub use enamel::{cut_at_zero_level, largest_part, vertex_normals};
+pub use grid::Grid;
+pub use isosurface::isosurface;
+pub use reduce::{reduction_factor, BlockAverage};
+pub use segment::{connected_components, specimen_mask, SegmentReport};
+pub use source::{VolumeFormat, VolumeInfo};
+pub use stack::natural_order;
+pub use threshold::{enamel_threshold, foreground_threshold, otsu, Histogram, Thresholds};
+
+use crate::mesh::{surface_area, Mesh};
+use source::SliceSource;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The `[volume]` settings.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct VolumeOptions {
+    /// Samples across the largest dimension after block averaging.
+    pub working_voxels: usize,
+    /// Cut the crown where the surface lies over brighter enamel, when the
+    /// scan shows three materials.
+    pub enamel: bool,
+}
+
+impl Default for VolumeOptions {
+    fn default() -> Self {
+        VolumeOptions {
+            working_voxels: 200,
+            enamel: true,
+        }
+    }
+}
+
+/// What was done to turn a volume into a surface.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct VolumeReport {
+    /// Size and sampling of the volume as read.
+    pub input: VolumeInfo,
+    /// Block size of the reduction to the working grid.
+    pub reduction_factor: usize,
+    /// Samples of the working grid.
+    pub working_dims: [usize; 3],
+    /// Thresholds found, in the file's grey values.
+    pub thresholds: Thresholds,
+    /// Components and cavities.
+    pub segmentation: SegmentReport,
+    /// Triangles of the closed isosurface.
+    pub isosurface_faces: usize,
+    /// Area of the closed isosurface (units of `input.unit`²).
+    pub isosurface_area: f64,
+    /// Whether the crown was cut over enamel.
+    pub enamel_found: bool,
+    /// Area of the crown kept over enamel (0 without enamel).
+    pub crown_area: f64,
+    /// Separate regions over enamel (the largest is the crown).
+    pub enamel_regions: usize,
+    /// Milliseconds: reading and reduction, segmentation, isosurface, crown.
+    pub timings_ms: VolumeTimings,
+}
+
+/// Wall time of each volume stage, in milliseconds.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct VolumeTimings {
+    /// Reading every slice and averaging it into the working grid.
+    pub read: f64,
+    /// Thresholds, components, cavities.
+    pub segment: f64,
+    /// The closed isosurface.
+    pub isosurface: f64,
+    /// Sampling under the surface and cutting the crown.
+    pub crown: f64,
+}
+
+/// A surface made from a volume and how.
+#[derive(Debug, Clone)]
+pub struct VolumeSurface {
+    /// The crown (open) where enamel was found, else the closed surface.
+    pub mesh: Mesh,
+    /// What was done.
+    pub report: VolumeReport,
+}
+
+/// Why a volume could not be made into a surface; every message names the
+/// file or folder.
+#[derive(Debug, thiserror::Error)]
+pub enum VolumeError {
+    /// Reading failed.
+    #[error("{path}: cannot read: {source}")]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// A TIFF slice could not be decoded (truncated or malformed).
+    #[error("{path}: cannot decode the TIFF slice: {source}")]
+    Tiff {
+        /// The slice file.
+        path: PathBuf,
+        /// The decoder's error.
+        source: tiff::TiffError,
+    },
+    /// A PNG or BMP slice could not be decoded.
+    #[error("{path}: cannot decode the slice: {source}")]
+    Image {
+        /// The slice file.
+        path: PathBuf,
+        /// The decoder's error.
+        source: image::ImageError,
+    },
+    /// The volume is malformed or unusable (the problem says why).
+    #[error("{path}: {problem}")]
+    Invalid {
+        /// The file or folder.
+        path: PathBuf,
+        /// What is wrong.
+        problem: String,
+    },
+}
+
+/// Whether `path` names a volume: a folder, or a `.nrrd`, `.nii`, `.nii.gz`.
+pub fn is_volume_path(path: &Path) -> bool {
+    path.is_dir() || volume_file_format(path).is_some()
+}
+
+fn volume_file_format(path: &Path) -> Option<VolumeFormat> {
+    let name = path.file_name()?.to_str()?.to_ascii_lowercase();
+    if name.ends_with(".nrrd") {
+        Some(VolumeFormat::Nrrd)
+    } else if name.ends_with(".nii") || name.ends_with(".nii.gz") {
+        Some(VolumeFormat::Nifti)
+    } else {
+        None
+    }
+}
+
+fn open(path: &Path) -> Result<Box<dyn SliceSource>, VolumeError> {
+    Ok(match volume_file_format(path) {
+        Some(VolumeFormat::Nrrd) => Box::new(nrrd::NrrdFile::open(path)?),
+        Some(_) => Box::new(nifti::NiftiFile::open(path)?),
+        None => Box::new(stack::SliceFolder::open(path)?),
+    })
+}
+
+/// Read the volume at `path` slice by slice into the working grid.
+pub fn read_working_grid(
+    path: &Path,
+    opts: &VolumeOptions,
+) -> Result<(Grid, VolumeInfo, usize), VolumeError> {
+    let mut source = open(path)?;
+    let info = source.info().clone();
+    if info.dims[2] < 2 {
+        return Err(VolumeError::Invalid {
+            path: path.to_path_buf(),
+            problem: "only one slice: a volume needs at least two".into(),
+        });
+    }
+    let factor = reduction_factor(info.dims, opts.working_voxels);
+    let mut reducer = BlockAverage::new(info.dims, info.voxel_size, factor);
+    let mut slice = Vec::new();
+    for _ in 0..info.dims[2] {
+        source.next_slice(&mut slice)?;
+        if slice.len() != info.dims[0] * info.dims[1] {
+            return Err(VolumeError::Invalid {
+                path: path.to_path_buf(),
+                problem: format!(
+                    "a slice has {} samples, {} expected",
+                    slice.len(),
+                    info.dims[0] * info.dims[1]
+                ),
+            });
+        }
+        reducer.push(&slice);
+    }
+    Ok((reducer.finish(), info, factor))
+}
+
+/// Why a working grid gave no surface (the caller names the file).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SegmentError {
+    /// Every sample has the same value.
+    #[error("the volume is uniform (all background): no specimen to segment")]
+    Uniform,
+    /// Nothing lies above the threshold.
+    #[error("nothing lies above the threshold: no specimen to segment")]
+    Empty,
+    /// The specimen is too small to give a surface.
+    #[error("the specimen has only {0} voxels at the working resolution")]
+    TooSmall(usize),
+}
+
+/// The surface of the specimen in `grid` (see the module documentation),
+/// with the thresholds and what segmentation and the crown cut did.
+pub fn surface_from_grid(
+    grid: &Grid,
+    opts: &VolumeOptions,
+) -> Result<(Mesh, Thresholds, SegmentReport, GridSurfaceReport), SegmentError> {
+    let t = Instant::now();
+    let fg = foreground_threshold(&grid.values).ok_or(SegmentError::Uniform)?;
+    let mask: Vec<bool> = grid.values.iter().map(|&v| f64::from(v) > fg).collect();
+    let (mask, seg) = specimen_mask(&mask, grid.dims).ok_or(SegmentError::Empty)?;
+    if seg.kept_voxels < 8 {
+        return Err(SegmentError::TooSmall(seg.kept_voxels));
+    }
+    let interior: Vec<f32> = interior_samples(&mask, grid.dims, 2)
+        .into_iter()
+        .map(|i| grid.values[i])
+        .collect();
+    let th = Thresholds {
+        foreground: fg,
+        enamel: enamel_threshold(&interior),
+    };
+    let fg = fg as f32;
+    // The grey values give the surface its sub-voxel position; the mask
+    // decides which side each sample is on.
+    let margin = 1e-3
+        * (grid.values.iter().copied().fold(f32::MIN, f32::max) - fg)
+            .abs()
+            .max(1e-6);
+    let mut field = grid.clone();
+    for (v, &m) in field.values.iter_mut().zip(&mask) {
+        *v = if m {
+            v.max(fg + margin)
+        } else {
+            v.min(fg - margin)
+        };
+    }
+    let segment_ms = ms(t);
+    let t = Instant::now();
+    let closed = isosurface(&field, fg);
+    let iso_ms = ms(t);
+    let t = Instant::now();
+    let mut report = GridSurfaceReport {
+        isosurface_faces: closed.faces.len(),
+        isosurface_area: surface_area(&closed),
+        segment_ms,
+        isosurface_ms: iso_ms,
+        ..Default::default()
+    };
+    let mesh = match th.enamel.filter(|_| opts.enamel) {
+        Some(level) => {
+            let step = grid.spacing.iter().copied().fold(f64::MAX, f64::min);
+            let normals = vertex_normals(&closed);
+            let depths = [1.0, 1.5, 2.0, 2.5, 3.0].map(|d| d * step);
+            let values = enamel::density_below_surface(&closed, &normals, grid, &depths, level);
+            let values = enamel::smooth_vertex_values(&closed, &values);
+            let (crown, parts) = largest_part(&cut_at_zero_level(&closed, &values));
+            if crown.faces.is_empty() {
+                closed
+            } else {
+                report.enamel_found = true;
+                report.crown_area = surface_area(&crown);
+                report.enamel_regions = parts;
+                crown
+            }
+        }
+        None => closed,
+    };
+    report.crown_ms = ms(t);
+    Ok((mesh, th, seg, report))
+}
+
+/// The samples of `mask` at least `depth` steps (6-connected) from any
+/// sample outside it.
+fn interior_samples(mask: &[bool], dims: [usize; 3], depth: usize) -> Vec<usize> {
+    let mut inner = mask.to_vec();
+    let plane = dims[0] * dims[1];
+    for _ in 0..depth {
+        let prev = inner.clone();
+        for (i, v) in inner.iter_mut().enumerate() {
+            if !*v {
+                continue;
+            }
+            let (x, y, z) = (i % dims[0], (i / dims[0]) % dims[1], i / plane);
+            let border = x == 0
+                || y == 0
+                || z == 0
+                || x + 1 == dims[0]
+                || y + 1 == dims[1]
+                || z + 1 == dims[2];
+            *v = !border
+                && prev[i - 1]
+                && prev[i + 1]
+                && prev[i - dims[0]]
+                && prev[i + dims[0]]
+                && prev[i - plane]
+                && prev[i + plane];
+        }
+    }
+    (0..inner.len()).filter(|&i| inner[i]).collect()
+}
+
+/// What [`surface_from_grid`] measured.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct GridSurfaceReport {
+    /// Triangles of the closed isosurface.
+    pub isosurface_faces: usize,
+    /// Its area.
+    pub isosurface_area: f64,
+    /// Whether the crown was cut over enamel.
+    pub enamel_found: bool,
+    /// Area of the crown kept.
+    pub crown_area: f64,
+    /// Regions over enamel.
+    pub enamel_regions: usize,
+    /// Milliseconds spent segmenting.
+    pub segment_ms: f64,
+    /// Milliseconds spent on the isosurface.
+    pub isosurface_ms: f64,
+    /// Milliseconds spent cutting the crown.
+    pub crown_ms: f64,
+}
+
+/// Read the volume at `path` and make its surface (the crown over enamel
+/// where the scan shows enamel, else the closed surface).
+pub fn surface_from_path(path: &Path, opts: &VolumeOptions) -> Result<VolumeSurface, VolumeError> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let t = Instant::now();
+    let (grid, info, factor) = {
+        let _s = tracing::debug_span!("volume_read", scan = %name).entered();
+        read_working_grid(path, opts)?
+    };
+    let read_ms = ms(t);
+    let (mesh, th, seg, r) = {
+        let _s = tracing::debug_span!("volume_surface", scan = %name).entered();
+        surface_from_grid(&grid, opts).map_err(|e| VolumeError::Invalid {
+            path: path.to_path_buf(),
+            problem: e.to_string(),
+        })?
+    };
+    if seg.dropped_components > 0 {
+        tracing::info!(
+            "{}: kept the largest specimen ({} voxels), dropped {} other component(s) ({} voxels)",
+            path.display(),
+            seg.kept_voxels,
+            seg.dropped_components,
+            seg.dropped_voxels
+        );
+    }
+    Ok(VolumeSurface {
+        mesh,
+        report: VolumeReport {
+            input: info,
+            reduction_factor: factor,
+            working_dims: grid.dims,
+            thresholds: th,
+            segmentation: seg,
+            isosurface_faces: r.isosurface_faces,
+            isosurface_area: r.isosurface_area,
+            enamel_found: r.enamel_found,
+            crown_area: r.crown_area,
+            enamel_regions: r.enamel_regions,
+            timings_ms: VolumeTimings {
+                read: read_ms,
+                segment: r.segment_ms,
+                isosurface: r.isosurface_ms,
+                crown: r.crown_ms,
+            },
+        },
+    })
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}

@@ -1,0 +1,362 @@
+//! A folder of 2D slices (TIFF 8/16-bit greyscale, PNG, BMP), one file
+//! per slice, in natural name order (`s2` before `s10`). Files of other
+//! kinds (logs, reports) are ignored; the slices must be of one kind, one
+//! size, and numbered without gaps.
+
+use super::source::{SliceSource, VolumeFormat, VolumeInfo};
+use super::VolumeError;
+use std::cmp::Ordering;
+use std::path::{Path, PathBuf};
+
+/// The slice format a file name announces, if any.
+pub fn slice_format(path: &Path) -> Option<VolumeFormat> {
+    let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+    match ext.as_str() {
+        "tif" | "tiff" => Some(VolumeFormat::Tiff),
+        "png" => Some(VolumeFormat::Png),
+        "bmp" => Some(VolumeFormat::Bmp),
+        _ => None,
+    }
+}
+
+/// Compare names so that runs of digits compare as numbers.
+pub fn natural_order(a: &str, b: &str) -> Ordering {
+    let (mut x, mut y) = (a.as_bytes(), b.as_bytes());
+    loop {
+        match (x.first(), y.first()) {
+            (None, None) => return Ordering::Equal,
+            (None, _) => return Ordering::Less,
+            (_, None) => return Ordering::Greater,
+            (Some(p), Some(q)) if p.is_ascii_digit() && q.is_ascii_digit() => {
+                let dx = x.iter().take_while(|c| c.is_ascii_digit()).count();
+                let dy = y.iter().take_while(|c| c.is_ascii_digit()).count();
+                let (nx, ny) = (trim_zeros(&x[..dx]), trim_zeros(&y[..dy]));
+                let o = nx.len().cmp(&ny.len()).then(nx.cmp(ny)).then(dx.cmp(&dy));
+                if o != Ordering::Equal {
+                    return o;
+                }
+                x = &x[dx..];
+                y = &y[dy..];
+            }
+            (Some(p), Some(q)) => {
+                if p != q {
+                    return p.cmp(q);
+                }
+                x = &x[1..];
+                y = &y[1..];
+            }
+        }
+    }
+}
+
+fn trim_zeros(d: &[u8]) -> &[u8] {
+    let z = d.iter().take_while(|&&c| c == b'0').count();
+    &d[z.min(d.len().saturating_sub(1))..]
+}
+
+/// The number at the end of a file stem (`slice_0042` → 42), if any.
+fn slice_number(path: &Path) -> Option<u64> {
+    let stem = path.file_stem()?.to_str()?;
+    let digits: String = stem
+        .chars()
+        .rev()
+        .take_while(|c| c.is_ascii_digit())
+        .collect::<Vec<_>>()
+        .into_iter()
+        .rev()
+        .collect();
+    digits.parse().ok()
+}
+
+/// The slice files of `dir` in natural order, checked: one kind, at least
+/// two, numbered without gaps (where numbered).
+pub fn slice_files(dir: &Path) -> Result<(Vec<PathBuf>, VolumeFormat), VolumeError> {
+    let entries = std::fs::read_dir(dir).map_err(|source| VolumeError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let mut files: Vec<(PathBuf, VolumeFormat)> = entries
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.is_file())
+        .filter(|p| {
+            !p.file_name()
+                .is_some_and(|n| n.to_string_lossy().starts_with('.'))
+        })
+        .filter_map(|p| slice_format(&p).map(|f| (p, f)))
+        .collect();
+    let invalid = |problem: String| VolumeError::Invalid {
+        path: dir.to_path_buf(),
+        problem,
+    };
+    let Some(&(_, format)) = files.first() else {
+        return Err(invalid(
+            "no slice files (.tif, .tiff, .png, .bmp) in the folder".into(),
+        ));
+    };
+    if let Some((p, f)) = files.iter().find(|(_, f)| *f != format) {
+        return Err(invalid(format!(
+            "slices of mixed kinds ({format:?} and {f:?}, e.g. {})",
+            p.display()
+        )));
+    }
+    files.sort_by(|a, b| natural_order(&a.0.to_string_lossy(), &b.0.to_string_lossy()));
+    if files.len() < 2 {
+        return Err(invalid(format!(
+            "only {} slice: a volume needs at least two",
+            files.len()
+        )));
+    }
+    let numbers: Vec<Option<u64>> = files.iter().map(|(p, _)| slice_number(p)).collect();
+    if numbers.iter().all(Option::is_some) {
+        for (w, pair) in numbers.windows(2).zip(files.windows(2)) {
+            let (a, b) = (w[0].unwrap_or(0), w[1].unwrap_or(0));
+            if b != a + 1 {
+                return Err(invalid(format!(
+                    "slice numbering jumps from {a} ({}) to {b} ({}): {} missing or duplicated",
+                    name(&pair[0].0),
+                    name(&pair[1].0),
+                    if b > a + 1 { "slices" } else { "a slice is" }
+                )));
+            }
+        }
+    }
+    Ok((files.into_iter().map(|(p, _)| p).collect(), format))
+}
+
+fn name(p: &Path) -> String {
+    p.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// One decoded slice: width, height, bits per sample, values.
+fn read_image(
+    path: &Path,
+    format: VolumeFormat,
+) -> Result<(usize, usize, u16, Vec<f32>), VolumeError> {
+    match format {
+        VolumeFormat::Tiff => read_tiff(path),
+        _ => read_other(path),
+    }
+}
+
+fn read_tiff(path: &Path) -> Result<(usize, usize, u16, Vec<f32>), VolumeError> {
+    use tiff::decoder::{Decoder, DecodingResult};
+    let err = |source: tiff::TiffError| VolumeError::Tiff {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = std::fs::File::open(path).map_err(|source| VolumeError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mut dec = Decoder::new(std::io::BufReader::new(file)).map_err(err)?;
+    let (w, h) = dec.dimensions().map_err(err)?;
+    let colour = dec.colortype().map_err(err)?;
+    let channels = match colour {
+        tiff::ColorType::Gray(_) => 1,
+        tiff::ColorType::RGB(_) => 3,
+        tiff::ColorType::RGBA(_) => 4,
+        other => {
+            return Err(VolumeError::Invalid {
+                path: path.to_path_buf(),
+                problem: format!("unsupported TIFF colour type {other:?}; greyscale is expected"),
+            })
+        }
+    };
+    let image = dec.read_image().map_err(err)?;
+    let (bits, values): (u16, Vec<f32>) = match image {
+        DecodingResult::U8(v) => (8, v.into_iter().map(f32::from).collect()),
+        DecodingResult::U16(v) => (16, v.into_iter().map(f32::from).collect()),
+        DecodingResult::I16(v) => (16, v.into_iter().map(f32::from).collect()),
+        DecodingResult::U32(v) => (32, v.into_iter().map(|x| x as f32).collect()),
+        DecodingResult::F32(v) => (32, v),
+        _ => {
+            return Err(VolumeError::Invalid {
+                path: path.to_path_buf(),
+                problem: "unsupported TIFF sample type".into(),
+            })
+        }
+    };
+    let (w, h) = (w as usize, h as usize);
+    let values = if channels == 1 {
+        values
+    } else {
+        values
+            .chunks_exact(channels)
+            .map(|c| (c[0] + c[1] + c[2]) / 3.0)
+            .collect()
+    };
+    if values.len() != w * h {
+        return Err(VolumeError::Invalid {
+            path: path.to_path_buf(),
+            problem: format!("{} samples for a {w}×{h} image", values.len()),
+        });
+    }
+    Ok((w, h, bits, values))
+}
+
+fn read_other(path: &Path) -> Result<(usize, usize, u16, Vec<f32>), VolumeError> {
+    let img = image::ImageReader::open(path)
+        .map_err(|source| VolumeError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?
+        .with_guessed_format()
+        .map_err(|source| VolumeError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?
+        .decode()
+        .map_err(|source| VolumeError::Image {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let (bits, values) = match img {
+        image::DynamicImage::ImageLuma8(g) => {
+            (8, g.into_raw().into_iter().map(f32::from).collect())
+        }
+        image::DynamicImage::ImageLuma16(g) => {
+            (16, g.into_raw().into_iter().map(f32::from).collect())
+        }
+        other if other.color().bytes_per_pixel() / other.color().channel_count() == 1 => (
+            8,
+            other
+                .to_luma8()
+                .into_raw()
+                .into_iter()
+                .map(f32::from)
+                .collect(),
+        ),
+        other => (
+            16,
+            other
+                .to_luma16()
+                .into_raw()
+                .into_iter()
+                .map(f32::from)
+                .collect(),
+        ),
+    };
+    Ok((w, h, bits, values))
+}
+
+/// A folder of slices, read one file at a time.
+pub(crate) struct SliceFolder {
+    info: VolumeInfo,
+    files: Vec<PathBuf>,
+    next: usize,
+    first: Option<Vec<f32>>,
+}
+
+impl SliceFolder {
+    /// Open `dir`: list and check the slices, read the first for the size.
+    pub(crate) fn open(dir: &Path) -> Result<SliceFolder, VolumeError> {
+        let (files, format) = slice_files(dir)?;
+        let (w, h, bits, first) = read_image(&files[0], format)?;
+        Ok(SliceFolder {
+            info: VolumeInfo {
+                format,
+                dims: [w, h, files.len()],
+                voxel_size: [1.0; 3],
+                unit: "voxel".into(),
+                bits,
+            },
+            files,
+            next: 0,
+            first: Some(first),
+        })
+    }
+}
+
+impl SliceSource for SliceFolder {
+    fn info(&self) -> &VolumeInfo {
+        &self.info
+    }
+
+    fn next_slice(&mut self, out: &mut Vec<f32>) -> Result<(), VolumeError> {
+        let i = self.next;
+        self.next += 1;
+        if let Some(first) = self.first.take() {
+            *out = first;
+            return Ok(());
+        }
+        let path = self.files.get(i).ok_or_else(|| VolumeError::Invalid {
+            path: self.files.last().cloned().unwrap_or_default(),
+            problem: "read past the last slice".into(),
+        })?;
+        let (w, h, _, values) = read_image(path, self.info.format)?;
+        if [w, h] != [self.info.dims[0], self.info.dims[1]] {
+            return Err(VolumeError::Invalid {
+                path: path.clone(),
+                problem: format!(
+                    "slice is {w}×{h}, the first slice ({}) is {}×{}: slices of unequal size",
+                    name(&self.files[0]),
+                    self.info.dims[0],
+                    self.info.dims[1]
+                ),
+            });
+        }
+        *out = values;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_sort_naturally() {
+        let mut v = vec!["s10.tif", "s2.tif", "s1.tif", "s02b.tif"];
+        v.sort_by(|a, b| natural_order(a, b));
+        assert_eq!(v, vec!["s1.tif", "s2.tif", "s02b.tif", "s10.tif"]);
+        assert_eq!(slice_number(Path::new("a/img_0042.tif")), Some(42));
+        assert_eq!(slice_number(Path::new("a/img.tif")), None);
+    }
+}
+
+#[cfg(test)]
+mod bad_input_tests {
+    use super::*;
+
+    fn write_png(dir: &Path, name: &str, w: u32, h: u32) {
+        image::GrayImage::from_pixel(w, h, image::Luma([7u8]))
+            .save(dir.join(name))
+            .unwrap();
+    }
+
+    #[test]
+    fn gaps_single_slices_unequal_sizes_and_truncation_are_named_errors() {
+        let d = tempfile::tempdir().unwrap();
+        write_png(d.path(), "s_001.png", 4, 4);
+        let e = slice_files(d.path()).unwrap_err().to_string();
+        assert!(e.contains("only 1 slice"), "{e}");
+        write_png(d.path(), "s_003.png", 4, 4);
+        let e = slice_files(d.path()).unwrap_err().to_string();
+        assert!(e.contains("jumps from 1") && e.contains("s_003.png"), "{e}");
+        write_png(d.path(), "s_002.png", 5, 4);
+        let mut folder = SliceFolder::open(d.path()).unwrap();
+        let mut s = Vec::new();
+        folder.next_slice(&mut s).unwrap();
+        let e = folder.next_slice(&mut s).unwrap_err().to_string();
+        assert!(e.contains("s_002.png") && e.contains("unequal size"), "{e}");
+
+        let t = tempfile::tempdir().unwrap();
+        for z in 0..2 {
+            let f = std::fs::File::create(t.path().join(format!("a{z}.tif"))).unwrap();
+            let mut enc = tiff::encoder::TiffEncoder::new(f).unwrap();
+            enc.write_image::<tiff::encoder::colortype::Gray16>(8, 8, &[9u16; 64])
+                .unwrap();
+        }
+        let p = t.path().join("a1.tif");
+        let bytes = std::fs::read(&p).unwrap();
+        std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
+        let mut folder = SliceFolder::open(t.path()).unwrap();
+        folder.next_slice(&mut s).unwrap();
+        let e = folder.next_slice(&mut s).unwrap_err().to_string();
+        assert!(e.contains("a1.tif"), "{e}");
+    }
+}

@@ -1,0 +1,10 @@
+//! Synthetic volumes for tests, benchmarks and the demo: a closed whole
+//! tooth voxelized with a brighter enamel layer under its crown faces,
+//! dentine below, blurred ([`phantom`]); written with noise as slice
+//! stacks and volume files of any size ([`write_volume`]).
+
+mod phantom;
+mod write;
+
+pub use phantom::{phantom, PhantomParams};
+pub use write::{write_volume, StackSpec, SynthFormat};
