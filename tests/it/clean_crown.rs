@@ -50,7 +50,7 @@ fn clean_crown_synthetic_whole_teeth_give_back_their_crowns() {
             let original = crown(genus, seed, 4000);
             let tooth = whole_tooth(&original, &WholeToothParams::default(), seed).unwrap();
             let mv = motion(seed, &original);
-            let cleaned = clean(&moved(&tooth.mesh, &mv), &CleanOptions::default())
+            let cleaned = clean(&moved(&tooth.mesh, &mv), &auto())
                 .unwrap_or_else(|e| panic!("{} seed {seed}: {e}", genus.name));
             let f = fit(&cleaned.mesh, &moved(&original, &mv));
             let report = cleaned.report.crown.expect("crown report");
@@ -138,7 +138,7 @@ fn clean_crown_refuses_a_sphere_and_an_ellipsoid() {
         sphere.faces.clone(),
     );
     for m in [&sphere, &ellipsoid] {
-        let err = clean(m, &CleanOptions::default()).unwrap_err();
+        let err = clean(m, &auto()).unwrap_err();
         assert!(
             matches!(err, CleanError::Crown(CrownError::NoCrown(_))),
             "{err:?}"
@@ -209,7 +209,7 @@ fn clean_crown_refuses_closed_surfaces_without_a_crown() {
         ("cube", &cube),
         ("slab", &slab),
     ] {
-        let err = clean(m, &CleanOptions::default()).unwrap_err();
+        let err = clean(m, &auto()).unwrap_err();
         println!("{name}: {err}");
         assert!(
             matches!(err, CleanError::Crown(CrownError::NoCrown(_))),
@@ -258,7 +258,7 @@ fn clean_crown_fills_holes_of_a_nearly_closed_tooth() {
     // Each hole is at least one loop (a punch may pinch one into two).
     let holes = morphoid::mesh::boundary_loops(&holed).len();
     assert!(holes >= 3, "{holes}");
-    let cleaned = clean(&holed, &CleanOptions::default()).unwrap();
+    let cleaned = clean(&holed, &auto()).unwrap();
     let report = cleaned.report.crown.expect("crown report");
     assert_eq!(report.filled_holes, holes);
     let f = fit(&cleaned.mesh, &original);
@@ -273,7 +273,7 @@ fn clean_crown_fills_holes_of_a_nearly_closed_tooth() {
 fn clean_crown_open_crowns_are_untouched() {
     // An open crown is not a whole tooth: same output with extraction off.
     let c = crown(&CROWN_GENERA[4], 8, 3000);
-    let auto = clean(&c, &CleanOptions::default()).unwrap();
+    let auto = clean(&c, &auto()).unwrap();
     let off = clean(
         &c,
         &CleanOptions {
@@ -410,5 +410,13 @@ fn clean_crown_real_teeth_all() {
             s.correct,
             s.total
         );
+    }
+}
+
+/// Cleaning with crown extraction on (it is off by default).
+fn auto() -> CleanOptions {
+    CleanOptions {
+        crown: CrownMode::Auto,
+        ..CleanOptions::default()
     }
 }
