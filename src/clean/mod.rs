@@ -90,7 +90,7 @@ impl Default for CleanOptions {
             weld_tolerance: 1e-6,
             min_elements: 20,
             relax_iterations: 3,
-            crown: CrownMode::Auto,
+            crown: CrownMode::default(),
         }
     }
 }

@@ -59,8 +59,10 @@ fn inspect_reports_a_disk_for_a_soup_with_debris() {
     let dir = tempfile::tempdir().unwrap();
     let crown = synth::crown(&CROWN_GENERA[1], 3, 3000);
     let messy = synth::triangle_soup(&synth::add_debris(&crown, 3, 5));
+    // ASCII STL: a soup as stored, which cleaning welds (binary STL shares
+    // identical corners as it is read).
     let path = dir.path().join("messy.stl");
-    io::save(&path, &messy).unwrap();
+    io::write_stl_ascii(&path, &messy).unwrap();
     let clean_path = dir.path().join("clean.ply");
     let out = morphoid(&[
         "inspect",
