@@ -183,7 +183,7 @@ fn classify_carries_the_nearest_references_landmarks() {
     let version: i64 = conn
         .query_row("PRAGMA user_version", [], |r| r.get(0))
         .unwrap();
-    assert_eq!(version, 2);
+    assert_eq!(version, i64::from(morphoid::store::SCHEMA_VERSION));
 
     // `results --json` shows them too.
     let o = morphoid(&["results", "--json", "--config"], &[&s.config]);
