@@ -134,3 +134,47 @@ fn daemon_takes_a_slice_folder_once_after_its_last_slice() {
         .sum();
     assert_eq!(r[0].size, bytes, "every slice was in the scan");
 }
+
+#[test]
+fn nrrd_and_nifti_files_are_prepared_as_the_same_crown() {
+    let tmp = tempfile::tempdir().unwrap();
+    let grid = small_phantom(3, 19);
+    let settings = morphoid::pipeline::Settings::default();
+    let mut areas = Vec::new();
+    for (name, format) in [
+        ("t.nrrd", SynthFormat::Nrrd { gzip: true }),
+        ("t.nii", SynthFormat::Nifti { gzip: false }),
+        ("t.nii.gz", SynthFormat::Nifti { gzip: true }),
+    ] {
+        let path = tmp.path().join(name);
+        let spec = StackSpec {
+            noise: 0.0,
+            ..Default::default()
+        };
+        let voxel = write_volume(&grid, &path, format, &spec).unwrap();
+        let p = morphoid::pipeline::prepare_file(&path, &settings).unwrap();
+        let v = p.volume.as_ref().expect("a volume report");
+        for a in 0..3 {
+            assert!(
+                (v.input.voxel_size[a] / voxel[a] - 1.0).abs() < 1e-4,
+                "{name}: {v:?}"
+            );
+        }
+        assert!(v.isosurface_faces > 1000, "{name}: {v:?}");
+        assert!(!p.cleaned.faces.is_empty());
+        // The voxel size comes from the file: the crown is in its units.
+        let extent = morphoid::mesh::bbox_diagonal(&p.cleaned);
+        let grid_extent = (0..3)
+            .map(|a| (grid.dims[a] as f64 * voxel[a]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        assert!(
+            extent > 0.1 * grid_extent && extent < grid_extent,
+            "{name}: {extent} vs {grid_extent}"
+        );
+        areas.push(v.isosurface_area);
+    }
+    for a in &areas[1..] {
+        assert!((a / areas[0] - 1.0).abs() < 0.01, "{areas:?}");
+    }
+}
