@@ -154,11 +154,8 @@ fn nrrd_and_nifti_files_are_prepared_as_the_same_crown() {
         let voxel = write_volume(&grid, &path, format, &spec).unwrap();
         let p = morphoid::pipeline::prepare_file(&path, &settings).unwrap();
         let v = p.volume.as_ref().expect("a volume report");
-        for a in 0..3 {
-            assert!(
-                (v.input.voxel_size[a] / voxel[a] - 1.0).abs() < 1e-4,
-                "{name}: {v:?}"
-            );
+        for (got, written) in v.input.voxel_size.iter().zip(voxel) {
+            assert!((got / written - 1.0).abs() < 1e-4, "{name}: {v:?}");
         }
         assert!(v.isosurface_faces > 1000, "{name}: {v:?}");
         assert!(!p.cleaned.faces.is_empty());
