@@ -160,8 +160,19 @@ impl Classifier {
         Ok(())
     }
 
-    /// Identify the surface in the file `path`.
+    /// Identify the surface in the file `path`, or the volume (slice
+    /// folder, NRRD, NIfTI) there.
     pub fn classify_file(&self, path: &Path) -> Result<ScanOutcome, ClassifyError> {
+        if crate::volume::is_volume_path(path) {
+            if self.references.is_empty() {
+                return Err(ClassifyError::EmptyLibrary);
+            }
+            let name = pipeline::specimen_name(path);
+            let _span = tracing::info_span!("scan", scan = %name).entered();
+            let surface = pipeline::prepare_file(path, &self.settings)?;
+            let load_ms = surface.timings.load;
+            return Ok(self.compare_prepared(&name, &surface, load_ms));
+        }
         let bytes = std::fs::read(path).map_err(|source| ClassifyError::Io {
             path: path.to_path_buf(),
             source,
@@ -198,6 +209,12 @@ impl Classifier {
                     source,
                 },
             })?;
+        Ok(self.compare_prepared(&name, &surface, load_ms))
+    }
+
+    /// Compare a prepared scan named `name` with every reference and
+    /// identify it; `load_ms` is the time it took to read.
+    fn compare_prepared(&self, name: &str, surface: &PreparedSurface, load_ms: f64) -> ScanOutcome {
         let t = Instant::now();
         let distances: Vec<DistanceRow> = {
             let _s =
@@ -226,17 +243,17 @@ impl Classifier {
             ("compare".to_string(), compare_ms),
         ]);
         let t = Instant::now();
-        let landmarks = self.nearest_landmarks(&distances, &surface);
+        let landmarks = self.nearest_landmarks(&distances, surface);
         if landmarks.is_some() {
             timings_ms.insert("landmarks".into(), t.elapsed().as_secs_f64() * 1e3);
         }
-        Ok(ScanOutcome {
+        ScanOutcome {
             ranks: id.ranks,
             distances,
             cleaning: serde_json::to_value(&surface.cleaning).unwrap_or_default(),
             timings_ms,
             landmarks,
-        })
+        }
     }
 
     /// The landmarks of the nearest reference (smallest distance, ties by
@@ -394,7 +411,7 @@ pub enum IdentifyFileError {
     Vanished(PathBuf),
 }
 
-/// Identify the file `path` through the store's queue, as the daemon
+/// Identify the file or slice folder `path` through the store's queue, as the daemon
 /// does, and return its record. Content identified before is not
 /// identified again (its recorded result is returned); a failed one is
 /// retried, and one left running by a process that died (or being run by
@@ -405,13 +422,14 @@ pub fn identify_file(
     classifier: &Classifier,
     path: &Path,
 ) -> Result<ScanRecord, IdentifyFileError> {
-    let bytes = std::fs::read(path).map_err(|source| IdentifyFileError::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let hash = crate::hash::content_hash(&bytes);
+    // Streamed: a scan (or a slice folder) is never read whole to hash it.
+    let (hash, size) =
+        crate::hash::content_hash_file(path).map_err(|source| IdentifyFileError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
     let shown = path.display().to_string();
-    let id = match store.enqueue(&shown, &hash, bytes.len() as u64)? {
+    let id = match store.enqueue(&shown, &hash, size)? {
         store::Enqueued::New(id) => id,
         store::Enqueued::Existing(id, ScanStatus::Error) => {
             store.retry(id)?;

@@ -34,9 +34,46 @@ fn content_hash_reader<R: Read>(mut reader: R) -> std::io::Result<(String, u64)>
     Ok((hex(&hasher.finalize()), total))
 }
 
-/// SHA-256 of the file at `path` and its size in bytes.
+/// SHA-256 of the file at `path` and its size in bytes; for a folder (a
+/// slice stack) the hash of [`content_hash_folder`].
 pub fn content_hash_file(path: &Path) -> std::io::Result<(String, u64)> {
+    if path.is_dir() {
+        return content_hash_folder(path);
+    }
     content_hash_reader(std::fs::File::open(path)?)
+}
+
+/// SHA-256 over the slice files of the folder `dir` (by extension, hidden
+/// files and other kinds such as logs left out, as the slice reader does),
+/// in natural name order: for each, its name, its length and its bytes,
+/// streamed file by file. Returns the hash and the total bytes of the
+/// slices. The same slices under another folder name hash the same; a
+/// renamed, changed, added or removed slice changes the hash.
+pub fn content_hash_folder(dir: &Path) -> std::io::Result<(String, u64)> {
+    let mut hasher = Sha256::new();
+    // Keeps a folder's hash apart from any file whose bytes happen to
+    // spell the same stream.
+    hasher.update(b"morphoid slice folder\0");
+    let mut total = 0u64;
+    for path in crate::volume::slice_paths(dir)? {
+        let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
+        let name = name.unwrap_or_default();
+        let size = std::fs::metadata(&path)?.len();
+        hasher.update((name.len() as u64).to_le_bytes());
+        hasher.update(name.as_bytes());
+        hasher.update(size.to_le_bytes());
+        let mut file = std::fs::File::open(&path)?.take(size);
+        let n = std::io::copy(&mut file, &mut hasher)?;
+        if n != size {
+            // Shrunk while being read: the folder is not settled.
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::UnexpectedEof,
+                format!("{}: changed while being read", path.display()),
+            ));
+        }
+        total += n;
+    }
+    Ok((hex(&hasher.finalize()), total))
 }
 
 /// `bytes` as lower-case hexadecimal digits, two per byte.
@@ -74,5 +111,30 @@ mod tests {
         assert_eq!(n, data.len() as u64);
         assert_eq!(hash, content_hash(&data));
         assert_ne!(hash, content_hash(&data[1..]));
+    }
+
+    #[test]
+    fn folder_hash_follows_the_slices_not_the_folder_name_or_other_files() {
+        let tmp = tempfile::tempdir().unwrap();
+        let a = tmp.path().join("a");
+        let b = tmp.path().join("b");
+        for d in [&a, &b] {
+            std::fs::create_dir(d).unwrap();
+            for i in [1, 2, 10] {
+                std::fs::write(d.join(format!("s{i}.tif")), [i as u8; 300]).unwrap();
+            }
+        }
+        std::fs::write(b.join("scan.log"), b"not a slice").unwrap();
+        let (ha, na) = content_hash_file(&a).unwrap();
+        let (hb, nb) = content_hash_file(&b).unwrap();
+        assert_eq!((ha.clone(), na), (hb, nb));
+        assert_eq!(na, 900);
+        std::fs::write(b.join("s10.tif"), [9u8; 300]).unwrap();
+        assert_ne!(content_hash_file(&b).unwrap().0, ha);
+        std::fs::rename(b.join("s10.tif"), b.join("s3.tif")).unwrap();
+        std::fs::write(b.join("s3.tif"), [10u8; 300]).unwrap();
+        assert_ne!(content_hash_file(&b).unwrap().0, ha, "renamed slice");
+        std::fs::write(b.join("s11.tif"), [1u8; 3]).unwrap();
+        assert_ne!(content_hash_file(&b).unwrap().0, ha);
     }
 }

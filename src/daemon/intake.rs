@@ -1,5 +1,6 @@
-//! Which files of the export folder become jobs: surface files (a format
-//! morphoid reads, by extension) whose name matches no `watch.ignore`
+//! Which files of the export folder become jobs: surface and volume files
+//! (a format morphoid reads, by extension) and subfolders holding slices
+//! (a slice stack, one scan), whose name matches no `watch.ignore`
 //! pattern, outside the quarantine folder; and, once such a file has
 //! settled, its queueing in the store by content hash, so that the same
 //! bytes are identified once whatever their name or how often they are
@@ -50,9 +51,44 @@ impl Filter {
         if glob::is_ignored(&self.ignore, &name.to_string_lossy()) {
             return false;
         }
-        if Format::from_path(path).is_none() {
+        if !is_scan_file(path) {
             return false;
         }
+        self.is_inside(path)
+    }
+
+    /// The scan a path reported by the watcher belongs to: a scan file
+    /// itself, or, for a slice in a subfolder, that folder (a slice stack
+    /// is one scan; its slices are never scans of their own).
+    pub fn scan_of(&self, path: &Path) -> Option<PathBuf> {
+        if self.is_candidate(path) {
+            return Some(path.to_path_buf());
+        }
+        crate::volume::slice_format(path)?;
+        let folder = path.parent()?;
+        self.is_candidate_folder(folder)
+            .then(|| folder.to_path_buf())
+    }
+
+    /// Whether `dir` is a folder that may hold a slice stack: below the
+    /// export folder (directly, unless recursive), not ignored, not the
+    /// quarantine folder or inside it.
+    pub fn is_candidate_folder(&self, dir: &Path) -> bool {
+        if dir == self.dir.as_path() || !dir.starts_with(&self.dir) {
+            return false;
+        }
+        if dir.file_name().is_none() {
+            return false;
+        }
+        // The folder is checked as a file named inside itself would be:
+        // every folder on the way, itself included, must pass.
+        self.is_inside(&dir.join("slice"))
+            && self.quarantine.as_deref().is_none_or(|q| !same_dir(q, dir))
+    }
+
+    /// Whether a file at `path` lies in the part of the export folder
+    /// that is watched (depth, ignored and quarantine folders).
+    fn is_inside(&self, path: &Path) -> bool {
         let Ok(rel) = path.strip_prefix(&self.dir) else {
             // Paths come from the watcher joined onto `dir`; anything else
             // is outside the export folder.
@@ -92,14 +128,47 @@ impl Filter {
     }
 }
 
-/// The size and modification time of a regular file, `None` when it is
-/// gone or not a regular file.
+/// The size and modification time of a regular file; for a folder, the
+/// total size and latest modification time of its slices (a new or
+/// growing slice changes it). `None` when it is gone, neither, or a
+/// folder without slices.
 pub fn stamp_of(path: &Path) -> Option<Stamp> {
     let meta = std::fs::metadata(path).ok()?;
+    if meta.is_dir() {
+        return folder_stamp(path);
+    }
     meta.is_file().then(|| Stamp {
         size: meta.len(),
         mtime: meta.modified().ok(),
     })
+}
+
+/// The stamp of a slice folder: total bytes and latest modification time
+/// of its slices; `None` without slices.
+fn folder_stamp(dir: &Path) -> Option<Stamp> {
+    let slices = crate::volume::slice_paths(dir).ok()?;
+    if slices.is_empty() {
+        return None;
+    }
+    let mut stamp = Stamp {
+        size: 0,
+        mtime: None,
+    };
+    for p in &slices {
+        // A slice gone between listing and stat is a change in progress:
+        // counted as empty, the next look sees the difference.
+        if let Ok(meta) = std::fs::metadata(p) {
+            stamp.size += meta.len();
+            stamp.mtime = stamp.mtime.max(meta.modified().ok());
+        }
+    }
+    Some(stamp)
+}
+
+/// Whether `path` names a file morphoid reads as a scan: a surface format
+/// or a single-file volume (NRRD, NIfTI), by extension.
+fn is_scan_file(path: &Path) -> bool {
+    Format::from_path(path).is_some() || (crate::volume::is_volume_path(path) && !path.is_dir())
 }
 
 /// Every non-ignored surface file (a format morphoid reads, by extension)
@@ -135,10 +204,16 @@ pub fn list_candidates(
                 continue;
             };
             if meta.is_dir() {
-                if recursive && skip.is_none_or(|s| !same_dir(s, &path)) {
-                    stack.push(path);
+                if skip.is_none_or(|s| !same_dir(s, &path)) {
+                    // A folder holding slices is one scan (a slice stack).
+                    if let Some(stamp) = folder_stamp(&path) {
+                        out.push((path.clone(), stamp));
+                    }
+                    if recursive {
+                        stack.push(path);
+                    }
                 }
-            } else if meta.is_file() && Format::from_path(&path).is_some() {
+            } else if meta.is_file() && is_scan_file(&path) {
                 let stamp = Stamp {
                     size: meta.len(),
                     mtime: meta.modified().ok(),

@@ -98,12 +98,10 @@ impl FolderWatch {
             let _ = tx.send(res);
         })
         .and_then(|mut w| {
-            let mode = if self.filter.recursive {
-                RecursiveMode::Recursive
-            } else {
-                RecursiveMode::NonRecursive
-            };
-            w.watch(&self.filter.dir, mode).map(|()| w)
+            // Recursive even when subfolders' files are not scans: the
+            // slices of a stack in a subfolder must be seen arriving.
+            w.watch(&self.filter.dir, RecursiveMode::Recursive)
+                .map(|()| w)
         });
         match made {
             Ok(w) => {
@@ -177,11 +175,14 @@ impl FolderWatch {
                 // A folder created or moved in: inotify reports its files
                 // only from the moment its own watch exists.
                 Ok(meta) if meta.is_dir() => out.rescan = true,
+                // A slice counts for its folder, the scan it belongs to.
                 Ok(meta) if meta.is_file() => {
-                    if self.filter.is_candidate(path) {
-                        if let Some(stamp) = stamp_of(path) {
-                            if self.settler.observe(path, stamp, now, self.settle) {
-                                out.ready.push(path.clone());
+                    if let Some(scan) = self.filter.scan_of(path) {
+                        if let Some(stamp) = stamp_of(&scan) {
+                            if self.settler.observe(&scan, stamp, now, self.settle)
+                                && !out.ready.contains(&scan)
+                            {
+                                out.ready.push(scan);
                             }
                         }
                     }

@@ -28,7 +28,7 @@ pub use isosurface::isosurface;
 pub use reduce::{reduction_factor, BlockAverage};
 pub use segment::{connected_components, specimen_mask, SegmentReport};
 pub use source::{VolumeFormat, VolumeInfo};
-pub use stack::natural_order;
+pub use stack::{natural_order, slice_format, slice_paths};
 pub use threshold::{enamel_threshold, foreground_threshold, otsu, Histogram, Thresholds};
 
 use crate::mesh::{surface_area, Mesh};

@@ -68,14 +68,10 @@ fn slice_number(path: &Path) -> Option<u64> {
     digits.parse().ok()
 }
 
-/// The slice files of `dir` in natural order, checked: one kind, at least
-/// two, numbered without gaps (where numbered).
-pub fn slice_files(dir: &Path) -> Result<(Vec<PathBuf>, VolumeFormat), VolumeError> {
-    let entries = std::fs::read_dir(dir).map_err(|source| VolumeError::Io {
-        path: dir.to_path_buf(),
-        source,
-    })?;
-    let mut files: Vec<(PathBuf, VolumeFormat)> = entries
+/// The files of `dir` whose extension names a slice format (hidden files
+/// and other kinds left out), in natural name order, unchecked.
+pub fn slice_paths(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)?
         .flatten()
         .map(|e| e.path())
         .filter(|p| p.is_file())
@@ -83,6 +79,21 @@ pub fn slice_files(dir: &Path) -> Result<(Vec<PathBuf>, VolumeFormat), VolumeErr
             !p.file_name()
                 .is_some_and(|n| n.to_string_lossy().starts_with('.'))
         })
+        .filter(|p| slice_format(p).is_some())
+        .collect();
+    files.sort_by(|a, b| natural_order(&a.to_string_lossy(), &b.to_string_lossy()));
+    Ok(files)
+}
+
+/// The slice files of `dir` in natural order, checked: one kind, at least
+/// two, numbered without gaps (where numbered).
+pub fn slice_files(dir: &Path) -> Result<(Vec<PathBuf>, VolumeFormat), VolumeError> {
+    let files: Vec<(PathBuf, VolumeFormat)> = slice_paths(dir)
+        .map_err(|source| VolumeError::Io {
+            path: dir.to_path_buf(),
+            source,
+        })?
+        .into_iter()
         .filter_map(|p| slice_format(&p).map(|f| (p, f)))
         .collect();
     let invalid = |problem: String| VolumeError::Invalid {
@@ -100,7 +111,6 @@ pub fn slice_files(dir: &Path) -> Result<(Vec<PathBuf>, VolumeFormat), VolumeErr
             p.display()
         )));
     }
-    files.sort_by(|a, b| natural_order(&a.0.to_string_lossy(), &b.0.to_string_lossy()));
     if files.len() < 2 {
         return Err(invalid(format!(
             "only {} slice: a volume needs at least two",

@@ -45,4 +45,5 @@ mod lm_propagate;
 mod store_basic;
 mod store_crash;
 mod store_landmarks;
+mod volume_scans;
 mod volume_teeth;
