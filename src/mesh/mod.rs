@@ -10,6 +10,7 @@
 //! - [`synth`]: the synthetic surface generator (tests and the demo only;
 //!   nothing numerical depends on it).
 
+mod axes;
 mod disk;
 mod graph;
 pub mod io;
@@ -17,6 +18,7 @@ mod subdivide;
 pub mod synth;
 mod topology;
 
+pub use axes::{principal_axes, weighted_principal_axes, PrincipalAxes};
 pub use disk::unit_disk;
 pub(crate) use graph::HeapItem;
 pub use graph::{breadth_first_tree, graph_distance};

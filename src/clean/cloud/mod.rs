@@ -19,9 +19,10 @@ pub mod normals;
 pub mod outliers;
 pub mod reconstruct;
 
+use crate::mesh::principal_axes;
 use crate::mesh::Mesh;
 use neighbours::{mean_neighbour_distances, median, Neighbours};
-use normals::{local_plane, orient_by_propagation, principal_axes, LocalPlane};
+use normals::{local_plane, orient_by_propagation, LocalPlane};
 use reconstruct::{band_nodes, surface_nets, Grid, OrientedSamples};
 
 /// Neighbours for spacing, outlier statistics and tangent planes.

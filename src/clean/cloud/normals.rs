@@ -2,7 +2,7 @@
 //! nearest neighbours) and their consistent orientation by propagation
 //! along a minimum spanning tree of the neighbourhood graph.
 
-use crate::mesh::{cross, dot, sub};
+use crate::mesh::{dot, principal_axes, sub};
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
@@ -15,51 +15,6 @@ pub struct LocalPlane {
     pub normal: [f64; 3],
     /// Root-mean-square distance of the points from the plane.
     pub residual: f64,
-}
-
-/// The principal axes of a point set.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PrincipalAxes {
-    /// Mean of the points.
-    pub centroid: [f64; 3],
-    /// Axis of largest spread, second, and their cross product (the
-    /// normal, least spread).
-    pub axes: [[f64; 3]; 3],
-    /// Variances along the axes, in the same order.
-    pub spreads: [f64; 3],
-}
-
-/// Principal axes of a point set (`None` for fewer than three points).
-pub fn principal_axes(points: &[[f64; 3]]) -> Option<PrincipalAxes> {
-    if points.len() < 3 {
-        return None;
-    }
-    let n = points.len() as f64;
-    let mut c = [0.0; 3];
-    for p in points {
-        for d in 0..3 {
-            c[d] += p[d] / n;
-        }
-    }
-    let mut cov = nalgebra::Matrix3::<f64>::zeros();
-    for p in points {
-        let q = nalgebra::Vector3::new(p[0] - c[0], p[1] - c[1], p[2] - c[2]);
-        cov += q * q.transpose() / n;
-    }
-    let eig = nalgebra::SymmetricEigen::new(cov);
-    let mut order = [0usize, 1, 2];
-    order.sort_by(|&i, &j| eig.eigenvalues[j].total_cmp(&eig.eigenvalues[i]));
-    let axis = |k: usize| {
-        let col = eig.eigenvectors.column(order[k]);
-        [col[0], col[1], col[2]]
-    };
-    let (u, v) = (axis(0), axis(1));
-    let spreads = order.map(|k| eig.eigenvalues[k].max(0.0));
-    Some(PrincipalAxes {
-        centroid: c,
-        axes: [u, v, cross(u, v)],
-        spreads,
-    })
 }
 
 /// The least-squares plane of `points` (`None` for fewer than three).

@@ -90,29 +90,10 @@ pub(super) fn signed_volume6(mesh: &Mesh) -> f64 {
 /// Area-weighted centroid and principal axes of a surface (face centroids
 /// weighted by face area), largest spread first.
 pub(super) fn area_weighted_axes(geo: &SurfaceGeometry) -> Option<([f64; 3], [[f64; 3]; 3])> {
-    let total: f64 = geo.areas.iter().sum();
-    if !(total > 0.0) {
-        return None;
-    }
-    let mut c = [0.0; 3];
-    for (p, a) in geo.centroids.iter().zip(&geo.areas) {
-        for d in 0..3 {
-            c[d] += p[d] * a / total;
-        }
-    }
-    let mut cov = nalgebra::Matrix3::<f64>::zeros();
-    for (p, a) in geo.centroids.iter().zip(&geo.areas) {
-        let q = nalgebra::Vector3::new(p[0] - c[0], p[1] - c[1], p[2] - c[2]);
-        cov += q * q.transpose() * *a;
-    }
-    let eig = nalgebra::SymmetricEigen::new(cov);
-    let mut order = [0usize, 1, 2];
-    order.sort_by(|&i, &j| eig.eigenvalues[j].total_cmp(&eig.eigenvalues[i]));
-    let axis = |k: usize| {
-        let col = eig.eigenvectors.column(order[k]);
-        [col[0], col[1], col[2]]
-    };
-    Some((c, [axis(0), axis(1), axis(2)]))
+    let pa = crate::mesh::weighted_principal_axes(
+        geo.centroids.iter().copied().zip(geo.areas.iter().copied()),
+    )?;
+    Some((pa.centroid, pa.axes))
 }
 
 /// Cylindrical coordinates about the axis through `centre` along the unit
