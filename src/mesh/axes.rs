@@ -31,7 +31,7 @@ where
     let (count, total) = points
         .clone()
         .fold((0usize, 0.0), |(n, t), (_, w)| (n + 1, t + w));
-    if count < 3 || !(total > 0.0) {
+    if count < 3 || total.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return None;
     }
     let mut c = [0.0; 3];
