@@ -127,6 +127,17 @@ fn default_trigger() -> String {
     "^SCAN (COMPLETE|DONE)".into()
 }
 
+/// The standard rates `serial.baud` is checked against (others are
+/// usually typos).
+pub const STANDARD_BAUDS: [u32; 11] = [
+    1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200, 230400, 460800, 921600,
+];
+
+/// Whether `baud` is a standard rate.
+pub fn is_standard_baud(baud: u32) -> bool {
+    STANDARD_BAUDS.contains(&baud)
+}
+
 /// Why a configuration cannot be used.
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
@@ -200,6 +211,39 @@ impl Config {
             if s.baud == 0 {
                 return Err("serial.baud must be positive".into());
             }
+            regex::Regex::new(&s.trigger)
+                .map_err(|e| format!("serial.trigger {:?} is not a valid regex: {e}", s.trigger))?;
+        }
+        if self.watch.ignore.iter().any(String::is_empty) {
+            return Err("watch.ignore contains an empty pattern".into());
+        }
+        Ok(())
+    }
+
+    /// Checks that `check-config` adds to [`Config::read`]: values the
+    /// daemon would accept but that are most likely mistakes (a baud rate
+    /// no serial adapter uses), and paths that exist as the wrong kind of
+    /// file. `path` names the configuration file in the error.
+    pub fn check_plausible(&self, path: &Path) -> Result<(), ConfigError> {
+        let invalid = |message: String| ConfigError::Invalid {
+            path: path.to_path_buf(),
+            message,
+        };
+        if let Some(s) = &self.serial {
+            if !is_standard_baud(s.baud) {
+                return Err(invalid(format!(
+                    "serial.baud {} is not a standard baud rate (one of {STANDARD_BAUDS:?})",
+                    s.baud
+                )));
+            }
+        }
+        if let Some(dir) = &self.results.dir {
+            if dir.exists() && !dir.is_dir() {
+                return Err(invalid(format!(
+                    "results.dir {} exists and is not a folder",
+                    dir.display()
+                )));
+            }
         }
         Ok(())
     }
@@ -240,6 +284,25 @@ mod tests {
         let c = Config::read(&path).unwrap();
         assert_eq!(c.library.ranks, ["order", "family", "genus"]);
         assert!(c.serial.is_none());
+    }
+
+    #[test]
+    fn a_bad_trigger_or_ignore_pattern_is_refused_and_odd_values_are_flagged() {
+        let p = Path::new("x.toml");
+        let e = Config::parse("[serial]\nport = \"/dev/ttyS0\"\ntrigger = \"(\"\n", p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("serial.trigger") && e.contains("x.toml"), "{e}");
+        let e = Config::parse("[watch]\nignore = [\"\"]\n", p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("watch.ignore"), "{e}");
+        let odd = Config::parse("[serial]\nport = \"/dev/ttyS0\"\nbaud = 9601\n", p).unwrap();
+        let e = odd.check_plausible(p).unwrap_err().to_string();
+        assert!(e.contains("9601") && e.contains("x.toml"), "{e}");
+        let fine = Config::parse("[serial]\nport = \"/dev/ttyS0\"\nbaud = 9600\n", p).unwrap();
+        assert!(fine.check_plausible(p).is_ok());
+        assert!(is_standard_baud(115200) && !is_standard_baud(9601));
     }
 
     #[test]

@@ -32,18 +32,19 @@
 // Coordinate loops `for d in 0..3` read more clearly than zipped iterators.
 #![allow(clippy::needless_range_loop)]
 
-pub mod closest;
-pub mod cloud;
-pub mod components;
-pub mod crown;
-pub mod faces;
-pub mod holes;
-pub mod manifold;
-pub mod orient;
-pub mod resample;
+mod closest;
+mod cloud;
+mod components;
+mod crown;
+mod faces;
+mod holes;
+mod manifold;
+mod orient;
+mod resample;
 mod union_find;
-pub mod weld;
+mod weld;
 
+pub use closest::{point_to_surface_distances, TriangleGrid};
 pub use cloud::{CloudError, CloudReport};
 
 use crate::mesh::{

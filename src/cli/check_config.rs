@@ -2,8 +2,7 @@
 //! wrong key or value.
 
 use super::common::ConfigFile;
-use anyhow::{bail, Context, Result};
-use morphoid::config::Config;
+use anyhow::Result;
 use std::process::ExitCode;
 
 /// Arguments of `morphoid check-config` (the file is `--config`; without
@@ -15,33 +14,13 @@ pub struct Args {
     print: bool,
 }
 
-/// Check what the types cannot: the trigger regex, the baud rate, the
-/// results folder.
-fn check_runtime(config: &Config) -> Result<()> {
-    if let Some(s) = &config.serial {
-        regex::Regex::new(&s.trigger)
-            .with_context(|| format!("serial.trigger {:?} is not a valid regex", s.trigger))?;
-        if !morphoid::daemon::is_standard_baud(s.baud) {
-            bail!("serial.baud {} is not a standard baud rate", s.baud);
-        }
-    }
-    if let Some(dir) = &config.results.dir {
-        if dir.exists() && !dir.is_dir() {
-            bail!("results.dir {} exists and is not a folder", dir.display());
-        }
-    }
-    for p in &config.watch.ignore {
-        if p.is_empty() {
-            bail!("watch.ignore contains an empty pattern");
-        }
-    }
-    Ok(())
-}
-
 /// Run `morphoid check-config`.
 pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
+    let path = file
+        .path()
+        .unwrap_or(std::path::Path::new("(built-in defaults)"));
     let config = file.load()?;
-    check_runtime(&config)?;
+    config.check_plausible(path)?;
     println!("ok");
     println!(
         "watch {} (recursive: {}, settle {} s, ignore {:?}{})",

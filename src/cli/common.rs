@@ -12,6 +12,11 @@ use std::path::{Path, PathBuf};
 pub struct ConfigFile<'a>(pub Option<&'a Path>);
 
 impl ConfigFile<'_> {
+    /// The file, or `None` for the built-in defaults.
+    pub fn path(&self) -> Option<&Path> {
+        self.0
+    }
+
     /// The configuration: the file's, or the defaults.
     pub fn load(self) -> Result<Config> {
         Ok(match self.0 {

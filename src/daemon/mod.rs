@@ -28,7 +28,7 @@ mod watch;
 mod worker;
 
 pub use health::BACKOFF_MAX as STORAGE_RETRY_MAX;
-pub use serial::{is_standard_baud, BACKOFF_MAX};
+pub use serial::BACKOFF_MAX;
 pub use worker::MAX_ATTEMPTS;
 
 use crate::classify::{Classifier, ResultFiles};

@@ -17,19 +17,9 @@ const BACKOFF_START: Duration = Duration::from_millis(500);
 pub const BACKOFF_MAX: Duration = Duration::from_secs(30);
 /// How long one read waits for input before the stop flag is checked.
 const READ_TIMEOUT: Duration = Duration::from_millis(200);
-/// The standard rates `serial.baud` accepts (others are usually typos).
-pub const STANDARD_BAUDS: [u32; 11] = [
-    1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200, 230400, 460800, 921600,
-];
-
 /// The next retry delay: doubled, capped at [`BACKOFF_MAX`].
 pub fn next_backoff(current: Duration) -> Duration {
     (current * 2).min(BACKOFF_MAX)
-}
-
-/// Whether `baud` is a standard rate.
-pub fn is_standard_baud(baud: u32) -> bool {
-    STANDARD_BAUDS.contains(&baud)
 }
 
 /// A running serial trigger thread; stopped when dropped.
@@ -171,8 +161,6 @@ mod tests {
             d = n;
         }
         assert_eq!(d, BACKOFF_MAX);
-        assert!(is_standard_baud(9600));
-        assert!(!is_standard_baud(9601));
         let mut s = LineSplitter::default();
         assert_eq!(s.push(b"HEL"), Vec::<String>::new());
         assert_eq!(s.push(b"LO\r\n\nSCAN DONE\nx"), vec!["HELLO", "SCAN DONE"]);

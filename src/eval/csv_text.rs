@@ -4,6 +4,35 @@
 //! round-trips), and a reader that also takes `\r\n`, line breaks inside
 //! quoted fields and a leading byte-order mark.
 
+use std::path::PathBuf;
+
+/// Why a table file (a distance matrix, labels) could not be read or
+/// written; the message names the file, and the line for bad content.
+#[derive(Debug, thiserror::Error)]
+pub enum TableError {
+    /// The file could not be read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The file could not be replaced.
+    #[error(transparent)]
+    Write(#[from] crate::atomic_write::AtomicWriteError),
+    /// The content is malformed.
+    #[error("{path}:{line}: {message}")]
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
+}
+
 /// Records written into a string.
 pub(crate) struct CsvString(csv::Writer<Vec<u8>>);
 

@@ -1,31 +1,8 @@
 //! Taxonomic labels of a library (`labels.csv`).
 
-use super::csv_text::{rows, trimmed, CsvString, Row};
+use super::csv_text::{rows, trimmed, CsvString, Row, TableError};
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
-
-/// Why a labels file could not be read.
-#[derive(Debug, thiserror::Error)]
-pub enum LabelsError {
-    /// The file could not be read.
-    #[error("{path}: {source}")]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The I/O error.
-        source: std::io::Error,
-    },
-    /// The content is malformed.
-    #[error("{path}:{line}: {message}")]
-    Format {
-        /// The file.
-        path: PathBuf,
-        /// 1-based line number.
-        line: usize,
-        /// What is wrong.
-        message: String,
-    },
-}
+use std::path::Path;
 
 /// Labels: for each specimen name, a value (or unknown) at each rank.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -44,8 +21,8 @@ impl Labels {
     /// Parse labels CSV text: a `name` column plus rank columns. `ranks`
     /// selects the rank columns (default: every column but `name`). `NA`
     /// or an empty field means unknown. `path` is only used in errors.
-    pub fn parse(text: &str, ranks: Option<&[String]>, path: &Path) -> Result<Self, LabelsError> {
-        let err = |line: usize, message: String| LabelsError::Format {
+    pub fn parse(text: &str, ranks: Option<&[String]>, path: &Path) -> Result<Self, TableError> {
+        let err = |line: usize, message: String| TableError::Format {
             path: path.to_path_buf(),
             line,
             message,
@@ -112,8 +89,8 @@ impl Labels {
     }
 
     /// Read and parse a labels file.
-    pub fn read(path: &Path, ranks: Option<&[String]>) -> Result<Self, LabelsError> {
-        let text = std::fs::read_to_string(path).map_err(|source| LabelsError::Io {
+    pub fn read(path: &Path, ranks: Option<&[String]>) -> Result<Self, TableError> {
+        let text = std::fs::read_to_string(path).map_err(|source| TableError::Io {
             path: path.to_path_buf(),
             source,
         })?;

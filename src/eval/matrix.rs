@@ -1,9 +1,9 @@
 //! Distance matrices: computation over prepared surfaces and CSV files.
 
-use super::csv_text::{rows, trimmed, CsvString, Row};
+use super::csv_text::{rows, trimmed, CsvString, Row, TableError};
 use crate::cp::{compare, CompareParams, Prepared};
 use rayon::prelude::*;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// A square matrix of distances between named specimens.
@@ -13,29 +13,6 @@ pub struct DistanceMatrix {
     pub names: Vec<String>,
     /// `values[i][j]`: distance between specimens `i` and `j`.
     pub values: Vec<Vec<f64>>,
-}
-
-/// Why a matrix file could not be read or written.
-#[derive(Debug, thiserror::Error)]
-pub enum MatrixError {
-    /// The file could not be read or written.
-    #[error("{path}: {source}")]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The I/O error.
-        source: std::io::Error,
-    },
-    /// The content is malformed.
-    #[error("{path}:{line}: {message}")]
-    Format {
-        /// The file.
-        path: PathBuf,
-        /// 1-based line number.
-        line: usize,
-        /// What is wrong.
-        message: String,
-    },
 }
 
 impl DistanceMatrix {
@@ -61,8 +38,8 @@ impl DistanceMatrix {
 
     /// Parse CSV text (`path` is only used in errors). Rows must follow the
     /// header's order of names.
-    pub fn parse_csv(text: &str, path: &Path) -> Result<Self, MatrixError> {
-        let err = |line: usize, message: String| MatrixError::Format {
+    pub fn parse_csv(text: &str, path: &Path) -> Result<Self, TableError> {
+        let err = |line: usize, message: String| TableError::Format {
             path: path.to_path_buf(),
             line,
             message,
@@ -127,8 +104,8 @@ impl DistanceMatrix {
     }
 
     /// Read a matrix CSV file.
-    pub fn read_csv(path: &Path) -> Result<Self, MatrixError> {
-        let text = std::fs::read_to_string(path).map_err(|source| MatrixError::Io {
+    pub fn read_csv(path: &Path) -> Result<Self, TableError> {
+        let text = std::fs::read_to_string(path).map_err(|source| TableError::Io {
             path: path.to_path_buf(),
             source,
         })?;
@@ -136,11 +113,11 @@ impl DistanceMatrix {
     }
 
     /// Write a matrix CSV file.
-    pub fn write_csv(&self, path: &Path) -> Result<(), MatrixError> {
-        std::fs::write(path, self.to_csv()).map_err(|source| MatrixError::Io {
-            path: path.to_path_buf(),
-            source,
-        })
+    pub fn write_csv(&self, path: &Path) -> Result<(), TableError> {
+        Ok(crate::atomic_write::write_atomic(
+            path,
+            self.to_csv().as_bytes(),
+        )?)
     }
 }
 

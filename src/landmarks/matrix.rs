@@ -9,12 +9,12 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 pub enum LandmarkMatrixError {
     /// A specimen's landmark file cannot be used.
-    #[error("landmarks of `{name}`: {reason}")]
+    #[error("landmarks of `{name}`: {source}")]
     Unusable {
         /// The specimen.
         name: String,
         /// Why (names the file).
-        reason: String,
+        source: super::LandmarkProblem,
     },
     /// Specimens without a landmark file.
     #[error(
@@ -50,12 +50,10 @@ pub fn procrustes_matrix(
     names: &[String],
     allow_reflection: bool,
 ) -> Result<(DistanceMatrix, usize), LandmarkMatrixError> {
-    let loaded = load_library(dir, names);
-    if let Some((name, reason)) = loaded.problems.first() {
-        return Err(LandmarkMatrixError::Unusable {
-            name: name.clone(),
-            reason: reason.clone(),
-        });
+    let mut loaded = load_library(dir, names);
+    if !loaded.problems.is_empty() {
+        let (name, source) = loaded.problems.swap_remove(0);
+        return Err(LandmarkMatrixError::Unusable { name, source });
     }
     let mut sets = Vec::with_capacity(names.len());
     let mut missing = Vec::new();

@@ -237,14 +237,38 @@ pub fn library_files(dir: &Path, name: &str) -> Vec<PathBuf> {
         .collect()
 }
 
+/// Why a library specimen's landmark file could not be used.
+#[derive(Debug, thiserror::Error)]
+pub enum LandmarkProblem {
+    /// The file cannot be read or parsed.
+    #[error(transparent)]
+    Unreadable(LandmarkError),
+    /// Several files hold the specimen's landmarks.
+    #[error("{}: more than one landmark file for `{name}`; keep one", display_paths(.files))]
+    Ambiguous {
+        /// The specimen.
+        name: String,
+        /// Its landmark files.
+        files: Vec<PathBuf>,
+    },
+    /// The file holds another number of landmarks than the library's other
+    /// files.
+    #[error("{0} (the library's other landmark files)")]
+    Count(LandmarkError),
+}
+
+fn display_paths(files: &[PathBuf]) -> String {
+    let list: Vec<String> = files.iter().map(|p| p.display().to_string()).collect();
+    list.join(" and ")
+}
+
 /// The landmarks of a library's specimens, and why some could not be used.
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Default)]
 pub struct LibraryLandmarks {
     /// Usable landmarks, by specimen name.
     pub by_name: std::collections::BTreeMap<String, Landmarks>,
-    /// Specimens whose landmark file could not be used: name and a
-    /// one-line reason naming the file(s).
-    pub problems: Vec<(String, String)>,
+    /// Specimens whose landmark file could not be used, by name (sorted).
+    pub problems: Vec<(String, LandmarkProblem)>,
     /// The number of landmarks per specimen (the most common count among
     /// the readable files; on a tie, the larger).
     pub count: Option<usize>,
@@ -263,18 +287,17 @@ pub fn load_library(dir: &Path, names: &[String]) -> LibraryLandmarks {
             [] => {}
             [path] => match read(path, None) {
                 Ok(lm) => read_ok.push((name.clone(), path.clone(), lm)),
-                Err(e) => out.problems.push((name.clone(), e.to_string())),
+                Err(e) => out
+                    .problems
+                    .push((name.clone(), LandmarkProblem::Unreadable(e))),
             },
-            several => {
-                let list: Vec<String> = several.iter().map(|p| p.display().to_string()).collect();
-                out.problems.push((
-                    name.clone(),
-                    format!(
-                        "{}: more than one landmark file for `{name}`; keep one",
-                        list.join(" and ")
-                    ),
-                ));
-            }
+            several => out.problems.push((
+                name.clone(),
+                LandmarkProblem::Ambiguous {
+                    name: name.clone(),
+                    files: several.to_vec(),
+                },
+            )),
         }
     }
     let mut tally: std::collections::BTreeMap<usize, usize> = Default::default();
@@ -290,12 +313,10 @@ pub fn load_library(dir: &Path, names: &[String]) -> LibraryLandmarks {
             Ok(()) => {
                 out.by_name.insert(name, lm);
             }
-            Err(e) => out
-                .problems
-                .push((name, format!("{e} (the library's other landmark files)"))),
+            Err(e) => out.problems.push((name, LandmarkProblem::Count(e))),
         }
     }
-    out.problems.sort();
+    out.problems.sort_by(|a, b| a.0.cmp(&b.0));
     out
 }
 
@@ -413,13 +434,26 @@ mod tests {
         assert_eq!(got.by_name["b"], sample());
         let problems: Vec<&str> = got.problems.iter().map(|(n, _)| n.as_str()).collect();
         assert_eq!(problems, ["c", "d", "e"]);
-        assert!(got.problems[0].1.contains("more than one landmark file"));
-        assert!(
-            got.problems[1].1.contains("d.csv:2"),
-            "{}",
-            got.problems[1].1
-        );
-        assert!(got.problems[2].1.contains("2 landmarks, expected 3"));
+        assert!(matches!(
+            &got.problems[0].1,
+            LandmarkProblem::Ambiguous { name, files } if name == "c" && files.len() == 2
+        ));
+        assert!(matches!(
+            &got.problems[1].1,
+            LandmarkProblem::Unreadable(LandmarkError::Syntax { line: 2, .. })
+        ));
+        let why = got.problems[1].1.to_string();
+        assert!(why.contains("d.csv:2"), "{why}");
+        assert!(matches!(
+            &got.problems[2].1,
+            LandmarkProblem::Count(LandmarkError::Count {
+                found: 2,
+                expected: 3,
+                ..
+            })
+        ));
+        let why = got.problems[0].1.to_string();
+        assert!(why.contains("more than one landmark file"), "{why}");
     }
 
     #[test]

@@ -10,7 +10,7 @@
 //! path of specimens the same step is repeated from surface to surface.
 
 use super::Landmarks;
-use crate::clean::closest::TriangleGrid;
+use crate::clean::TriangleGrid;
 use crate::cp::Prepared;
 use crate::mesh::{dot, sub, Mesh};
 use crate::pipeline::PreparedSurface;

@@ -21,7 +21,7 @@ pub use identify::{
 pub use matrix::{landscape, SurfaceDistance, SurfaceMatrixError};
 
 use crate::cp::Prepared;
-use crate::eval::{Labels, LabelsError};
+use crate::eval::{Labels, TableError};
 use crate::hash::content_hash;
 use crate::landmarks::LibraryLandmarks;
 use crate::mesh::io::{self, Format, LoadError};
@@ -47,7 +47,7 @@ pub enum LibraryError {
     NoLabels(PathBuf),
     /// `labels.csv` is malformed or lacks a rank column.
     #[error(transparent)]
-    Labels(#[from] LabelsError),
+    Labels(#[from] TableError),
     /// A surface file has no row in `labels.csv`.
     #[error("{path}: no row for `{name}` in labels.csv")]
     Unlabelled {

@@ -2,7 +2,7 @@
 //! overhanging walls, and clouds of the real teeth identified against the
 //! original crowns (held out: each cloud against the other 115 teeth).
 
-use morphoid::clean::closest::point_to_surface_distances;
+use morphoid::clean::point_to_surface_distances;
 use morphoid::clean::{clean, CleanError, CleanOptions};
 use morphoid::mesh::synth::{self, ScannerCloud, CROWN_GENERA};
 use morphoid::mesh::{bbox_diagonal, io, surface_area, Mesh};

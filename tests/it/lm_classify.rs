@@ -128,7 +128,7 @@ fn classify_carries_the_nearest_references_landmarks() {
     assert!(mean < 0.01, "mean error {mean}");
     // On the scan surface (the cleaned one lies on the original within
     // resampling tolerance), not at the reference's place.
-    let on = morphoid::clean::closest::point_to_surface_distances(&points, &copy);
+    let on = morphoid::clean::point_to_surface_distances(&points, &copy);
     let diag = morphoid::mesh::bbox_diagonal(&copy);
     assert!(on.iter().all(|&d| d < 0.01 * diag), "{on:?}");
 

@@ -59,7 +59,7 @@ fn true_position(p: [f64; 3], motion: &RigidMotion, mirrored: bool) -> [f64; 3] 
 /// on the target surface.
 fn errors(got: &Landmarks, truth: &[[f64; 3]], target: &Mesh) -> (f64, f64) {
     let diag = bbox_diagonal(target);
-    let on = morphoid::clean::closest::point_to_surface_distances(&got.points, target);
+    let on = morphoid::clean::point_to_surface_distances(&got.points, target);
     for d in on {
         assert!(
             d <= 1e-9 * diag,

@@ -6,7 +6,7 @@
 //! stacks must be identified against the other original crowns.
 
 use super::support::{cp as cps, data};
-use morphoid::clean::closest::point_to_surface_distances;
+use morphoid::clean::point_to_surface_distances;
 use morphoid::mesh::synth::{whole_tooth, WholeToothParams};
 use morphoid::mesh::{bbox_diagonal, surface_area, Mesh};
 use morphoid::pipeline::{prepare_file, PreparedSurface, Settings};

@@ -150,7 +150,7 @@ mod tests {
         assert!(c.is_point_cloud());
         assert_eq!(c.vertices.len(), 3060);
         assert_eq!(c, scanner_cloud(&m, &spec));
-        let d = crate::clean::closest::point_to_surface_distances(&c.vertices, &m);
+        let d = crate::clean::point_to_surface_distances(&c.vertices, &m);
         let diag = bbox_diagonal(&m);
         let on = d.iter().filter(|&&x| x < 1e-9 * diag).count();
         let off = d.iter().filter(|&&x| x > 0.005 * diag).count();
@@ -162,7 +162,7 @@ mod tests {
                 ..spec
             },
         );
-        let d = crate::clean::closest::point_to_surface_distances(&noisy.vertices, &m);
+        let d = crate::clean::point_to_surface_distances(&noisy.vertices, &m);
         let mut sorted = d.clone();
         sorted.sort_by(f64::total_cmp);
         let med = sorted[sorted.len() / 2] / diag;

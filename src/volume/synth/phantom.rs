@@ -1,7 +1,7 @@
 //! Voxelizing a closed whole tooth into a grey-value phantom.
 
 use super::super::grid::Grid;
-use crate::clean::closest::TriangleGrid;
+use crate::clean::TriangleGrid;
 use crate::mesh::synth::WholeTooth;
 use crate::mesh::{bbox_diagonal, bounding_box, Mesh};
 use rayon::prelude::*;

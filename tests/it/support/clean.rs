@@ -1,7 +1,7 @@
 //! Helpers shared by the cleaning tests: the real-data location, loading
 //! the teeth and the distance from points to a surface.
 
-use morphoid::clean::closest::TriangleGrid;
+use morphoid::clean::TriangleGrid;
 use morphoid::mesh::Mesh;
 use std::path::{Path, PathBuf};
 
