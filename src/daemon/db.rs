@@ -34,6 +34,11 @@ pub struct Db {
     generation: u64,
     result_files: bool,
     health: Health,
+    /// The file at the path is another than the one recorded into (a
+    /// replacement, or a new file after a deletion that could not be
+    /// undone), and the control loop has not yet listed the export folder
+    /// again for the files that the new one lacks.
+    new_file: bool,
 }
 
 /// The connection as the control loop and the worker share it.
@@ -59,6 +64,7 @@ impl Db {
             generation: 0,
             result_files: false,
             health,
+            new_file: false,
         };
         db.store()?;
         Ok(db)
@@ -103,6 +109,14 @@ impl Db {
         storage
     }
 
+    /// Whether the database file became another one since the last call
+    /// (then the export folder is to be listed again: the new file may
+    /// lack scans that the old one had recorded).
+    pub fn take_new_file(&mut self) -> bool {
+        self.follow_file();
+        std::mem::take(&mut self.new_file)
+    }
+
     /// An operation worked: the database is healthy.
     pub fn worked(&self) {
         self.health.clear(Part::Database);
@@ -131,15 +145,19 @@ impl Db {
                              it is back with everything recorded",
                             self.path.display()
                         ),
-                        Err(e) => tracing::error!(
-                            "database {} was deleted under the running daemon and \
-                             cannot be put back ({e}); a new one is started",
-                            self.path.display()
-                        ),
+                        Err(e) => {
+                            self.new_file = true;
+                            tracing::error!(
+                                "database {} was deleted under the running daemon and \
+                                 cannot be put back ({e}); a new one is started",
+                                self.path.display()
+                            )
+                        }
                     }
                 }
                 Err(e) => {
                     self.store = None;
+                    self.new_file = true;
                     tracing::error!(
                         "database {} was deleted under the running daemon and cannot \
                          be put back ({}); a new one is started",
@@ -150,8 +168,10 @@ impl Db {
             }
         } else {
             self.store = None;
+            self.new_file = true;
             tracing::warn!(
-                "database {} was replaced under the running daemon; using the new file",
+                "database {} was replaced under the running daemon; using the new file \
+                 and queueing the export folder's files it has not recorded",
                 self.path.display()
             );
         }

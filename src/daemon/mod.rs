@@ -237,6 +237,7 @@ async fn control_loop(loader: &dyn Loader) -> Result<(), DaemonError> {
             _ = timers.house.tick() => {
                 daemon.on_housekeeping();
                 daemon.retry_intake().await;
+                daemon.after_database_change().await;
             }
         }
     }
@@ -461,6 +462,22 @@ impl<'a> Daemon<'a> {
         }
         notify(&[NotifyState::Ready]);
         self.last_status_at = None;
+    }
+
+    /// The database file became another one: every file of the export
+    /// folder is looked at again, as at start, so that the scans the new
+    /// file lacks are identified into it (those it has are not repeated).
+    async fn after_database_change(&mut self) {
+        let changed = match self.db.try_lock() {
+            Ok(mut db) => db.take_new_file(),
+            // The worker is using the connection: look at the next tick.
+            Err(_) => false,
+        };
+        if changed {
+            self.folder = FolderWatch::start(&self.config.watch);
+            let ready = self.folder.rescan(false);
+            self.queue(ready).await;
+        }
     }
 
     /// A serial trigger line: the scanner has finished writing. A file the

@@ -1,7 +1,8 @@
 //! Storage faults under the running daemon (issue 16): a database on a
 //! file system that fills up, I/O errors under the database and under the
 //! results folder, the database deleted, the results folder read-only, a
-//! truncated cache entry, and a file whose content is another's. Each test
+//! truncated cache entry, a database replaced by another file or locked by
+//! another process, and a file whose content is another's. Each test
 //! asserts that every arriving file ends with exactly one result once the
 //! fault clears, and that the fault is logged once, not per retry.
 //! The mount tests need root (`support::faults`).
@@ -195,6 +196,54 @@ fn the_database_deleted_under_the_daemon_comes_back_whole() {
     assert!(d.log_text().contains("it is back with everything recorded"));
     names.extend((2..4).map(|i| drop_scan(&env, i)));
     assert_exactly_once(&env, &d, &names, Duration::from_secs(120));
+}
+
+#[test]
+fn a_database_replaced_under_the_daemon_is_used_and_gets_what_it_lacks() {
+    let env = env(0.5, "", "");
+    let d = Daemon::start(&env);
+    let mut names = vec![drop_scan(&env, 0)];
+    assert!(wait_until(Duration::from_secs(60), || finished(&env.db) >= 1));
+    // An operator's backup, taken now: it has s0 but will lack s1.
+    let backup = env.root.join("backup.sqlite");
+    morphoid::store::Store::open(&env.db)
+        .unwrap()
+        .copy_to(&backup)
+        .unwrap();
+    names.push(drop_scan(&env, 1));
+    assert!(wait_until(Duration::from_secs(60), || finished(&env.db) >= 2));
+    std::fs::rename(&backup, &env.db).unwrap();
+    // Nothing may open the path before the daemon has let go of the old
+    // file (a reader would take the old write-ahead log for the new file's).
+    assert!(
+        wait_until(Duration::from_secs(20), || d
+            .log_text()
+            .contains("was replaced under the running daemon")),
+        "{}",
+        d.log_text()
+    );
+    names.extend((2..4).map(|i| drop_scan(&env, i)));
+    // s1 is identified again into the new file; s0 is not repeated.
+    assert_exactly_once(&env, &d, &names, Duration::from_secs(120));
+}
+
+#[test]
+fn a_database_locked_by_another_process_delays_but_loses_nothing() {
+    let env = env(0.5, "", "");
+    let d = Daemon::start(&env);
+    let mut names = vec![drop_scan(&env, 0)];
+    assert!(wait_until(Duration::from_secs(60), || finished(&env.db) >= 1));
+    let other = rusqlite::Connection::open(&env.db).unwrap();
+    other.execute_batch("BEGIN EXCLUSIVE").unwrap();
+    let before = d.log_text().lines().count();
+    names.extend((1..4).map(|i| drop_scan(&env, i)));
+    std::thread::sleep(FAULT);
+    let during = lines_since(&d, before);
+    other.execute_batch("COMMIT").unwrap();
+    drop(other);
+    assert_quiet(&during, "database locked");
+    assert_exactly_once(&env, &d, &names, Duration::from_secs(120));
+    assert!(d.log_text().contains("database available again"));
 }
 
 #[test]
