@@ -39,6 +39,8 @@ mod io_real_data;
 mod io_roundtrip;
 mod io_synth;
 mod library_heldout;
+mod report_browser;
+mod report_pages;
 mod lm_classify;
 mod lm_daemon;
 mod lm_propagate;
