@@ -36,7 +36,9 @@ pub const REPORT_NEAREST: usize = 3;
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     /// The scan file is no longer where it was recorded.
-    #[error("{0}: the scan file is gone, so the scan cannot be drawn (the recorded result stands)")]
+    #[error(
+        "{0}: the scan file is gone, so the scan cannot be drawn (the recorded result stands)"
+    )]
     Gone(PathBuf),
     /// The file there now is not the content that was identified.
     #[error("{0}: the file has changed since it was identified, so it is not drawn (the recorded result is of the earlier content)")]

@@ -50,6 +50,9 @@ pub fn png_bytes(image: &Image) -> Option<Vec<u8>> {
     let mut encoder = png::Encoder::new(&mut out, side, side);
     encoder.set_color(png::ColorType::Rgba);
     encoder.set_depth(png::BitDepth::Eight);
+    // Pictures of smooth shading on a transparent ground: the fast
+    // encoder's size is close to the default's at a fraction of its time.
+    encoder.set_compression(png::Compression::Fast);
     let mut writer = encoder.write_header().ok()?;
     writer.write_image_data(&image.rgba).ok()?;
     writer.finish().ok()?;
@@ -65,7 +68,10 @@ fn img_tag(image: &Image, alt: &str) -> String {
             base64::engine::general_purpose::STANDARD.encode(png),
             s = image.size
         ),
-        None => format!("<p class=\"muted\">({} could not be drawn)</p>", escape(alt)),
+        None => format!(
+            "<p class=\"muted\">({} could not be drawn)</p>",
+            escape(alt)
+        ),
     }
 }
 
@@ -119,7 +125,9 @@ pub(super) fn confidence_text(p: Option<f64>) -> String {
 /// The text of the "no close match" flag, or "not calibrated".
 pub(super) fn novelty_text(flag: Option<bool>) -> &'static str {
     match flag {
-        Some(true) => "NO CLOSE MATCH: farther from the library than a known taxon's member would be",
+        Some(true) => {
+            "NO CLOSE MATCH: farther from the library than a known taxon's member would be"
+        }
         Some(false) => "close match",
         None => "not calibrated",
     }
@@ -127,7 +135,9 @@ pub(super) fn novelty_text(flag: Option<bool>) -> &'static str {
 
 /// The file name shown for a scan: its last path component.
 pub fn file_name(path: &str) -> &str {
-    path.rsplit(['/', '\\']).find(|s| !s.is_empty()).unwrap_or(path)
+    path.rsplit(['/', '\\'])
+        .find(|s| !s.is_empty())
+        .unwrap_or(path)
 }
 
 /// The report page of a recorded scan: what it is, the error in plain
@@ -239,7 +249,9 @@ fn identification(h: &mut String, record: &ScanRecord) {
             escape(&r.reference),
             r.distance,
             escape(r.runner_up.as_deref().unwrap_or("—")),
-            r.margin.map(|m| format!("{m:.4}")).unwrap_or_else(|| "—".into()),
+            r.margin
+                .map(|m| format!("{m:.4}"))
+                .unwrap_or_else(|| "—".into()),
         );
     }
     let _ = writeln!(

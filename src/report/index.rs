@@ -104,7 +104,12 @@ fn index_row(h: &mut String, row: &IndexRow<'_>) {
     };
     let thumb = row
         .thumbnail
-        .map(|t| format!("<img loading=\"lazy\" width=\"48\" height=\"48\" alt=\"\" src=\"{}\">", escape(t)))
+        .map(|t| {
+            format!(
+                "<img loading=\"lazy\" width=\"48\" height=\"48\" alt=\"\" src=\"{}\">",
+                escape(t)
+            )
+        })
         .unwrap_or_default();
     let (taxa, confidence) = if result_status == ScanStatus::Ok {
         let taxa: Vec<String> = r

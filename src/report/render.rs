@@ -159,7 +159,12 @@ fn edge(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
 /// The pixel range `[lo, hi)` covering coordinates `c`, clipped to the
 /// picture.
 fn bounds(c: &[f64; 3], size: usize) -> (usize, usize) {
-    let lo = c.iter().copied().fold(f64::INFINITY, f64::min).floor().max(0.0);
+    let lo = c
+        .iter()
+        .copied()
+        .fold(f64::INFINITY, f64::min)
+        .floor()
+        .max(0.0);
     let hi = c
         .iter()
         .copied()
@@ -209,7 +214,12 @@ mod tests {
     fn the_nearer_surface_hides_the_farther_one() {
         let quad = |z: f64, base: u32| {
             (
-                vec![[-1.0, -1.0, z], [1.0, -1.0, z], [1.0, 1.0, z], [-1.0, 1.0, z]],
+                vec![
+                    [-1.0, -1.0, z],
+                    [1.0, -1.0, z],
+                    [1.0, 1.0, z],
+                    [-1.0, 1.0, z],
+                ],
                 vec![[base, base + 1, base + 2], [base, base + 2, base + 3]],
             )
         };

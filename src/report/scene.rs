@@ -265,7 +265,11 @@ mod tests {
     fn carried_colours_interpolate_the_target() {
         let faces = [[0, 1, 2]];
         let colours = [[0, 0, 0], [200, 0, 0], [0, 100, 0]];
-        let corr = vec![(0, [0.5, 0.5, 0.0]), (0, [0.0, 0.0, 1.0]), (7, [1.0, 0.0, 0.0])];
+        let corr = vec![
+            (0, [0.5, 0.5, 0.0]),
+            (0, [0.0, 0.0, 1.0]),
+            (7, [1.0, 0.0, 0.0]),
+        ];
         let out = carried_colours(&corr, &faces, &colours);
         assert_eq!(out, vec![[100, 0, 0], [0, 100, 0], [128, 128, 128]]);
     }

@@ -28,7 +28,11 @@ pub fn reported() -> Reported {
         })
         .collect();
     let bad = env.export.join("broken.ply");
-    put(&env, &bad, b"ply\nformat ascii 1.0\nelement vertex 3\nend_header\n1 2\n");
+    put(
+        &env,
+        &bad,
+        b"ply\nformat ascii 1.0\nelement vertex 3\nend_header\n1 2\n",
+    );
     let out = env.root.join("results");
     let o = Command::new(BIN)
         .args(["classify", "--config"])
@@ -41,7 +45,11 @@ pub fn reported() -> Reported {
         .output()
         .unwrap();
     // One scan failed: exit code 1, the others are recorded.
-    assert!(!o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        !o.status.success(),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     Reported {
         env,
         out,
@@ -118,10 +126,14 @@ fn reports_show_the_answer_the_pictures_and_the_error() {
     assert!(!html.contains("id=\"ranks\""));
     // The overview: newest first, each linking to its report.
     let index = read(&r.out.join("index.html"));
-    let order: Vec<usize> = ["tooth%204.ply.html", "broken.ply.html", "tooth%201.ply.html"]
-        .iter()
-        .map(|l| index.find(&format!("href=\"{l}\"")).unwrap())
-        .collect();
+    let order: Vec<usize> = [
+        "tooth%204.ply.html",
+        "broken.ply.html",
+        "tooth%201.ply.html",
+    ]
+    .iter()
+    .map(|l| index.find(&format!("href=\"{l}\"")).unwrap())
+    .collect();
     assert!(order.windows(2).all(|w| w[0] < w[1]), "{order:?}");
     assert!(index.contains(&format!("<b>{}</b>", genus(4))));
     assert!(index.contains("tooth%201.ply.png"));
