@@ -275,6 +275,51 @@ mod tests {
     }
 
     #[test]
+    fn a_moved_copy_lands_on_the_scan_and_carries_its_own_colours() {
+        use crate::mesh::synth::{self, RigidMotion, CROWN_GENERA};
+        let mut settings = crate::pipeline::Settings::default();
+        settings.clean.target_vertices = 1500;
+        let crown = synth::crown(&CROWN_GENERA[0], 5, 1500);
+        let moved = RigidMotion::random(9, 20.0).apply(&crown);
+        let prepare = |m: &Mesh, name: &str| {
+            crate::pipeline::prepare_mesh(m, name, &settings)
+                .unwrap()
+                .prepared
+        };
+        let (scan, reference) = (prepare(&moved, "scan"), prepare(&crown, "ref"));
+        let refs = [SceneReference {
+            name: "ref",
+            distance: 0.0,
+            prepared: &reference,
+        }];
+        let scene = Scene::build(&scan, &refs, &[], &settings.cp.compare);
+        let p = &scene.pairings[0];
+        // The reference, moved by the inverse rigid motion, lies on the
+        // scan (area-1 surfaces: about 1 across; vertices ~0.03 apart).
+        let nearest = |q: [f64; 3]| {
+            scene
+                .scan
+                .vertices
+                .iter()
+                .map(|&v| crate::mesh::norm(sub(v, q)))
+                .fold(f64::INFINITY, f64::min)
+        };
+        let n = p.aligned.vertices.len() as f64;
+        let mean: f64 = p.aligned.vertices.iter().map(|&q| nearest(q)).sum::<f64>() / n;
+        assert!(mean < 0.03, "mean offset {mean}");
+        // Through a good map, each scan vertex gets about the colour of
+        // its own position.
+        let own = position_colours(&scene.scan.vertices, &scene.camera);
+        let diff: f64 = own
+            .iter()
+            .zip(&p.carried)
+            .map(|(a, b)| (0..3).map(|d| f64::from(a[d].abs_diff(b[d]))).sum::<f64>() / 3.0)
+            .sum::<f64>()
+            / own.len() as f64;
+        assert!(diff < 12.0, "mean colour difference {diff}");
+    }
+
+    #[test]
     fn a_dome_is_seen_from_its_top() {
         // A cap z = 1 - x² - y² over a disk: rim at the bottom.
         let mesh = crate::mesh::unit_disk(60);
