@@ -19,6 +19,7 @@ use crate::library::{
 };
 use crate::mesh::io::{self, Format, LoadError};
 use crate::pipeline::{self, PipelineError, PreparedSurface, Settings};
+use crate::report::{Scene, SceneReference};
 use crate::store::{self, Job, ScanRecord, ScanStatus, Store, StoreError};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
@@ -27,6 +28,28 @@ use std::time::Instant;
 
 /// How many nearest references a result lists.
 pub const NEAREST: usize = store::DEFAULT_NEAREST;
+
+/// How many nearest references a report draws beside the scan.
+pub const REPORT_NEAREST: usize = 3;
+
+/// Why the pictures of a recorded scan cannot be drawn again.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// The scan file is no longer where it was recorded.
+    #[error(
+        "{0}: the scan file is gone, so the scan cannot be drawn (the recorded result stands)"
+    )]
+    Gone(PathBuf),
+    /// The file there now is not the content that was identified.
+    #[error("{0}: the file has changed since it was identified, so it is not drawn (the recorded result is of the earlier content)")]
+    Changed(PathBuf),
+    /// The scan has no result to draw.
+    #[error("{0}: not identified, nothing to draw")]
+    NotIdentified(String),
+    /// Preparing the file again failed.
+    #[error(transparent)]
+    Classify(#[from] ClassifyError),
+}
 
 /// A prepared library, ready to identify scans.
 #[derive(Debug, Clone)]
@@ -163,6 +186,11 @@ impl Classifier {
     /// Identify the surface in the file `path`, or the volume (slice
     /// folder, NRRD, NIfTI) there.
     pub fn classify_file(&self, path: &Path) -> Result<ScanOutcome, ClassifyError> {
+        self.identify_path(path).map(|(outcome, _)| outcome)
+    }
+
+    /// [`classify_file`](Self::classify_file), with the prepared scan.
+    fn identify_path(&self, path: &Path) -> Result<(ScanOutcome, PreparedSurface), ClassifyError> {
         if crate::volume::is_volume_path(path) {
             if self.references.is_empty() {
                 return Err(ClassifyError::EmptyLibrary);
@@ -171,17 +199,27 @@ impl Classifier {
             let _span = tracing::info_span!("scan", scan = %name).entered();
             let surface = pipeline::prepare_file(path, &self.settings)?;
             let load_ms = surface.timings.load;
-            return Ok(self.compare_prepared(&name, &surface, load_ms));
+            let outcome = self.compare_prepared(&name, &surface, load_ms);
+            return Ok((outcome, surface));
         }
         let bytes = std::fs::read(path).map_err(|source| ClassifyError::Io {
             path: path.to_path_buf(),
             source,
         })?;
-        self.classify_bytes(path, &bytes)
+        self.identify_bytes(path, &bytes)
     }
 
     /// Identify a surface given as the bytes of the file `path`.
     pub fn classify_bytes(&self, path: &Path, bytes: &[u8]) -> Result<ScanOutcome, ClassifyError> {
+        self.identify_bytes(path, bytes).map(|(outcome, _)| outcome)
+    }
+
+    /// [`classify_bytes`](Self::classify_bytes), with the prepared scan.
+    fn identify_bytes(
+        &self,
+        path: &Path,
+        bytes: &[u8],
+    ) -> Result<(ScanOutcome, PreparedSurface), ClassifyError> {
         if self.references.is_empty() {
             return Err(ClassifyError::EmptyLibrary);
         }
@@ -190,6 +228,95 @@ impl Classifier {
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
         let _span = tracing::info_span!("scan", scan = %name).entered();
+        let (surface, load_ms) = self.prepare_bytes(path, bytes)?;
+        let outcome = self.compare_prepared(&name, &surface, load_ms);
+        Ok((outcome, surface))
+    }
+
+    /// What a report draws of the prepared scan `scan`: its
+    /// [`REPORT_NEAREST`] nearest references (of `nearest`, nearest
+    /// first; names the library no longer holds are skipped), each moved
+    /// onto the scan with the correspondence coloured, and the carried
+    /// landmarks.
+    pub fn scene(
+        &self,
+        scan: &PreparedSurface,
+        nearest: &[(String, f64)],
+        landmarks: Option<&ScanLandmarks>,
+    ) -> Scene {
+        let _span = tracing::info_span!("scene", scan = %scan.prepared.name()).entered();
+        let references: Vec<SceneReference<'_>> = nearest
+            .iter()
+            .filter_map(|(name, distance)| {
+                let r = self.references.iter().find(|r| &r.name == name)?;
+                Some(SceneReference {
+                    name: &r.name,
+                    distance: *distance,
+                    prepared: &r.prepared,
+                })
+            })
+            .take(REPORT_NEAREST)
+            .collect();
+        let points: Vec<(Option<String>, [f64; 3])> = landmarks
+            .map(|lm| {
+                lm.points
+                    .iter()
+                    .map(|p| (p.label.clone(), [p.x, p.y, p.z]))
+                    .collect()
+            })
+            .unwrap_or_default();
+        Scene::build(
+            &scan.prepared,
+            &references,
+            &points,
+            &self.settings.cp.compare,
+        )
+    }
+
+    /// The scene of a recorded scan, drawn again from its file: the file
+    /// is prepared again (it must still hold the identified content) and
+    /// matched with the recorded nearest references.
+    pub fn scene_of_record(&self, record: &ScanRecord) -> Result<Scene, SceneError> {
+        let path = Path::new(&record.path);
+        if record.nearest.is_empty() {
+            return Err(SceneError::NotIdentified(record.path.clone()));
+        }
+        if !path.exists() {
+            return Err(SceneError::Gone(path.to_path_buf()));
+        }
+        match crate::hash::content_hash_file(path) {
+            Ok((hash, _)) if hash == record.content_hash => {}
+            Ok(_) => return Err(SceneError::Changed(path.to_path_buf())),
+            Err(_) => return Err(SceneError::Gone(path.to_path_buf())),
+        }
+        let surface = if crate::volume::is_volume_path(path) {
+            pipeline::prepare_file(path, &self.settings).map_err(ClassifyError::from)?
+        } else {
+            let bytes = std::fs::read(path).map_err(|source| ClassifyError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
+            self.prepare_bytes(path, &bytes)?.0
+        };
+        let nearest: Vec<(String, f64)> = record
+            .nearest
+            .iter()
+            .map(|n| (n.reference.clone(), n.distance))
+            .collect();
+        Ok(self.scene(&surface, &nearest, record.landmarks.as_ref()))
+    }
+
+    /// Load, clean and prepare the surface given as the bytes of `path`;
+    /// also the milliseconds loading took.
+    fn prepare_bytes(
+        &self,
+        path: &Path,
+        bytes: &[u8],
+    ) -> Result<(PreparedSurface, f64), ClassifyError> {
+        let name = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
         let t = Instant::now();
         let format = Format::from_path(path).ok_or_else(|| {
             PipelineError::Load(LoadError::UnknownFormat {
@@ -198,8 +325,8 @@ impl Classifier {
         })?;
         let loaded = io::load_bytes(bytes, format, path).map_err(PipelineError::from)?;
         let load_ms = t.elapsed().as_secs_f64() * 1e3;
-        let surface =
-            pipeline::prepare_mesh(&loaded.mesh, &name, &self.settings).map_err(|e| match e {
+        let surface = pipeline::prepare_mesh(&loaded.mesh, &name, &self.settings).map_err(|e| {
+            ClassifyError::Pipeline(match e {
                 pipeline::MeshError::Clean(source) => PipelineError::Clean {
                     path: path.to_path_buf(),
                     source,
@@ -208,8 +335,9 @@ impl Classifier {
                     path: path.to_path_buf(),
                     source,
                 },
-            })?;
-        Ok(self.compare_prepared(&name, &surface, load_ms))
+            })
+        })?;
+        Ok((surface, load_ms))
     }
 
     /// Compare a prepared scan named `name` with every reference and
@@ -332,15 +460,35 @@ pub enum Finding {
 /// Identify the file of a claimed job (no database access): the outcome
 /// with its total time, or the message of why it cannot be identified.
 pub fn identify_job(classifier: &Classifier, job: &Job) -> Finding {
+    identify_job_with_scene(classifier, job, false).0
+}
+
+/// [`identify_job`], and with `scene` what its report draws (computed
+/// while the prepared scan is at hand; `None` when not asked for or not
+/// identified).
+pub fn identify_job_with_scene(
+    classifier: &Classifier,
+    job: &Job,
+    scene: bool,
+) -> (Finding, Option<Scene>) {
     let started = Instant::now();
-    match classifier.classify_file(Path::new(&job.path)) {
-        Ok(mut outcome) => {
+    match classifier.identify_path(Path::new(&job.path)) {
+        Ok((mut outcome, surface)) => {
             outcome
                 .timings_ms
                 .insert("total".into(), started.elapsed().as_secs_f64() * 1e3);
-            Finding::Identified(outcome)
+            let scene = scene.then(|| {
+                let mut nearest: Vec<(String, f64)> = outcome
+                    .distances
+                    .iter()
+                    .map(|d| (d.reference.clone(), d.distance))
+                    .collect();
+                nearest.sort_by(|a, b| a.1.total_cmp(&b.1).then_with(|| a.0.cmp(&b.0)));
+                classifier.scene(&surface, &nearest, outcome.landmarks.as_ref())
+            });
+            (Finding::Identified(outcome), scene)
         }
-        Err(e) => Finding::Failed(e.to_string()),
+        Err(e) => (Finding::Failed(e.to_string()), None),
     }
 }
 
@@ -368,20 +516,20 @@ pub fn record_finding(
 /// result (landmarks included), or `error` with the message. Returns the
 /// final status; only a database failure is an error (the job then stays
 /// `running` and is requeued at the next start). With a results folder
-/// ([`Classifier::with_result_files`]), the recorded result is then written
-/// there; a failure to write it is logged and does not change the status
-/// (the database holds the result).
+/// ([`Classifier::with_result_files`]), the recorded result, its report and
+/// the overview are then written there; a failure to write them is logged
+/// and does not change the status (the database holds the result).
 pub fn run_job(
     store: &mut Store,
     classifier: &Classifier,
     job: &Job,
 ) -> Result<ScanStatus, StoreError> {
-    let finding = identify_job(classifier, job);
+    let (finding, scene) = identify_job_with_scene(classifier, job, classifier.results.is_some());
     let status = record_finding(store, job.scan_id, &finding)?;
     if let Some(files) = &classifier.results {
         match store.scan(job.scan_id, NEAREST) {
             Ok(Some(record)) => {
-                if let Err(e) = files.write(&record) {
+                if let Err(e) = write_result_files(store, files, &record, scene.as_ref(), None) {
                     tracing::error!(scan = %job.path, "result files not written: {e}");
                 }
             }
@@ -390,6 +538,21 @@ pub fn run_job(
         }
     }
     Ok(status)
+}
+
+/// All result files of a recorded scan: the JSON (and landmarks), the
+/// report drawing `scene` (with `note` on the page), then the overview.
+pub fn write_result_files(
+    store: &mut Store,
+    files: &ResultFiles,
+    record: &ScanRecord,
+    scene: Option<&Scene>,
+    note: Option<&str>,
+) -> Result<(), ResultsError> {
+    files.write(record)?;
+    files.write_report(record, scene, note)?;
+    files.write_index(store)?;
+    Ok(())
 }
 
 /// Why [`identify_file`] could not identify a file.

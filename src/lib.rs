@@ -15,6 +15,7 @@
 //! - [`library`]: the reference library folder, its cache of prepared
 //!   references, and identification (nearest taxon per rank);
 //! - [`store`]: the SQLite record of references, scans, results and distances;
+//! - [`report`]: per-scan HTML reports and the overview page;
 //! - [`classify`]: one scan through preparation, comparison, identification
 //!   and the store;
 //! - [`daemon`]: the export-folder watcher and job loop behind `morphoid run`.
@@ -37,5 +38,6 @@ pub mod landmarks;
 pub mod library;
 pub mod mesh;
 pub mod pipeline;
+pub mod report;
 pub mod store;
 pub mod volume;

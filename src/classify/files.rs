@@ -1,7 +1,9 @@
 //! Result files: for each identified scan, `<name>.json` (the `classify
 //! --json` line) and, when landmarks were carried onto it, `<name>.fcsv`
 //! (3D Slicer markups in the scan file's coordinates), in a results
-//! folder.
+//! folder; beside them the report `<name>.html` with its thumbnail
+//! `<name>.png`, and the folder's overview `index.html` (older scans on
+//! `index-NNNNNN.html` pages written once).
 //!
 //! `<name>` is the scan's path relative to the export folder, file
 //! extension included: `<export>/a/x.ply` gives `<results>/a/x.ply.json`.
@@ -13,7 +15,8 @@
 
 use crate::atomic_write::{write_atomic, AtomicWriteError};
 use crate::landmarks::{self, Landmarks};
-use crate::store::ScanRecord;
+use crate::report::{self, IndexRow, PageLink, Scene, INDEX_PAGE, INDEX_RECENT};
+use crate::store::{ScanRecord, Store, StoreError};
 use std::ffi::OsString;
 use std::path::{Component, Path, PathBuf};
 
@@ -31,6 +34,9 @@ pub enum ResultsError {
     /// A result file could not be written.
     #[error(transparent)]
     Write(#[from] AtomicWriteError),
+    /// The scans for the overview could not be read.
+    #[error("cannot read the scans for the overview: {0}")]
+    Store(#[from] StoreError),
     /// The record could not be turned into JSON.
     #[error("cannot encode the result of {scan} as JSON: {source}")]
     Json {
@@ -60,17 +66,138 @@ impl ResultFiles {
         &self.dir
     }
 
+    /// The name of `record`'s result files, relative to the folder.
+    fn name(&self, record: &ScanRecord) -> PathBuf {
+        result_name(Path::new(&record.path), self.export_dir.as_deref())
+            .unwrap_or_else(|| PathBuf::from(format!("scan-{}", record.id)))
+    }
+
+    /// `<name><ext>` of `record`, relative to the folder.
+    fn relative(&self, record: &ScanRecord, ext: &str) -> PathBuf {
+        let mut p = OsString::from(self.name(record));
+        p.push(ext);
+        PathBuf::from(p)
+    }
+
     /// The result files of `record`: `<name>.json` and `<name>.fcsv`.
     pub fn paths(&self, record: &ScanRecord) -> (PathBuf, PathBuf) {
-        let name = result_name(Path::new(&record.path), self.export_dir.as_deref())
-            .unwrap_or_else(|| PathBuf::from(format!("scan-{}", record.id)));
-        let base = self.dir.join(name).into_os_string();
-        let with = |ext: &str| {
-            let mut p = OsString::from(&base);
-            p.push(ext);
-            PathBuf::from(p)
-        };
-        (with(".json"), with(".fcsv"))
+        (
+            self.dir.join(self.relative(record, ".json")),
+            self.dir.join(self.relative(record, ".fcsv")),
+        )
+    }
+
+    /// The report of `record` and its thumbnail: `<name>.html`, `<name>.png`.
+    pub fn report_paths(&self, record: &ScanRecord) -> (PathBuf, PathBuf) {
+        (
+            self.dir.join(self.relative(record, ".html")),
+            self.dir.join(self.relative(record, ".png")),
+        )
+    }
+
+    /// The overview page, `index.html` in the folder.
+    pub fn index_path(&self) -> PathBuf {
+        self.dir.join("index.html")
+    }
+
+    /// Write the report of a recorded scan (and, with a scene, its
+    /// thumbnail), folders created as needed, each file replaced
+    /// atomically; `note` says on the page why something is missing.
+    /// Returns the report's path.
+    pub fn write_report(
+        &self,
+        record: &ScanRecord,
+        scene: Option<&Scene>,
+        note: Option<&str>,
+    ) -> Result<PathBuf, ResultsError> {
+        let _span = tracing::info_span!("report", scan = %record.path).entered();
+        let (html_path, png_path) = self.report_paths(record);
+        create_parent(&html_path)?;
+        if let Some(png) = scene.and_then(|s| report::png_bytes(&report::thumbnail(s))) {
+            write_atomic(&png_path, &png)?;
+        }
+        let html = report::report_html(record, scene, note);
+        write_atomic(&html_path, html.as_bytes())?;
+        Ok(html_path)
+    }
+
+    /// Rewrite the overview `index.html` from the database: the most
+    /// recent scans, newest first, and links to pages of older scans;
+    /// an older page is written when its scans have all left the overview
+    /// and it does not exist yet (not again), so the cost does not grow
+    /// with the database.
+    pub fn write_index(&self, store: &mut Store) -> Result<PathBuf, ResultsError> {
+        let _span = tracing::info_span!("index").entered();
+        std::fs::create_dir_all(&self.dir).map_err(|source| ResultsError::Io {
+            path: self.dir.clone(),
+            source,
+        })?;
+        let recent = store.recent(INDEX_RECENT)?;
+        let oldest_shown = recent.last().map_or(1, |r| r.id);
+        // Page k holds ids (k·P, (k+1)·P]; it is complete once all of
+        // them are older than the overview's oldest scan.
+        let complete_pages = (oldest_shown - 1).max(0) / INDEX_PAGE;
+        let mut pages = Vec::new();
+        for k in (0..complete_pages).rev() {
+            let name = report::page_name(k);
+            let path = self.dir.join(&name);
+            if !path.exists() {
+                self.write_page(store, k, &path)?;
+            }
+            pages.push(PageLink {
+                href: report::href_of(&name),
+                label: format!("scans {}–{}", k * INDEX_PAGE + 1, (k + 1) * INDEX_PAGE),
+            });
+        }
+        let html = self.overview(&recent, "scans, newest first", &pages);
+        let path = self.index_path();
+        write_atomic(&path, html.as_bytes())?;
+        Ok(path)
+    }
+
+    /// The older page `k` of the overview, written to `path`.
+    fn write_page(&self, store: &Store, k: i64, path: &Path) -> Result<(), ResultsError> {
+        let mut records = Vec::new();
+        for id in ((k * INDEX_PAGE + 1)..=((k + 1) * INDEX_PAGE)).rev() {
+            if let Some(r) = store.scan(id, crate::store::DEFAULT_NEAREST)? {
+                records.push(r);
+            }
+        }
+        let back = [PageLink {
+            href: "index.html".into(),
+            label: "recent scans".into(),
+        }];
+        let title = format!(
+            "scans {}–{}, newest first",
+            k * INDEX_PAGE + 1,
+            (k + 1) * INDEX_PAGE
+        );
+        write_atomic(path, self.overview(&records, &title, &back).as_bytes())?;
+        Ok(())
+    }
+
+    /// An overview page of `records`, linking each to its report (and
+    /// thumbnail, when one was written).
+    fn overview(&self, records: &[ScanRecord], title: &str, pages: &[PageLink]) -> String {
+        let links: Vec<(String, Option<String>)> = records
+            .iter()
+            .map(|r| {
+                let href = |p: PathBuf| report::href_of(&p.to_string_lossy().replace('\\', "/"));
+                let thumb = self.relative(r, ".png");
+                let thumb = self.dir.join(&thumb).exists().then(|| href(thumb));
+                (href(self.relative(r, ".html")), thumb)
+            })
+            .collect();
+        let rows: Vec<IndexRow<'_>> = records
+            .iter()
+            .zip(&links)
+            .map(|(record, (report, thumbnail))| IndexRow {
+                record,
+                report,
+                thumbnail: thumbnail.as_deref(),
+            })
+            .collect();
+        report::index_html(title, &rows, pages)
     }
 
     /// Write the result files of a recorded scan (folders created as
@@ -79,12 +206,7 @@ impl ResultFiles {
     /// Each file is replaced atomically. Returns the files written.
     pub fn write(&self, record: &ScanRecord) -> Result<Vec<PathBuf>, ResultsError> {
         let (json_path, fcsv_path) = self.paths(record);
-        if let Some(folder) = json_path.parent() {
-            std::fs::create_dir_all(folder).map_err(|source| ResultsError::Io {
-                path: folder.to_path_buf(),
-                source,
-            })?;
-        }
+        create_parent(&json_path)?;
         let mut json = serde_json::to_string(record).map_err(|source| ResultsError::Json {
             scan: record.path.clone(),
             source,
@@ -113,6 +235,17 @@ impl ResultFiles {
             },
         }
         Ok(written)
+    }
+}
+
+/// Create the folder `file` goes into.
+fn create_parent(file: &Path) -> Result<(), ResultsError> {
+    match file.parent() {
+        Some(folder) => std::fs::create_dir_all(folder).map_err(|source| ResultsError::Io {
+            path: folder.to_path_buf(),
+            source,
+        }),
+        None => Ok(()),
     }
 }
 

@@ -47,6 +47,9 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
         .clone()
         .or_else(|| config.results.dir.clone())
         .map(|dir| ResultFiles::new(dir, Some(config.watch.dir.clone())));
+    // Scans identified now get their report (and the overview) from the
+    // job; the JSON of known ones is written below.
+    let classifier = classifier.with_result_files(results.clone());
     let mut all_ok = true;
     for scan in &args.scans {
         let record = classify::identify_file(&mut store, &classifier, scan);
@@ -77,7 +80,7 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
             println!("{}", summary(&record));
         }
         if let Some(files) = &results {
-            if let Err(e) = files.write(&record) {
+            if let Err(e) = write_known(&mut store, &classifier, files, &record) {
                 all_ok = false;
                 eprintln!("morphoid: error: {}: result files: {e}", scan.display());
             }
@@ -88,6 +91,29 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     } else {
         ExitCode::FAILURE
     })
+}
+
+/// The result files of a scan: the JSON always, and the report (drawn
+/// again from the file) and overview when the report is missing (a scan
+/// identified before, or into another folder).
+fn write_known(
+    store: &mut Store,
+    classifier: &Classifier,
+    files: &ResultFiles,
+    record: &ScanRecord,
+) -> Result<(), classify::ResultsError> {
+    files.write(record)?;
+    if files.report_paths(record).0.exists() {
+        return Ok(());
+    }
+    let (scene, note) = match classifier.scene_of_record(record) {
+        Ok(scene) => (Some(scene), None),
+        Err(_) if record.nearest.is_empty() => (None, None),
+        Err(e) => (None, Some(e.to_string())),
+    };
+    files.write_report(record, scene.as_ref(), note.as_deref())?;
+    files.write_index(store)?;
+    Ok(())
 }
 
 /// One line per scan for people: the taxon at each rank (and how many

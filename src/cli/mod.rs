@@ -13,6 +13,7 @@ mod library;
 mod matrix;
 mod method;
 mod propagate;
+mod report;
 mod results;
 mod run;
 mod synth;
@@ -47,6 +48,8 @@ enum Command {
     Classify(classify::Args),
     /// Show what has been identified, newest first.
     Results(results::Args),
+    /// Write the HTML report of recorded scans (and the overview page) into a folder.
+    Report(report::Args),
     /// Prepare and cache the reference library, or list it.
     Library(library::Args),
     /// The cP (or cWn) distance of two surfaces, and the cP correspondence.
@@ -80,6 +83,7 @@ pub fn main() -> ExitCode {
         Command::Classify(a) => classify::run(a, config),
         Command::Demo(a) => demo::run(a, config),
         Command::Results(a) => results::run(a, config),
+        Command::Report(a) => report::run(a, config),
         Command::Matrix(a) => matrix::run(a, config),
         Command::Evaluate(a) => evaluate::run(a, config),
         Command::Propagate(a) => propagate::run(a, config),

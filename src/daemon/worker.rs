@@ -15,7 +15,9 @@
 use super::db::{self, SharedDb};
 use super::health::{Backoff, Health, Part};
 use crate::classify::{self, Classifier, Finding, ResultFiles, NEAREST};
+use crate::report::Scene;
 use crate::store::{now_ms, Job, ScanStatus, Store, StoreError};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
@@ -34,6 +36,11 @@ const IDLE_WAKE: Duration = Duration::from_secs(5);
 
 /// Result files written per pass, so jobs are not held up behind a backlog.
 const FILES_PER_PASS: usize = 16;
+
+/// Scenes of identified scans kept for their reports until the result
+/// files are written (a report whose scene is gone draws it again from the
+/// file).
+const SCENES_KEPT: usize = 8;
 
 /// What the worker works with; replaced as a whole on reload.
 pub struct Setup {
@@ -103,6 +110,7 @@ impl Worker {
                     backoff: Backoff::default(),
                     files_backoff: Backoff::default(),
                     registered: 0,
+                    scenes: BTreeMap::new(),
                 };
                 w.run(rx)
             })?;
@@ -177,6 +185,8 @@ struct WorkerState {
     files_backoff: Backoff,
     /// The connection generation the references were registered on.
     registered: u64,
+    /// What the reports of recently identified scans draw, by scan id.
+    scenes: BTreeMap<i64, Scene>,
 }
 
 impl WorkerState {
@@ -265,7 +275,17 @@ impl WorkerState {
         self.progress.started_ms.store(now_ms(), Ordering::SeqCst);
         self.progress.current.store(job.scan_id, Ordering::SeqCst);
         let started = Instant::now();
-        let finding = classify::identify_job(&self.setup.classifier, &job);
+        let (finding, scene) = classify::identify_job_with_scene(
+            &self.setup.classifier,
+            &job,
+            self.setup.files.is_some(),
+        );
+        if let Some(scene) = scene {
+            self.scenes.insert(job.scan_id, scene);
+            while self.scenes.len() > SCENES_KEPT {
+                self.scenes.pop_first();
+            }
+        }
         let secs = started.elapsed().as_secs_f64();
         self.progress.current.store(0, Ordering::SeqCst);
         self.held = Some(Held { job, finding, secs });
@@ -346,7 +366,22 @@ impl WorkerState {
             let Some(record) = store.scan(id, NEAREST)? else {
                 continue;
             };
-            match files.write(&record) {
+            // The scene kept from identification, else drawn again from
+            // the file (after a restart); why not, on the page.
+            let (scene, note) = match self.scenes.remove(&id) {
+                Some(scene) => (Some(scene), None),
+                None if !record.nearest.is_empty() => {
+                    match self.setup.classifier.scene_of_record(&record) {
+                        Ok(scene) => (Some(scene), None),
+                        Err(e) => (None, Some(e.to_string())),
+                    }
+                }
+                None => (None, None),
+            };
+            let written = files
+                .write(&record)
+                .and_then(|_| files.write_report(&record, scene.as_ref(), note.as_deref()));
+            match written {
                 Ok(_) => {
                     store.files_written(id)?;
                     self.health.clear(Part::Results);
@@ -358,6 +393,11 @@ impl WorkerState {
                     self.files_backoff.failed();
                     return Ok(false);
                 }
+            }
+        }
+        if wrote {
+            if let Err(e) = files.write_index(store) {
+                self.health.fault(Part::Results, &super::chain(&e));
             }
         }
         Ok(wrote)

@@ -42,6 +42,8 @@ mod library_heldout;
 mod lm_classify;
 mod lm_daemon;
 mod lm_propagate;
+mod report_browser;
+mod report_pages;
 mod store_basic;
 mod store_crash;
 mod store_landmarks;

@@ -1,0 +1,45 @@
+//! Reports a person reads: a self-contained HTML page per scan (the scan
+//! and its nearest references drawn in the same pose, the correspondence
+//! as colours, an offline 3D view, the answers, cleaning and timings) and
+//! an overview page of the results folder.
+//!
+//! `render` is a small z-buffer rasterizer (plain data to RGBA), `scene`
+//! what is drawn (computed from the prepared scan and references), `html`
+//! the report page, `index` the overview; the viewer is `viewer.js`,
+//! inlined into each report. Writing the files is `classify::ResultFiles`'
+//! job.
+
+mod html;
+mod index;
+mod render;
+mod scene;
+
+pub use html::{
+    escape, file_name, png_bytes, report_html, scene_json, thumbnail, utc_time, PICTURE_SIZE,
+    THUMBNAIL_SIZE,
+};
+pub use index::{href_of, index_html, page_name, IndexRow, PageLink, INDEX_PAGE, INDEX_RECENT};
+pub use render::{render, unit, vertex_normals, Camera, Image};
+pub use scene::{
+    carried_colours, crown_view, inverse_rigid_motion, position_colours, ColouredMesh, Pairing,
+    Scene, ScenePoint, SceneReference,
+};
+
+use crate::store::ScanRecord;
+
+// ---- Calibrated confidence and "no close match" (issue 12, part 3) -------
+// The one place reports and the overview read them from. The record has no
+// calibrated fields yet: both return `None`, shown as "not calibrated".
+// Wire them to the record's fields when the calibration lands.
+
+/// The calibrated probability that the nearest taxon at `rank` is right
+/// (`None`: not calibrated).
+pub fn rank_confidence(_record: &ScanRecord, _rank: &str) -> Option<f64> {
+    None
+}
+
+/// Whether the scan is farther from the library than a member of a known
+/// taxon would be (`None`: not calibrated).
+pub fn no_close_match(_record: &ScanRecord) -> Option<bool> {
+    None
+}
