@@ -33,8 +33,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
     cmd.build();
     let pages = write_man_pages(&cmd, &man)?;
     for shell in [Shell::Bash, Shell::Zsh, Shell::Fish] {
-        clap_complete::generate_to(shell, &mut cmd, "morphoid", &completions)
-            .with_context(|| format!("writing the {shell} completion into {}", completions.display()))?;
+        clap_complete::generate_to(shell, &mut cmd, "morphoid", &completions).with_context(
+            || {
+                format!(
+                    "writing the {shell} completion into {}",
+                    completions.display()
+                )
+            },
+        )?;
     }
     println!(
         "{} man pages in {}, completions for bash, zsh and fish in {}",
@@ -58,7 +64,8 @@ fn write_man_pages(cmd: &clap::Command, dir: &Path) -> Result<usize> {
     let mut roff = Vec::new();
     page.render(&mut roff)
         .with_context(|| format!("rendering {}", path.display()))?;
-    let file = std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
+    let file =
+        std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
     let mut gz = GzBuilder::new().mtime(0).write(file, Compression::best());
     gz.write_all(&roff)
         .and_then(|()| gz.finish().map(drop))

@@ -262,15 +262,15 @@ impl ShardFile {
             return Err(err(3, "a name occurs twice".into()));
         }
         // An empty content line splits into one empty field.
-        let content = if names.is_empty() { Vec::new() } else { content };
+        let content = if names.is_empty() {
+            Vec::new()
+        } else {
+            content
+        };
         if content.len() != names.len() {
             return Err(err(
                 2,
-                format!(
-                    "{} content hashes for {} names",
-                    content.len(),
-                    names.len()
-                ),
+                format!("{} content hashes for {} names", content.len(), names.len()),
             ));
         }
         match rows.next().transpose()? {
@@ -636,7 +636,9 @@ mod tests {
                         }
                     })
                     .collect();
-                let content = (1..=names.len()).map(|k| Some(format!("{k:016x}"))).collect();
+                let content = (1..=names.len())
+                    .map(|k| Some(format!("{k:016x}")))
+                    .collect();
                 (
                     PathBuf::from(format!("shard{index}.csv")),
                     ShardFile {

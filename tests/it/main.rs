@@ -42,6 +42,7 @@ mod library_heldout;
 mod lm_classify;
 mod lm_daemon;
 mod lm_propagate;
+mod ops_slurm;
 mod store_basic;
 mod store_crash;
 mod store_landmarks;
