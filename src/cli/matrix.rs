@@ -31,8 +31,9 @@ pub struct Args {
     /// cluster job array; combine the parts with `morphoid matrix merge`.
     #[arg(long, value_name = "K/N")]
     shard: Option<Shard>,
-    /// Cache folder of prepared surfaces (the `[library] cache` of the
-    /// configuration, as `library build` uses it): surfaces whose file and
+    /// Cache of prepared surfaces: the cache folder (the `[library] cache`
+    /// of the configuration) or the library's own folder in it, as
+    /// `library build` and this command print it. Surfaces whose file and
     /// settings are unchanged are taken from it, the others are prepared
     /// and stored in it. Saves every shard of a job array, and every later
     /// run, from preparing the whole library again.
@@ -123,6 +124,12 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
             preparation.reused() + preparation.prepared(),
             preparation.stored()
         );
+        if preparation.reused() == 0 && preparation.prepared() > 0 {
+            eprintln!(
+                "note: nothing was found in the cache: give --cache the folder `morphoid library build` \
+                 printed, and the same --config (preparation settings key the entries)"
+            );
+        }
     }
     Ok(code)
 }
@@ -180,7 +187,7 @@ fn run_shard(
         which,
         |k| {
             let member = members.get(k).context("a shard pair outside the library")?;
-            anyhow::Ok(preparation.prepare(member)?)
+            anyhow::Ok(preparation.prepare_hashed(member)?)
         },
         &settings.cp.compare,
         |_| bar.inc(1),

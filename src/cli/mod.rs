@@ -2,6 +2,7 @@
 //! clap builds the argument structs here; the modules call the library,
 //! print, and turn library errors into one-line messages with context.
 
+mod assets;
 mod check_config;
 mod classify;
 mod common;
@@ -23,9 +24,18 @@ use common::ConfigFile;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+/// `morphoid --version`: the crate version and the commit it was built
+/// from (`build.rs`).
+const VERSION: &str = concat!(
+    env!("CARGO_PKG_VERSION"),
+    " (commit ",
+    env!("MORPHOID_COMMIT"),
+    ")"
+);
+
 /// Identify anatomical surfaces with the continuous Procrustes distance.
 #[derive(Debug, Parser)]
-#[command(name = "morphoid", version, about)]
+#[command(name = "morphoid", version = VERSION, about)]
 struct Cli {
     /// More log output (repeat for more).
     #[arg(short, long, global = true, action = clap::ArgAction::Count)]
@@ -66,6 +76,9 @@ enum Command {
     Synth(synth::Args),
     /// Carry landmarks of a reference onto another surface through cP maps.
     Propagate(propagate::Args),
+    /// Write man pages and shell completions (for packagers).
+    #[command(hide = true)]
+    Assets(assets::Args),
 }
 
 /// Parse the command line, run the subcommand, map errors to an exit code.
@@ -89,15 +102,34 @@ pub fn main() -> ExitCode {
         Command::Propagate(a) => propagate::run(a, config),
         Command::Run(a) => run::run(a, config),
         Command::CheckConfig(a) => check_config::run(a, config),
+        Command::Assets(a) => assets::run(a),
     };
     match result {
         Ok(code) => code,
         Err(e) => {
-            // One line: the context chain joined, as users read it in a log.
-            eprintln!("morphoid: error: {e:#}");
+            eprintln!("morphoid: error: {}", one_line(&e));
             ExitCode::FAILURE
         }
     }
+}
+
+/// One line, as users read it in a log: the context chain joined by `: `.
+/// Library errors name their source in their own message (so that a log
+/// line of `{e}` is complete); a cause whose text the line already ends
+/// with is not repeated.
+fn one_line(e: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if line.ends_with(&text) {
+            continue;
+        }
+        if !line.is_empty() {
+            line.push_str(": ");
+        }
+        line.push_str(&text);
+    }
+    line
 }
 
 /// Logs go to stderr so that `--json` output on stdout stays parseable.
@@ -143,6 +175,24 @@ mod tests {
     #[test]
     fn the_command_line_is_consistent() {
         Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn an_error_line_names_the_os_error_once() {
+        let os = "(os error 2)";
+        let shard = morphoid::eval::ShardFile::read(std::path::Path::new("/nonexistent/s.csv"))
+            .unwrap_err();
+        let e = anyhow::Error::new(shard).context("merging");
+        let line = one_line(&e);
+        assert_eq!(line.matches(os).count(), 1, "{line}");
+        assert!(line.starts_with("merging: /nonexistent/s.csv"), "{line}");
+    }
+
+    #[test]
+    fn the_version_names_the_commit() {
+        let version = Cli::command().render_version();
+        assert!(version.contains(env!("CARGO_PKG_VERSION")), "{version}");
+        assert!(version.contains("(commit "), "{version}");
     }
 
     #[test]

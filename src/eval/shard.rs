@@ -6,18 +6,24 @@
 //!
 //! ```text
 //! # morphoid matrix shard 2/3
+//! # content: 9f2c…,,51ab…,07de…
 //! # names: a,b,c,d
 //! a,b,distance,forward,backward
 //! a,d,0.0312,0.0312,0.0340
 //! …
 //! ```
 //!
+//! `# content:` holds, for each name, the content hash of the surface the
+//! shard compared (empty for specimens its pairs do not involve), so that
+//! shards of a library whose files changed between tasks are never mixed.
 //! [`merge_shards`] checks that the files belong together (same name list,
-//! same `N`, every `K` once, every pair once) and assembles the matrix the
+//! same content for every specimen, same `N`, every `K` once, every pair
+//! once), that every value is a distance, and assembles the matrix the
 //! unsharded computation writes.
 
 use super::csv_text::{rows, trimmed, CsvString, Row};
 use super::DistanceMatrix;
+use crate::atomic_write::{write_atomic, AtomicWriteError};
 use crate::cp::{compare, CompareParams, Prepared};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -124,6 +130,9 @@ pub struct ShardFile {
     pub shard: Shard,
     /// The full specimen list of the library, in matrix order.
     pub names: Vec<String>,
+    /// Per name, the content hash of the surface file this shard compared
+    /// (`None` for specimens its pairs do not involve).
+    pub content: Vec<Option<String>>,
     /// The distances of the shard's pairs.
     pub pairs: Vec<PairDistance>,
 }
@@ -133,7 +142,7 @@ pub struct ShardFile {
 #[derive(Debug, thiserror::Error)]
 pub enum ShardError {
     /// A file could not be read or written.
-    #[error("{path}: {source}")]
+    #[error("{}: {source}", path.display())]
     Io {
         /// The file.
         path: PathBuf,
@@ -141,7 +150,7 @@ pub enum ShardError {
         source: std::io::Error,
     },
     /// A shard file is malformed.
-    #[error("{path}:{line}: {message}")]
+    #[error("{}:{line}: {message}", path.display())]
     Format {
         /// The file.
         path: PathBuf,
@@ -150,6 +159,9 @@ pub enum ShardError {
         /// What is wrong.
         message: String,
     },
+    /// A shard file could not be written (it names the file and the step).
+    #[error(transparent)]
+    Write(#[from] AtomicWriteError),
     /// Shards that do not belong together, or an incomplete set.
     #[error("{0}")]
     Mismatch(String),
@@ -159,10 +171,13 @@ pub enum ShardError {
 }
 
 impl ShardFile {
-    /// The file text: two comment lines (`# morphoid matrix shard K/N`,
-    /// `# names: …`), the header `a,b,distance,forward,backward`, one line
-    /// per pair.
+    /// The file text: three comment lines (`# morphoid matrix shard K/N`,
+    /// `# content: …`, `# names: …`), the header
+    /// `a,b,distance,forward,backward`, one line per pair.
     pub fn to_text(&self) -> String {
+        let content: Vec<&str> = (0..self.names.len())
+            .map(|k| self.content.get(k).and_then(Option::as_deref).unwrap_or(""))
+            .collect();
         let mut w = CsvString::new();
         w.record(&self.names);
         w.record(["a", "b", "distance", "forward", "backward"]);
@@ -177,9 +192,12 @@ impl ShardFile {
                 &format!("{:?}", p.backward),
             ]);
         }
+        // Hashes are hex: one plain line, before the names (a quoted name
+        // may span lines).
         format!(
-            "# morphoid matrix shard {}\n# names: {}",
+            "# morphoid matrix shard {}\n# content: {}\n# names: {}",
             self.shard,
+            content.join(","),
             w.finish()
         )
     }
@@ -202,13 +220,28 @@ impl ShardFile {
             .trim()
             .parse()
             .map_err(|m| err(1, m))?;
+        let (second, rest) = rest.split_once('\n').unwrap_or((rest, ""));
+        let content: Vec<Option<String>> = second
+            .trim_end_matches('\r')
+            .strip_prefix("# content:")
+            .ok_or_else(|| {
+                err(
+                    2,
+                    "expected `# content: …` (a shard of an older morphoid: compute it again)"
+                        .into(),
+                )
+            })?
+            .trim()
+            .split(',')
+            .map(|h| Some(h.trim().to_string()).filter(|h| !h.is_empty()))
+            .collect();
         // The name list is a CSV record after the prefix (a quoted name
-        // may hold a line break); the lines of `rest` start at line 2.
+        // may hold a line break); the lines of `rest` start at line 3.
         let rest = rest
             .strip_prefix("# names:")
-            .ok_or_else(|| err(2, "expected `# names: …`".into()))?;
+            .ok_or_else(|| err(3, "expected `# names: …`".into()))?;
         let rest = rest.strip_prefix(' ').unwrap_or(rest);
-        let line_of = |line: usize| line + 1;
+        let line_of = |line: usize| line + 2;
         // An empty name list leaves no record on the names line.
         let names_empty = rest.starts_with(['\n', '\r']);
         let mut rows = rows(rest, false).map(|r| r.map_err(|(l, m)| err(line_of(l), m)));
@@ -226,7 +259,19 @@ impl ShardFile {
             .map(|(i, n)| (n.as_str(), i))
             .collect();
         if index.len() != names.len() {
-            return Err(err(2, "a name occurs twice".into()));
+            return Err(err(3, "a name occurs twice".into()));
+        }
+        // An empty content line splits into one empty field.
+        let content = if names.is_empty() {
+            Vec::new()
+        } else {
+            content
+        };
+        if content.len() != names.len() {
+            return Err(err(
+                2,
+                format!("{} content hashes for {} names", content.len(), names.len()),
+            ));
         }
         match rows.next().transpose()? {
             Some(h)
@@ -236,7 +281,7 @@ impl ShardFile {
                     .eq(["a", "b", "distance", "forward", "backward"]) => {}
             h => {
                 return Err(err(
-                    h.map_or(3, |h| line_of(h.line)),
+                    h.map_or(4, |h| line_of(h.line)),
                     "expected `a,b,distance,forward,backward`".into(),
                 ))
             }
@@ -281,6 +326,7 @@ impl ShardFile {
         Ok(ShardFile {
             shard,
             names,
+            content,
             pairs,
         })
     }
@@ -294,32 +340,40 @@ impl ShardFile {
         Self::parse(&text, path)
     }
 
-    /// Write a shard file.
+    /// Write a shard file, whole or not at all: a task killed while
+    /// writing leaves no truncated shard to merge.
     pub fn write(&self, path: &Path) -> Result<(), ShardError> {
-        std::fs::write(path, self.to_text()).map_err(|source| ShardError::Io {
-            path: path.to_path_buf(),
-            source,
-        })
+        Ok(write_atomic(path, self.to_text().as_bytes())?)
     }
 }
 
-/// Compute shard `shard` of the matrix of `names`: `prepare(k)` is called
-/// (in parallel) only for the specimens the shard's pairs involve, then the
-/// pairs are compared in parallel exactly as [`super::distance_matrix`]
-/// compares them; `progress` receives the number of pairs done.
+/// Compute shard `shard` of the matrix of `names`: `prepare(k)` (the
+/// prepared surface of specimen `k` and the content hash of its file) is
+/// called in parallel only for the specimens the shard's pairs involve,
+/// then the pairs are compared in parallel exactly as
+/// [`super::distance_matrix`] compares them; `progress` receives the
+/// number of pairs done.
 pub fn compute_shard<E: Send>(
     names: &[String],
     shard: Shard,
-    prepare: impl Fn(usize) -> Result<Prepared, E> + Sync,
+    prepare: impl Fn(usize) -> Result<(Prepared, String), E> + Sync,
     params: &CompareParams,
     progress: impl Fn(usize) + Sync,
 ) -> Result<ShardFile, E> {
     let pairs = shard_pairs(names.len(), shard);
     let needed = pair_specimens(&pairs);
-    let prepared: Vec<Prepared> = needed
+    let (prepared, hashes): (Vec<Prepared>, Vec<String>) = needed
         .par_iter()
         .map(|&k| prepare(k))
-        .collect::<Result<_, E>>()?;
+        .collect::<Result<Vec<_>, E>>()?
+        .into_iter()
+        .unzip();
+    let mut content = vec![None; names.len()];
+    for (&k, hash) in needed.iter().zip(hashes) {
+        if let Some(slot) = content.get_mut(k) {
+            *slot = Some(hash);
+        }
+    }
     let slot: HashMap<usize, usize> = needed.iter().enumerate().map(|(s, &k)| (k, s)).collect();
     let done = AtomicUsize::new(0);
     let distances: Vec<PairDistance> = pairs
@@ -340,14 +394,16 @@ pub fn compute_shard<E: Send>(
     Ok(ShardFile {
         shard,
         names: names.to_vec(),
+        content,
         pairs: distances,
     })
 }
 
 /// Merge shard files (each with the path it came from) into the full
 /// symmetric matrix with zero diagonal. Errors name the files: a different
-/// name list or shard count, a shard given twice or missing, a pair
-/// outside its shard's range, missing or given twice.
+/// name list or shard count, specimens whose content differs between
+/// shards, a shard given twice or missing, a pair outside its shard's
+/// range, missing or given twice, a value that is not a distance.
 pub fn merge_shards(shards: &[(PathBuf, ShardFile)]) -> Result<DistanceMatrix, ShardError> {
     let (first_path, first) = shards.first().ok_or(ShardError::NoShards)?;
     let n = first.names.len();
@@ -383,6 +439,7 @@ pub fn merge_shards(shards: &[(PathBuf, ShardFile)]) -> Result<DistanceMatrix, S
         }
         *slot = Some(path);
     }
+    check_same_content(shards)?;
     let missing: Vec<String> = by_index
         .iter()
         .enumerate()
@@ -424,6 +481,14 @@ pub fn merge_shards(shards: &[(PathBuf, ShardFile)]) -> Result<DistanceMatrix, S
                     s.shard
                 )));
             }
+            if let Some(problem) = not_a_distance(p) {
+                return Err(ShardError::Mismatch(format!(
+                    "{}: pair {},{}: {problem}",
+                    path.display(),
+                    first.names[p.a],
+                    first.names[p.b]
+                )));
+            }
             if std::mem::replace(&mut seen[pos], true) {
                 return Err(ShardError::Mismatch(format!(
                     "{}: pair {},{} occurs twice",
@@ -457,6 +522,67 @@ pub fn merge_shards(shards: &[(PathBuf, ShardFile)]) -> Result<DistanceMatrix, S
         names: first.names.clone(),
         values,
     })
+}
+
+/// What is wrong with the values of a pair, if anything: each must be
+/// finite and non-negative, and the matrix entry the smaller direction.
+fn not_a_distance(p: &PairDistance) -> Option<String> {
+    let values = [
+        ("distance", p.distance),
+        ("forward", p.forward),
+        ("backward", p.backward),
+    ];
+    if let Some((what, x)) = values.iter().find(|(_, x)| !x.is_finite() || *x < 0.0) {
+        return Some(format!("{what} {x:?} is not a distance (finite, ≥ 0)"));
+    }
+    // Written with `{:?}`, the values read back exactly: compare exactly.
+    let min = p.forward.min(p.backward);
+    (p.distance != min).then(|| {
+        format!(
+            "distance {:?} is not min(forward {:?}, backward {:?})",
+            p.distance, p.forward, p.backward
+        )
+    })
+}
+
+/// Every specimen compared by more than one shard must have had the same
+/// content hash in each; otherwise name the specimens and the shards.
+fn check_same_content(shards: &[(PathBuf, ShardFile)]) -> Result<(), ShardError> {
+    let Some((_, first)) = shards.first() else {
+        return Ok(());
+    };
+    let mut differing = Vec::new();
+    for (k, name) in first.names.iter().enumerate() {
+        let seen: Vec<(&Path, &str)> = shards
+            .iter()
+            .filter_map(|(path, s)| Some((path.as_path(), s.content.get(k)?.as_deref()?)))
+            .collect();
+        let Some(&(path0, hash0)) = seen.first() else {
+            continue;
+        };
+        if let Some(&(path1, hash1)) = seen.iter().find(|(_, h)| *h != hash0) {
+            differing.push(format!(
+                "{name} ({} in {}, {} in {})",
+                short(hash0),
+                path0.display(),
+                short(hash1),
+                path1.display()
+            ));
+        }
+    }
+    if differing.is_empty() {
+        return Ok(());
+    }
+    Err(ShardError::Mismatch(format!(
+        "shards computed from different files: {} specimen(s) changed between tasks: {}          (compute the shards holding the old content again)",
+        differing.len(),
+        differing.join("; ")
+    )))
+}
+
+/// The first 12 hex digits of a hash, for messages.
+fn short(hash: &str) -> &str {
+    hash.get(..12).unwrap_or(hash)
 }
 
 #[cfg(test)]
@@ -510,11 +636,15 @@ mod tests {
                         }
                     })
                     .collect();
+                let content = (1..=names.len())
+                    .map(|k| Some(format!("{k:016x}")))
+                    .collect();
                 (
                     PathBuf::from(format!("shard{index}.csv")),
                     ShardFile {
                         shard,
                         names: names.clone(),
+                        content,
                         pairs,
                     },
                 )
@@ -528,9 +658,11 @@ mod tests {
             .remove(1)
             .1;
         s.pairs[0].forward = 0.1 + 0.2;
+        s.content[0] = None;
         let text = s.to_text();
         assert!(text.starts_with(
-            "# morphoid matrix shard 2/2\n# names: a,\"b,c\",d,\"q\"\"x\",\"new\nline\",e\na,b,distance,forward,backward\n"
+            "# morphoid matrix shard 2/2\n# content: ,0000000000000002,0000000000000003,\
+             0000000000000004,0000000000000005,0000000000000006\n# names: a,\"b,c\",d,\"q\"\"x\",\"new\nline\",e\na,b,distance,forward,backward\n"
         ));
         assert_eq!(ShardFile::parse(&text, Path::new("s.csv")).unwrap(), s);
         let e = ShardFile::parse(&text.replace(",e\n", ",x\n"), Path::new("s.csv")).unwrap_err();
@@ -574,5 +706,50 @@ mod tests {
         let e = merge_shards(&stray).unwrap_err().to_string();
         assert!(e.contains("does not belong"), "{e}");
         assert!(matches!(merge_shards(&[]), Err(ShardError::NoShards)));
+    }
+
+    #[test]
+    fn merge_refuses_shards_of_changed_files_naming_the_specimens() {
+        let shards = fake_shards(&["a", "b", "c", "d", "e"], 3);
+        let mut stale = shards.clone();
+        stale[2].1.content[3] = Some("ffffffffffffffff".into());
+        // A specimen one shard does not involve carries no hash there.
+        stale[0].1.content[4] = None;
+        let e = merge_shards(&stale).unwrap_err().to_string();
+        assert!(
+            e.contains("1 specimen(s) changed")
+                && e.contains("d (000000000000 in shard1.csv, ffffffffffff in shard3.csv)"),
+            "{e}"
+        );
+        let mut one_missing = shards.clone();
+        one_missing[1].1.content[0] = None;
+        merge_shards(&one_missing).unwrap();
+    }
+
+    #[test]
+    fn merge_refuses_values_that_are_not_distances() {
+        let shards = fake_shards(&["a", "b", "c", "d"], 2);
+        let bad = |edit: &dyn Fn(&mut PairDistance)| {
+            let mut s = shards.clone();
+            edit(&mut s[1].1.pairs[0]);
+            merge_shards(&s).unwrap_err().to_string()
+        };
+        let e = bad(&|p| p.distance = p.backward);
+        assert!(
+            e.starts_with("shard2.csv: pair b,c:") && e.contains("is not min(forward"),
+            "{e}"
+        );
+        let e = bad(&|p| {
+            p.forward = -1.0;
+            p.distance = -1.0
+        });
+        assert!(e.contains("distance -1.0 is not a distance"), "{e}");
+        let e = bad(&|p| p.backward = f64::NAN);
+        assert!(e.contains("backward NaN is not a distance"), "{e}");
+        // Equal directions, and a zero distance, are distances.
+        let mut ok = shards.clone();
+        let p = &mut ok[0].1.pairs[0];
+        (p.distance, p.forward, p.backward) = (0.0, 0.0, 0.0);
+        merge_shards(&ok).unwrap();
     }
 }

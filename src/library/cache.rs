@@ -26,6 +26,11 @@ const CACHE_FORMAT: u32 = 2;
 /// Extension of cache entries.
 const EXTENSION: &str = "prep";
 
+/// The file that marks a folder as one library's cache (it holds the
+/// library's path, for people): given that folder instead of the cache
+/// folder above it, [`Cache::for_folder`] uses it as it is.
+const MARKER: &str = "LIBRARY";
+
 /// A temporary file older than this was left by a process that died
 /// while writing it; younger ones may be another process's write.
 const STALE_TEMPORARY: std::time::Duration = std::time::Duration::from_secs(600);
@@ -103,7 +108,10 @@ impl Cache {
     /// The cache of the surfaces in `folder` (a library folder), inside
     /// the cache folder `root` (`None`: the default cache folder): the
     /// subfolder `<folder name>-<hash of its canonical path>`, created
-    /// when missing.
+    /// when missing. A `root` that is itself a library's cache (the folder
+    /// [`Cache::dir`] names, as commands print it) is used as it is, so
+    /// either folder finds the entries, also where the library's path
+    /// differs (a cluster node that mounts it elsewhere).
     pub fn for_folder(root: Option<&Path>, folder: &Path) -> Result<Self, CacheError> {
         let canonical = std::fs::canonicalize(folder).map_err(|source| CacheError::Folder {
             path: folder.to_path_buf(),
@@ -116,7 +124,19 @@ impl Cache {
             .unwrap_or_else(|| "library".into());
         let sub = format!("{name}-{}", hex(&digest[..6]));
         let root = root.map_or_else(default_cache_root, Path::to_path_buf);
-        Self::open(&root.join(sub))
+        if is_library_cache(&root) {
+            return Self::open(&root);
+        }
+        let cache = Self::open(&root.join(sub))?;
+        let marker = cache.dir.join(MARKER);
+        if !marker.exists() {
+            let text = format!(
+                "prepared surfaces of {}\n(morphoid cache; safe to delete)\n",
+                canonical.display()
+            );
+            write_atomic(&marker, text.as_bytes())?;
+        }
+        Ok(cache)
     }
 
     /// Use (and create if needed) exactly the folder `dir`.
@@ -219,6 +239,19 @@ impl Cache {
     }
 }
 
+/// Whether `dir` is one library's cache rather than the cache folder
+/// above: it has the marker, or (a cache from before the marker) entries.
+fn is_library_cache(dir: &Path) -> bool {
+    if dir.join(MARKER).is_file() {
+        return true;
+    }
+    std::fs::read_dir(dir).is_ok_and(|entries| {
+        entries
+            .flatten()
+            .any(|e| e.path().extension().is_some_and(|x| x == EXTENSION))
+    })
+}
+
 /// Whether the file at `path` was last modified more than `age` ago.
 fn is_older_than(path: &Path, age: std::time::Duration) -> bool {
     std::fs::metadata(path)
@@ -268,6 +301,39 @@ mod tests {
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
             .collect();
         assert_eq!(names, [format!("r.{key}.{EXTENSION}")]);
+    }
+
+    #[test]
+    fn the_library_cache_folder_is_found_from_itself_or_the_folder_above() {
+        let dir = tempfile::tempdir().unwrap();
+        let spec = LibrarySpec {
+            per_genus: 1,
+            target_vertices: 600,
+            ..LibrarySpec::default()
+        };
+        write_synthetic_library(&dir.path().join("lib"), &spec).unwrap();
+        let library = Library::open(&dir.path().join("lib"), None).unwrap();
+        let n = library.members.len();
+        let root = dir.path().join("cache");
+        let settings = Settings::default();
+        let cache = Cache::for_folder(Some(&root), library.dir()).unwrap();
+        assert_eq!(cache.dir().parent(), Some(root.as_path()));
+        assert!(cache.dir().join(MARKER).is_file());
+        build(&library, &cache, &settings, |_| {}).unwrap();
+        // The folder a command prints, given back: no nested subfolder.
+        let same = Cache::for_folder(Some(cache.dir()), library.dir()).unwrap();
+        assert_eq!(same.dir(), cache.dir());
+        // The library under another path (a node that mounts it
+        // elsewhere): the printed folder still finds every entry.
+        std::fs::rename(dir.path().join("lib"), dir.path().join("moved")).unwrap();
+        let moved = Library::open(&dir.path().join("moved"), None).unwrap();
+        let found = Cache::for_folder(Some(cache.dir()), moved.dir()).unwrap();
+        let again = build(&moved, &found, &settings, |_| {}).unwrap();
+        assert_eq!((again.prepared, again.reused), (0, n));
+        // A cache from before the marker is recognised by its entries.
+        std::fs::remove_file(cache.dir().join(MARKER)).unwrap();
+        let old = Cache::for_folder(Some(cache.dir()), moved.dir()).unwrap();
+        assert_eq!(old.dir(), cache.dir());
     }
 
     #[test]

@@ -261,6 +261,12 @@ impl<'a> Preparation<'a> {
 
     /// The prepared form of `member`'s surface, named after it.
     pub fn prepare(&self, member: &Member) -> Result<Prepared, PrepareError> {
+        Ok(self.prepare_hashed(member)?.0)
+    }
+
+    /// The prepared form of `member`'s surface and the content hash of its
+    /// file (what a matrix shard records of each specimen).
+    pub fn prepare_hashed(&self, member: &Member) -> Result<(Prepared, String), PrepareError> {
         let loaded = load_or_prepare(member, self.cache, self.settings)?;
         match loaded.origin {
             Origin::Cache => {
@@ -281,7 +287,7 @@ impl<'a> Preparation<'a> {
                 }
             }
         }
-        Ok(loaded.reference.prepared)
+        Ok((loaded.reference.prepared, loaded.reference.content_hash))
     }
 
     /// The prepared forms of all `members`, in their order, in parallel;

@@ -43,7 +43,8 @@ fn three_shards_merge_to_the_unsharded_matrix() {
             shard,
             |k| {
                 calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                prepare_file(&files[k], &settings).map(|p| p.prepared)
+                let hash = morphoid::hash::content_hash_file(&files[k]).unwrap().0;
+                prepare_file(&files[k], &settings).map(|p| (p.prepared, hash))
             },
             &settings.cp.compare,
             |_| {},

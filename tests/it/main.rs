@@ -44,6 +44,7 @@ mod lm_daemon;
 mod lm_propagate;
 mod report_browser;
 mod report_pages;
+mod ops_slurm;
 mod store_basic;
 mod store_crash;
 mod store_landmarks;
