@@ -2,6 +2,7 @@
 //! clap builds the argument structs here; the modules call the library,
 //! print, and turn library errors into one-line messages with context.
 
+mod align;
 mod check_config;
 mod classify;
 mod common;
@@ -63,6 +64,8 @@ enum Command {
     Synth(synth::Args),
     /// Carry landmarks of a reference onto another surface through cP maps.
     Propagate(propagate::Args),
+    /// Put a whole collection in correspondence: pseudolandmarks, GPA, PCA.
+    Align(align::Args),
 }
 
 /// Parse the command line, run the subcommand, map errors to an exit code.
@@ -83,6 +86,7 @@ pub fn main() -> ExitCode {
         Command::Matrix(a) => matrix::run(a, config),
         Command::Evaluate(a) => evaluate::run(a, config),
         Command::Propagate(a) => propagate::run(a, config),
+        Command::Align(a) => align::run(a, config),
         Command::Run(a) => run::run(a, config),
         Command::CheckConfig(a) => check_config::run(a, config),
     };
