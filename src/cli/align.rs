@@ -72,14 +72,24 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     }
     let started = Instant::now();
     let members = library::members(&args.library)?;
+    if args.template != "auto" && !members.iter().any(|m| m.name == args.template) {
+        bail!(
+            "template `{}` is not among the specimens of {}",
+            args.template,
+            args.library.display()
+        );
+    }
     let root = args.cache.as_deref().or(config.library.cache.as_deref());
     let cache = Cache::for_folder(root, &args.library)?;
     let preparation = Preparation::new(Some(&cache), &settings);
     let bar = progress_bar(members.len() as u64, "preparing");
-    let (prepared, failures) = collection::prepare_collection(&members, &preparation, |_| bar.inc(1));
+    let (prepared, failures) =
+        collection::prepare_collection(&members, &preparation, |_| bar.inc(1));
     bar.finish_and_clear();
-    let left_out: Vec<(String, String)> =
-        failures.iter().map(|f| (f.name.clone(), f.error.to_string())).collect();
+    let left_out: Vec<(String, String)> = failures
+        .iter()
+        .map(|f| (f.name.clone(), f.error.to_string()))
+        .collect();
     for (name, why) in &left_out {
         eprintln!("warning: `{name}` left out: {why}");
     }
@@ -87,7 +97,11 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
         "{} specimens prepared ({} from the cache){}",
         prepared.len(),
         preparation.reused(),
-        if left_out.is_empty() { String::new() } else { format!(", {} left out", left_out.len()) }
+        if left_out.is_empty() {
+            String::new()
+        } else {
+            format!(", {} left out", left_out.len())
+        }
     );
     let known = match &args.matrix {
         Some(m) => Some(DistanceMatrix::read_csv(m)?),
@@ -96,9 +110,14 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     let n = prepared.len();
     let bar = progress_bar((n * n.saturating_sub(1) / 2) as u64, "distances");
     let (distances, computed) =
-        collection::collection_distances(&prepared, known.as_ref(), &settings.cp.compare, |_| bar.inc(1));
+        collection::collection_distances(&prepared, known.as_ref(), &settings.cp.compare, |_| {
+            bar.inc(1)
+        });
     bar.finish_and_clear();
-    eprintln!("{computed} cP distances computed, {} taken from the matrix", n * n.saturating_sub(1) / 2 - computed);
+    eprintln!(
+        "{computed} cP distances computed, {} taken from the matrix",
+        n * n.saturating_sub(1) / 2 - computed
+    );
     let params = AlignParams {
         pseudolandmarks: args.pseudolandmarks,
         template: (args.template != "auto").then(|| args.template.clone()),
@@ -109,7 +128,10 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
         ..AlignParams::default()
     };
     let bar = progress_bar(n.saturating_sub(1) as u64, "cP maps");
-    let alignment = collection::align(&prepared, &distances, &params, &settings.cp.compare, |_| bar.inc(1))?;
+    let alignment =
+        collection::align(&prepared, &distances, &params, &settings.cp.compare, |_| {
+            bar.inc(1)
+        })?;
     bar.finish_and_clear();
     eprintln!(
         "template {}; {} pseudolandmarks on {} specimens; GPA in {} iterations",

@@ -249,20 +249,33 @@ fn write_mds(
     let coord = |c: &Vec<f64>, k: usize| c.get(k).copied().unwrap_or(0.0);
     let plot = eval::Scatter {
         title: match groups {
-            Some((rank, _)) => format!("Classical MDS of {} specimens, by {rank}", matrix.names.len()),
+            Some((rank, _)) => format!(
+                "Classical MDS of {} specimens, by {rank}",
+                matrix.names.len()
+            ),
             None => format!("Classical MDS of {} specimens", matrix.names.len()),
         },
         x_label: axis(0),
         y_label: axis(1),
-        points: mds.coordinates.iter().map(|c| [coord(c, 0), coord(c, 1)]).collect(),
+        points: mds
+            .coordinates
+            .iter()
+            .map(|c| [coord(c, 0), coord(c, 1)])
+            .collect(),
         names: matrix.names.clone(),
         groups: groups.map_or_else(|| vec![None; matrix.names.len()], |(_, g)| g.clone()),
     };
     let svg = out.with_extension("svg");
-    std::fs::write(&svg, eval::scatter_svg(&plot)).with_context(|| format!("writing {}", svg.display()))?;
+    std::fs::write(&svg, eval::scatter_svg(&plot))
+        .with_context(|| format!("writing {}", svg.display()))?;
     let png = out.with_extension("png");
     let bytes = eval::encode_png(&eval::scatter_raster(&plot, 900, 640))?;
     std::fs::write(&png, bytes).with_context(|| format!("writing {}", png.display()))?;
-    eprintln!("wrote {}, {} and {}", out.display(), svg.display(), png.display());
+    eprintln!(
+        "wrote {}, {} and {}",
+        out.display(),
+        svg.display(),
+        png.display()
+    );
     Ok(())
 }

@@ -8,7 +8,9 @@ use super::Alignment;
 use crate::atomic_write::{write_atomic, AtomicWriteError};
 use crate::cp::Prepared;
 use crate::eval::csv_text::CsvString;
-use crate::eval::{encode_png, scatter_raster, scatter_svg, DistanceMatrix, HeatmapError, MatrixError, Scatter};
+use crate::eval::{
+    encode_png, scatter_raster, scatter_svg, DistanceMatrix, HeatmapError, MatrixError, Scatter,
+};
 use crate::landmarks::{self, LandmarkError, Landmarks, NamedLandmarks, PropagateError, Surface};
 use crate::mesh::io::{write_ply, SaveError};
 use std::path::{Path, PathBuf};
@@ -84,7 +86,13 @@ fn mkdir(path: &Path) -> Result<(), OutputError> {
 /// characters become `_`.
 fn file_stem(name: &str) -> String {
     name.chars()
-        .map(|c| if c.is_alphanumeric() || "-_.+".contains(c) { c } else { '_' })
+        .map(|c| {
+            if c.is_alphanumeric() || "-_.+".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
         .collect()
 }
 
@@ -113,13 +121,27 @@ pub fn write_outputs(
             landmarks: Landmarks::from_points(p.clone()),
         })
         .collect();
-    text("pseudolandmarks.tps", landmarks::format_tps(&sets), &mut written)?;
-    text("pseudolandmarks_morphologika.txt", landmarks::format_morphologika(&sets), &mut written)?;
+    text(
+        "pseudolandmarks.tps",
+        landmarks::format_tps(&sets),
+        &mut written,
+    )?;
+    text(
+        "pseudolandmarks_morphologika.txt",
+        landmarks::format_morphologika(&sets),
+        &mut written,
+    )?;
     let mut csv = CsvString::new();
     csv.record(["specimen", "landmark", "x", "y", "z"]);
     for (n, pts) in names.iter().zip(&alignment.pseudolandmarks) {
         for (k, p) in pts.iter().enumerate() {
-            csv.record([n.clone(), (k + 1).to_string(), format!("{:?}", p[0]), format!("{:?}", p[1]), format!("{:?}", p[2])]);
+            csv.record([
+                n.clone(),
+                (k + 1).to_string(),
+                format!("{:?}", p[0]),
+                format!("{:?}", p[1]),
+                format!("{:?}", p[2]),
+            ]);
         }
     }
     text("pseudolandmarks.csv", csv.finish(), &mut written)?;
@@ -165,7 +187,10 @@ pub fn write_outputs(
 
     let pcs = alignment.pca.variances.len();
     let group_of = |i: usize| -> Option<String> {
-        context.groups.as_ref().and_then(|(_, g)| g.get(i).cloned().flatten())
+        context
+            .groups
+            .as_ref()
+            .and_then(|(_, g)| g.get(i).cloned().flatten())
     };
     let mut csv = CsvString::new();
     let mut header = vec!["specimen".to_string()];
@@ -189,7 +214,12 @@ pub fn write_outputs(
     let mut cumulative = 0.0;
     for (c, (v, p)) in alignment.pca.variances.iter().zip(&percent).enumerate() {
         cumulative += p;
-        csv.record([format!("PC{}", c + 1), format!("{v:?}"), format!("{p:?}"), format!("{cumulative:?}")]);
+        csv.record([
+            format!("PC{}", c + 1),
+            format!("{v:?}"),
+            format!("{p:?}"),
+            format!("{cumulative:?}"),
+        ]);
     }
     text("pca_variance.csv", csv.finish(), &mut written)?;
 
@@ -228,7 +258,11 @@ pub fn write_outputs(
     }
     let mut csv = CsvString::new();
     csv.record(["from", "to", "directed_cp_distance"]);
-    for (&(a, b), d) in alignment.steps.iter().zip(&alignment.carried.step_distances) {
+    for (&(a, b), d) in alignment
+        .steps
+        .iter()
+        .zip(&alignment.carried.step_distances)
+    {
         csv.record([names[a].clone(), names[b].clone(), format!("{d:?}")]);
     }
     text("correspondence_steps.csv", csv.finish(), &mut written)?;

@@ -144,7 +144,10 @@ mod tests {
         let mid = 0.5 * (lo + hi);
         let left = xs.iter().filter(|p| p[0] < mid).count() as f64;
         assert!((left / 20000.0 - 0.5).abs() < 0.02, "{left}");
-        assert_eq!(area_uniform_points(&mesh, 10, 7), area_uniform_points(&mesh, 10, 7));
+        assert_eq!(
+            area_uniform_points(&mesh, 10, 7),
+            area_uniform_points(&mesh, 10, 7)
+        );
     }
 
     fn bounds(mesh: &Mesh) -> (f64, f64) {
@@ -168,7 +171,10 @@ mod tests {
         let mut min = f64::INFINITY;
         for i in 0..xs.len() {
             for j in i + 1..xs.len() {
-                let d = (0..3).map(|d| (xs[i][d] - xs[j][d]).powi(2)).sum::<f64>().sqrt();
+                let d = (0..3)
+                    .map(|d| (xs[i][d] - xs[j][d]).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
                 min = min.min(d);
             }
         }

@@ -71,7 +71,8 @@ fn rotate(r: &[[f64; 3]; 3], x: [f64; 3]) -> [f64; 3] {
 }
 
 fn determinant(r: &[[f64; 3]; 3]) -> f64 {
-    r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1]) - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
+    r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1])
+        - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
         + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0])
 }
 
@@ -218,7 +219,9 @@ mod tests {
     #[test]
     fn similar_copies_superimpose_exactly() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
-        let base: Vec<[f64; 3]> = (0..12).map(|_| [0, 1, 2].map(|_| rng.gen::<f64>())).collect();
+        let base: Vec<[f64; 3]> = (0..12)
+            .map(|_| [0, 1, 2].map(|_| rng.gen::<f64>()))
+            .collect();
         let mut configs = Vec::new();
         let mut hands = Vec::new();
         for i in 0..6 {
@@ -235,7 +238,11 @@ mod tests {
                     })
                     .collect::<Vec<_>>(),
             );
-            hands.push(if mirror { Handedness::Improper } else { Handedness::Proper });
+            hands.push(if mirror {
+                Handedness::Improper
+            } else {
+                Handedness::Proper
+            });
         }
         let gpa = generalized_procrustes(&configs, &hands, 0).unwrap();
         for a in &gpa.aligned {
@@ -274,7 +281,9 @@ mod tests {
     #[test]
     fn the_mean_of_noisy_copies_is_between_them() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
-        let base: Vec<[f64; 3]> = (0..20).map(|_| [0, 1, 2].map(|_| rng.gen::<f64>())).collect();
+        let base: Vec<[f64; 3]> = (0..20)
+            .map(|_| [0, 1, 2].map(|_| rng.gen::<f64>()))
+            .collect();
         let configs: Vec<Vec<[f64; 3]>> = (0..10)
             .map(|_| {
                 let r = random_rotation(&mut rng);
@@ -285,7 +294,10 @@ mod tests {
             .collect();
         let gpa = generalized_procrustes(&configs, &[], 3).unwrap();
         let (c, s) = centroid_size(&base);
-        let std: Vec<[f64; 3]> = base.iter().map(|p| [0, 1, 2].map(|d| (p[d] - c[d]) / s)).collect();
+        let std: Vec<[f64; 3]> = base
+            .iter()
+            .map(|p| [0, 1, 2].map(|d| (p[d] - c[d]) / s))
+            .collect();
         let r = rotation_onto(&std, &gpa.mean, Handedness::Proper);
         let fitted: Vec<[f64; 3]> = std.iter().map(|p| rotate(&r, *p)).collect();
         // Noise of ±0.005 on a shape of size ~1.3: the mean is within it.

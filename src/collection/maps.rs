@@ -7,7 +7,9 @@
 //! `A → B → C → A` returns to the start.
 
 use crate::cp::{self, CompareParams, Handedness, Prepared};
-use crate::landmarks::{self, minimum_spanning_tree, surface_point, Landmarks, PropagateError, Surface};
+use crate::landmarks::{
+    self, minimum_spanning_tree, surface_point, Landmarks, PropagateError, Surface,
+};
 use crate::mesh::Mesh;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -122,7 +124,9 @@ pub fn carry_template(
     let maps: Vec<cp::Directed> = steps
         .par_iter()
         .map(|&(a, b)| {
-            let _span = tracing::info_span!("map", from = %prepared[a].name(), to = %prepared[b].name()).entered();
+            let _span =
+                tracing::info_span!("map", from = %prepared[a].name(), to = %prepared[b].name())
+                    .entered();
             let m = cp::compare_directed(&prepared[a], &prepared[b], params);
             progress(done.fetch_add(1, Ordering::Relaxed) + 1);
             m
@@ -138,7 +142,9 @@ pub fn carry_template(
             to: prepared[b].name().to_string(),
             source,
         };
-        let from = images[a].clone().ok_or_else(|| err(PropagateError::InvalidSurface))?;
+        let from = images[a]
+            .clone()
+            .ok_or_else(|| err(PropagateError::InvalidSurface))?;
         let carried = landmarks::propagate(
             &Landmarks::from_points(from),
             &surfaces[a],
@@ -161,7 +167,13 @@ impl TemplateImages {
     pub fn handedness(&self) -> Vec<Handedness> {
         self.reflected
             .iter()
-            .map(|&r| if r { Handedness::Improper } else { Handedness::Proper })
+            .map(|&r| {
+                if r {
+                    Handedness::Improper
+                } else {
+                    Handedness::Proper
+                }
+            })
             .collect()
     }
 }
@@ -190,7 +202,10 @@ pub fn transfer_through_template(
 
 /// The template's triangles laid on a specimen: its vertex images with
 /// the template's faces, as a surface to locate points on.
-pub fn template_on(images: &[[f64; 3]], template_faces: &[[u32; 3]]) -> Result<Surface, PropagateError> {
+pub fn template_on(
+    images: &[[f64; 3]],
+    template_faces: &[[u32; 3]],
+) -> Result<Surface, PropagateError> {
     Surface::new(Mesh::new(images.to_vec(), template_faces.to_vec()))
 }
 
@@ -203,7 +218,10 @@ mod tests {
         // Points on a line at 0, 1, 2.5, 4: the medoid is 1 (or 2; 1 is
         // lower and has the smaller sum: 1+1.5+3 = 5.5 vs 2.5+1.5+1.5 = 5.5).
         let x: [f64; 4] = [0.0, 1.0, 2.5, 4.0];
-        let d: Vec<Vec<f64>> = x.iter().map(|a| x.iter().map(|b| (a - b).abs()).collect()).collect();
+        let d: Vec<Vec<f64>> = x
+            .iter()
+            .map(|a| x.iter().map(|b| (a - b).abs()).collect())
+            .collect();
         assert_eq!(medoid(&d), Some(1));
         assert_eq!(medoid(&[]), None);
         assert_eq!(
@@ -219,6 +237,9 @@ mod tests {
             cut[i][3] = f64::NAN;
             cut[3][i] = f64::NAN;
         }
-        assert_eq!(carrying_steps(&cut, 0, Consistency::SpanningTree), vec![(0, 1), (1, 2)]);
+        assert_eq!(
+            carrying_steps(&cut, 0, Consistency::SpanningTree),
+            vec![(0, 1), (1, 2)]
+        );
     }
 }

@@ -159,8 +159,13 @@ pub fn collection_distances(
     progress: impl Fn(usize) + Sync,
 ) -> (DistanceMatrix, usize) {
     let names: Vec<String> = prepared.iter().map(|p| p.name().to_string()).collect();
-    let index: Option<std::collections::HashMap<&str, usize>> =
-        known.map(|m| m.names.iter().enumerate().map(|(i, n)| (n.as_str(), i)).collect());
+    let index: Option<std::collections::HashMap<&str, usize>> = known.map(|m| {
+        m.names
+            .iter()
+            .enumerate()
+            .map(|(i, n)| (n.as_str(), i))
+            .collect()
+    });
     let lookup = |i: usize, j: usize| -> Option<f64> {
         let (m, idx) = (known?, index.as_ref()?);
         let (a, b) = (*idx.get(names[i].as_str())?, *idx.get(names[j].as_str())?);
@@ -246,7 +251,10 @@ pub fn align(
     for &(_, b) in &steps {
         reached[b] = true;
     }
-    let unreached: Vec<String> = (0..n).filter(|&i| !reached[i]).map(|i| names[i].clone()).collect();
+    let unreached: Vec<String> = (0..n)
+        .filter(|&i| !reached[i])
+        .map(|i| names[i].clone())
+        .collect();
     if !unreached.is_empty() {
         return Err(AlignError::Unreached(unreached));
     }
@@ -255,8 +263,11 @@ pub fn align(
         carry_template(prepared, &surfaces, template, &steps, compare, progress)?
     };
     // Every specimen is reached (checked above), so every image is there.
-    let template_images: Vec<Vec<[f64; 3]>> =
-        carried.images.iter().map(|im| im.clone().unwrap_or_default()).collect();
+    let template_images: Vec<Vec<[f64; 3]>> = carried
+        .images
+        .iter()
+        .map(|im| im.clone().unwrap_or_default())
+        .collect();
     let template_mesh = surfaces[template].mesh();
     let template_faces = template_mesh.faces.clone();
     let template_points = fps::pseudolandmarks(template_mesh, params.pseudolandmarks, params.seed);

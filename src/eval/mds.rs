@@ -27,11 +27,17 @@ pub fn classical_mds(m: &DistanceMatrix, dimensions: usize) -> Mds {
     }
     let d2 = DMatrix::from_fn(n, n, |i, j| {
         let v = 0.5 * (m.get(i, j) + m.get(j, i));
-        if v.is_finite() { v * v } else { 0.0 }
+        if v.is_finite() {
+            v * v
+        } else {
+            0.0
+        }
     });
     let row_mean: Vec<f64> = (0..n).map(|i| d2.row(i).sum() / n as f64).collect();
     let all_mean = row_mean.iter().sum::<f64>() / n as f64;
-    let b = DMatrix::from_fn(n, n, |i, j| -0.5 * (d2[(i, j)] - row_mean[i] - row_mean[j] + all_mean));
+    let b = DMatrix::from_fn(n, n, |i, j| {
+        -0.5 * (d2[(i, j)] - row_mean[i] - row_mean[j] + all_mean)
+    });
     let eig = b.symmetric_eigen();
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_by(|&a, &c| eig.eigenvalues[c].total_cmp(&eig.eigenvalues[a]));
@@ -69,10 +75,14 @@ mod tests {
     #[test]
     fn planar_points_are_recovered_up_to_motion() {
         let pts = [[0.0, 0.0], [3.0, 0.0], [0.0, 4.0], [1.0, 1.0], [2.0, 5.0]];
-        let dist = |a: [f64; 2], b: [f64; 2]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
+        let dist =
+            |a: [f64; 2], b: [f64; 2]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
         let m = DistanceMatrix {
             names: (0..5).map(|i| i.to_string()).collect(),
-            values: pts.iter().map(|&a| pts.iter().map(|&b| dist(a, b)).collect()).collect(),
+            values: pts
+                .iter()
+                .map(|&a| pts.iter().map(|&b| dist(a, b)).collect())
+                .collect(),
         };
         let mds = classical_mds(&m, 5);
         assert_eq!(mds.eigenvalues.len(), 2);

@@ -22,8 +22,8 @@ pub use mantel::{mantel_test, Mantel, MantelError, DEFAULT_PERMUTATIONS, DEFAULT
 pub use matrix::{distance_matrix, pairwise_matrix, DistanceMatrix, MatrixError};
 pub use mds::{classical_mds, Mds};
 pub use plot::{scatter_raster, scatter_svg, Scatter};
-pub use tree::{average_linkage_tree, dendrogram_svg, newick, Dendrogram};
 pub use shard::{
     compute_shard, merge_shards, pair_count, pair_specimens, shard_pairs, PairDistance, Shard,
     ShardError, ShardFile,
 };
+pub use tree::{average_linkage_tree, dendrogram_svg, newick, Dendrogram};

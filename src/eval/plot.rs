@@ -62,7 +62,11 @@ impl Scatter {
     fn range(&self) -> ([f64; 2], [f64; 2]) {
         let mut lo = [f64::INFINITY; 2];
         let mut hi = [f64::NEG_INFINITY; 2];
-        for p in self.points.iter().filter(|p| p.iter().all(|v| v.is_finite())) {
+        for p in self
+            .points
+            .iter()
+            .filter(|p| p.iter().all(|v| v.is_finite()))
+        {
             for d in 0..2 {
                 lo[d] = lo[d].min(p[d]);
                 hi[d] = hi[d].max(p[d]);
@@ -213,7 +217,10 @@ pub fn scatter_raster(plot: &Scatter, width: u32, height: u32) -> RgbImage {
     let (lo, hi) = plot.range();
     let legend_w = (width / 6) as f64;
     let (left, top) = (0.08 * width as f64, 0.06 * height as f64);
-    let (w, h) = (width as f64 - left - legend_w - 10.0, height as f64 - 2.0 * top);
+    let (w, h) = (
+        width as f64 - left - legend_w - 10.0,
+        height as f64 - 2.0 * top,
+    );
     let sx = |x: f64| left + (x - lo[0]) / (hi[0] - lo[0]) * w;
     let sy = |y: f64| top + h - (y - lo[1]) / (hi[1] - lo[1]) * h;
     let grey = [0xcc, 0xcc, 0xcc];
@@ -242,7 +249,13 @@ pub fn scatter_raster(plot: &Scatter, width: u32, height: u32) -> RgbImage {
         for dy in -ri..=ri {
             for dx in -ri..=ri {
                 let d = ((dx * dx + dy * dy) as f64).sqrt();
-                let colour = if d <= r - 1.0 { c } else if d <= r { [0; 3] } else { continue };
+                let colour = if d <= r - 1.0 {
+                    c
+                } else if d <= r {
+                    [0; 3]
+                } else {
+                    continue;
+                };
                 set(img, cx as i64 + dx, cy as i64 + dy, colour);
             }
         }
@@ -254,7 +267,12 @@ pub fn scatter_raster(plot: &Scatter, width: u32, height: u32) -> RgbImage {
     }
     for k in 0..keys.len() {
         let y = top + (k as f64 + 0.5) * 3.0 * r;
-        disc(&mut img, width as f64 - legend_w + 2.0 * r, y, PALETTE[k % PALETTE.len()]);
+        disc(
+            &mut img,
+            width as f64 - legend_w + 2.0 * r,
+            y,
+            PALETTE[k % PALETTE.len()],
+        );
     }
     img
 }

@@ -66,12 +66,17 @@ pub fn average_linkage_tree(m: &DistanceMatrix) -> Option<Dendrogram> {
             (0..n)
                 .map(|j| {
                     let v = 0.5 * (m.get(i, j) + m.get(j, i));
-                    if v.is_finite() { v } else { big }
+                    if v.is_finite() {
+                        v
+                    } else {
+                        big
+                    }
                 })
                 .collect()
         })
         .collect();
-    let mut clusters: Vec<Option<(Dendrogram, usize)>> = (0..n).map(|i| Some((Dendrogram::Leaf(i), 1))).collect();
+    let mut clusters: Vec<Option<(Dendrogram, usize)>> =
+        (0..n).map(|i| Some((Dendrogram::Leaf(i), 1))).collect();
     for _ in 1..n {
         let mut best: Option<(usize, usize, f64)> = None;
         for a in 0..n {
@@ -94,7 +99,11 @@ pub fn average_linkage_tree(m: &DistanceMatrix) -> Option<Dendrogram> {
                 d[c][a] = v;
             }
         }
-        let children = if ta.min_leaf() <= tb.min_leaf() { [ta, tb] } else { [tb, ta] };
+        let children = if ta.min_leaf() <= tb.min_leaf() {
+            [ta, tb]
+        } else {
+            [tb, ta]
+        };
         clusters[a] = Some((
             Dendrogram::Merge {
                 height: dist / 2.0,
@@ -151,7 +160,11 @@ pub fn newick(tree: &Dendrogram, names: &[String]) -> String {
 
 /// The tree drawn as an SVG dendrogram: leaves top to bottom with their
 /// names (and group, when given) on the right, heights growing to the left.
-pub fn dendrogram_svg(tree: &Dendrogram, names: &[String], groups: Option<&[Option<String>]>) -> String {
+pub fn dendrogram_svg(
+    tree: &Dendrogram,
+    names: &[String],
+    groups: Option<&[Option<String>]>,
+) -> String {
     let leaves = tree.leaves();
     let row = 14.0;
     let (left, top, width) = (20.0, 20.0, 520.0);
@@ -200,7 +213,10 @@ pub fn dendrogram_svg(tree: &Dendrogram, names: &[String], groups: Option<&[Opti
             "<text x=\"{}\" y=\"{:.2}\" dominant-baseline=\"middle\">{}</text>\n",
             left + width + 6.0,
             pos[i],
-            label.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+            label
+                .replace('&', "&amp;")
+                .replace('<', "&lt;")
+                .replace('>', "&gt;")
         ));
     }
     s.push_str("</svg>\n");
@@ -215,7 +231,10 @@ mod tests {
         let x: [f64; 4] = [0.0, 1.0, 5.0, 5.5];
         DistanceMatrix {
             names: vec!["a".into(), "b c".into(), "d'e".into(), "f".into()],
-            values: x.iter().map(|p| x.iter().map(|q| (p - q).abs()).collect()).collect(),
+            values: x
+                .iter()
+                .map(|p| x.iter().map(|q| (p - q).abs()).collect())
+                .collect(),
         }
     }
 
@@ -228,9 +247,16 @@ mod tests {
         assert_eq!(t.leaves(), vec![0, 1, 2, 3]);
         assert!((t.height() - 4.75 / 2.0).abs() < 1e-12);
         let text = newick(&t, &m.names);
-        assert_eq!(text, "((a:0.5,'b c':0.5):1.875,('d''e':0.25,f:0.25):2.125);\n");
+        assert_eq!(
+            text,
+            "((a:0.5,'b c':0.5):1.875,('d''e':0.25,f:0.25):2.125);\n"
+        );
         let svg = dendrogram_svg(&t, &m.names, None);
         assert_eq!(svg.matches("<text").count(), 4);
-        assert!(average_linkage_tree(&DistanceMatrix { names: vec![], values: vec![] }).is_none());
+        assert!(average_linkage_tree(&DistanceMatrix {
+            names: vec![],
+            values: vec![]
+        })
+        .is_none());
     }
 }

@@ -37,14 +37,14 @@ pub use chain::{
     with_ends, Carried, ChainError, Specimens,
 };
 pub use matrix::{procrustes_matrix, LandmarkMatrixError};
-pub use mst::{minimum_spanning_tree, tree_path};
 pub use morphologika::{format_morphologika, is_morphologika, parse_morphologika};
+pub use mst::{minimum_spanning_tree, tree_path};
 pub use procrustes::procrustes_distance;
-pub use tps::{format_tps, parse_tps, NamedLandmarks};
 pub use procrustes::ProcrustesError;
 pub use propagate::{
     propagate, propagate_along, surface_point, PropagateError, Propagated, Surface, SurfacePoint,
 };
+pub use tps::{format_tps, parse_tps, NamedLandmarks};
 
 use std::path::{Path, PathBuf};
 
@@ -152,7 +152,9 @@ pub enum LandmarkError {
         source: std::io::Error,
     },
     /// The extension names no landmark format.
-    #[error("{0}: unknown landmark format (use .csv, .fcsv, .mrk.json, .pp, .tps or morphologika .txt)")]
+    #[error(
+        "{0}: unknown landmark format (use .csv, .fcsv, .mrk.json, .pp, .tps or morphologika .txt)"
+    )]
     UnknownFormat(PathBuf),
     /// Malformed content at a line.
     #[error("{path}:{line}: {message}")]
@@ -274,7 +276,11 @@ pub fn read_collection(path: &Path) -> Result<Vec<NamedLandmarks>, LandmarkError
 pub fn write_collection(path: &Path, specimens: &[NamedLandmarks]) -> Result<(), LandmarkError> {
     let text = match Format::from_path(path) {
         Some(Format::Tps) => format_tps(specimens),
-        Some(Format::Csv) if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("txt")) => {
+        Some(Format::Csv)
+            if path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("txt")) =>
+        {
             format_morphologika(specimens)
         }
         _ => return Err(LandmarkError::UnknownFormat(path.to_path_buf())),

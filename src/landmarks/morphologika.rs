@@ -74,7 +74,10 @@ pub fn parse_morphologika(text: &str, path: &Path) -> Result<Vec<NamedLandmarks>
             "rawpoints" => {
                 let fields: Vec<&str> = t.split_whitespace().collect();
                 if fields.len() != 3 {
-                    return Err(err(line, format!("{} values; a 3D landmark has 3", fields.len())));
+                    return Err(err(
+                        line,
+                        format!("{} values; a 3D landmark has 3", fields.len()),
+                    ));
                 }
                 let mut q = [0.0; 3];
                 for (d, f) in fields.iter().enumerate() {
@@ -87,20 +90,33 @@ pub fn parse_morphologika(text: &str, path: &Path) -> Result<Vec<NamedLandmarks>
         }
     }
     let (Some(n), Some(k)) = (individuals, landmarks) else {
-        return Err(err(section_line.max(1), "no [individuals] or [landmarks] count".into()));
+        return Err(err(
+            section_line.max(1),
+            "no [individuals] or [landmarks] count".into(),
+        ));
     };
     if let Some(d) = dimensions.filter(|&d| d != 3) {
-        return Err(err(section_line.max(1), format!("{d} dimensions; morphoid reads 3D")));
+        return Err(err(
+            section_line.max(1),
+            format!("{d} dimensions; morphoid reads 3D"),
+        ));
     }
     if points.len() != n * k {
         let line = points.last().map_or(section_line.max(1), |p| p.1);
         return Err(err(
             line,
-            format!("{} points under [rawpoints]; {n} individuals × {k} landmarks need {}", points.len(), n * k),
+            format!(
+                "{} points under [rawpoints]; {n} individuals × {k} landmarks need {}",
+                points.len(),
+                n * k
+            ),
         ));
     }
     if !names.is_empty() && names.len() != n {
-        return Err(err(section_line.max(1), format!("{} names for {n} individuals", names.len())));
+        return Err(err(
+            section_line.max(1),
+            format!("{} names for {n} individuals", names.len()),
+        ));
     }
     if n == 0 || k == 0 {
         return Err(LandmarkError::Empty(path.to_path_buf()));
@@ -109,7 +125,10 @@ pub fn parse_morphologika(text: &str, path: &Path) -> Result<Vec<NamedLandmarks>
         .chunks(k)
         .enumerate()
         .map(|(i, block)| NamedLandmarks {
-            name: names.get(i).cloned().unwrap_or_else(|| format!("{}", i + 1)),
+            name: names
+                .get(i)
+                .cloned()
+                .unwrap_or_else(|| format!("{}", i + 1)),
             landmarks: Landmarks::from_points(block.iter().map(|p| p.0).collect()),
         })
         .collect())
@@ -119,7 +138,10 @@ pub fn parse_morphologika(text: &str, path: &Path) -> Result<Vec<NamedLandmarks>
 /// number of landmarks as the first).
 pub fn format_morphologika(specimens: &[NamedLandmarks]) -> String {
     let k = specimens.first().map_or(0, |s| s.landmarks.len());
-    let mut s = format!("[individuals]\n{}\n[landmarks]\n{k}\n[dimensions]\n3\n[names]\n", specimens.len());
+    let mut s = format!(
+        "[individuals]\n{}\n[landmarks]\n{k}\n[dimensions]\n3\n[names]\n",
+        specimens.len()
+    );
     for sp in specimens {
         s.push_str(&one_line(&sp.name));
         s.push('\n');
@@ -157,12 +179,18 @@ mod tests {
 
     #[test]
     fn wrong_counts_name_the_line() {
-        let text = "[individuals]\n2\n[landmarks]\n2\n[dimensions]\n3\n[rawpoints]\n1 2 3\n4 5 6\n7 8 9\n";
-        let e = parse_morphologika(text, Path::new("m.txt")).unwrap_err().to_string();
-        assert!(e.starts_with("m.txt:10:") && e.contains("need 4"), "{e}");
-        let e = parse_morphologika("[individuals]\n1\n[landmarks]\n1\n[rawpoints]\n1 2\n", Path::new("m.txt"))
+        let text =
+            "[individuals]\n2\n[landmarks]\n2\n[dimensions]\n3\n[rawpoints]\n1 2 3\n4 5 6\n7 8 9\n";
+        let e = parse_morphologika(text, Path::new("m.txt"))
             .unwrap_err()
             .to_string();
+        assert!(e.starts_with("m.txt:10:") && e.contains("need 4"), "{e}");
+        let e = parse_morphologika(
+            "[individuals]\n1\n[landmarks]\n1\n[rawpoints]\n1 2\n",
+            Path::new("m.txt"),
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.starts_with("m.txt:6:"), "{e}");
     }
 }

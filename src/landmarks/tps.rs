@@ -56,11 +56,18 @@ pub fn parse_tps(text: &str, path: &Path) -> Result<Vec<NamedLandmarks>, Landmar
         if p.points.len() != p.count {
             return Err(err(
                 p.line,
-                format!("LM3={} but {} coordinate lines follow", p.count, p.points.len()),
+                format!(
+                    "LM3={} but {} coordinate lines follow",
+                    p.count,
+                    p.points.len()
+                ),
             ));
         }
         let Some(name) = p.id else {
-            return Err(err(p.line, "specimen without ID= (every specimen needs one)".into()));
+            return Err(err(
+                p.line,
+                "specimen without ID= (every specimen needs one)".into(),
+            ));
         };
         let s = p.scale.unwrap_or(1.0);
         let points = p.points.iter().map(|q| q.map(|v| v * s)).collect();
@@ -96,7 +103,10 @@ pub fn parse_tps(text: &str, path: &Path) -> Result<Vec<NamedLandmarks>, Landmar
                     });
                 }
                 "LM" => {
-                    return Err(err(line, "2D landmarks (LM=); morphoid reads 3D (LM3=)".into()))
+                    return Err(err(
+                        line,
+                        "2D landmarks (LM=); morphoid reads 3D (LM3=)".into(),
+                    ))
                 }
                 "ID" | "SCALE" | "IMAGE" | "COMMENT" | "VARIABLES" | "CURVES" | "POINTS" => {
                     let Some(p) = current.as_mut() else {
@@ -108,7 +118,8 @@ pub fn parse_tps(text: &str, path: &Path) -> Result<Vec<NamedLandmarks>, Landmar
                         }
                         p.id = Some(value.to_string());
                     } else if key == "SCALE" {
-                        let s = parse_coordinate(value).map_err(|m| err(line, format!("SCALE: {m}")))?;
+                        let s = parse_coordinate(value)
+                            .map_err(|m| err(line, format!("SCALE: {m}")))?;
                         if s <= 0.0 {
                             return Err(err(line, format!("SCALE={value} is not positive")));
                         }
@@ -126,7 +137,10 @@ pub fn parse_tps(text: &str, path: &Path) -> Result<Vec<NamedLandmarks>, Landmar
         };
         let fields: Vec<&str> = t.split_whitespace().collect();
         if fields.len() != 3 {
-            return Err(err(line, format!("{} values; a 3D landmark has 3", fields.len())));
+            return Err(err(
+                line,
+                format!("{} values; a 3D landmark has 3", fields.len()),
+            ));
         }
         let mut q = [0.0; 3];
         for (d, f) in fields.iter().enumerate() {
@@ -145,7 +159,10 @@ pub fn parse_tps(text: &str, path: &Path) -> Result<Vec<NamedLandmarks>, Landmar
         if p.points.len() == p.count {
             return Err(err(
                 line,
-                format!("more than LM3={} coordinate lines (no ID= between specimens?)", p.count),
+                format!(
+                    "more than LM3={} coordinate lines (no ID= between specimens?)",
+                    p.count
+                ),
             ));
         }
         p.points.push(q);
@@ -186,7 +203,10 @@ mod tests {
         vec![
             NamedLandmarks {
                 name: "a b".into(),
-                landmarks: Landmarks::from_points(vec![[0.1, -2.5e-7, 1234.5678901234567], [1.0, 2.0, 3.0]]),
+                landmarks: Landmarks::from_points(vec![
+                    [0.1, -2.5e-7, 1234.5678901234567],
+                    [1.0, 2.0, 3.0],
+                ]),
             },
             NamedLandmarks {
                 name: "c".into(),
@@ -213,7 +233,11 @@ mod tests {
             ("LM3=2\n1 2 3\n-999 -999 -999\nID=a\n", 3, "missing"),
             ("LM3=2\n1 2 3\n4 5 -99\nID=a\n", 3, "missing"),
             ("LM3=2\n1 2 3\n4 5 6\n", 1, "ID="),
-            ("LM3=2\n1 2 3\nID=a\nLM3=1\n1 2 3\nID=b\n", 1, "1 coordinate lines"),
+            (
+                "LM3=2\n1 2 3\nID=a\nLM3=1\n1 2 3\nID=b\n",
+                1,
+                "1 coordinate lines",
+            ),
             ("LM3=1\n1 2 3\n4 5 6\nID=a\n", 3, "more than LM3=1"),
             ("LM=2\n1 2\n3 4\nID=a\n", 1, "2D"),
             ("LM3=1\n1 2\nID=a\n", 2, "2 values"),
