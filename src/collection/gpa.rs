@@ -167,7 +167,7 @@ pub fn generalized_procrustes(
             }
         }
         let (_, size) = centroid_size(&next);
-        if !(size > 0.0) {
+        if size.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             break;
         }
         let next: Vec<[f64; 3]> = next.iter().map(|p| p.map(|v| v / size)).collect();

@@ -233,10 +233,10 @@ mod tests {
             vec![(1, 0), (1, 2), (1, 3)]
         );
         let mut cut = d.clone();
-        for i in 0..3 {
-            cut[i][3] = f64::NAN;
-            cut[3][i] = f64::NAN;
+        for row in cut.iter_mut().take(3) {
+            row[3] = f64::NAN;
         }
+        cut[3] = vec![f64::NAN, f64::NAN, f64::NAN, 0.0];
         assert_eq!(
             carrying_steps(&cut, 0, Consistency::SpanningTree),
             vec![(0, 1), (1, 2)]

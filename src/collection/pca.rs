@@ -50,7 +50,7 @@ pub fn principal_components(configurations: &[Vec<[f64; 3]>]) -> Pca {
     let mut variances = Vec::new();
     for &k in order.iter().take(n - 1) {
         let lambda = eig.eigenvalues[k];
-        if !(lambda > 1e-12 * top) {
+        if lambda.partial_cmp(&(1e-12 * top)) != Some(std::cmp::Ordering::Greater) {
             break;
         }
         let u = eig.eigenvectors.column(k);

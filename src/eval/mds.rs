@@ -46,7 +46,7 @@ pub fn classical_mds(m: &DistanceMatrix, dimensions: usize) -> Mds {
     let mut eigenvalues = Vec::new();
     for &k in order.iter().take(dimensions) {
         let lambda = eig.eigenvalues[k];
-        if !(lambda > 1e-12 * top) {
+        if lambda.partial_cmp(&(1e-12 * top)) != Some(std::cmp::Ordering::Greater) {
             break;
         }
         let u = eig.eigenvectors.column(k);

@@ -73,7 +73,7 @@ impl Scatter {
             }
         }
         for d in 0..2 {
-            if !(lo[d] < hi[d]) {
+            if lo[d].partial_cmp(&hi[d]) != Some(std::cmp::Ordering::Less) {
                 let c = if lo[d].is_finite() { lo[d] } else { 0.0 };
                 (lo[d], hi[d]) = (c - 0.5, c + 0.5);
             }
