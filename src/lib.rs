@@ -14,6 +14,8 @@
 //! - [`landmarks`]: landmark files and their propagation between surfaces;
 //! - [`library`]: the reference library folder, its cache of prepared
 //!   references, and identification (nearest taxon per rank);
+//! - [`collection`]: a whole collection in correspondence (pseudolandmarks,
+//!   GPA, PCA);
 //! - [`store`]: the SQLite record of references, scans, results and distances;
 //! - [`report`]: per-scan HTML reports and the overview page;
 //! - [`classify`]: one scan through preparation, comparison, identification
@@ -27,6 +29,7 @@
 pub mod atomic_write;
 pub mod classify;
 pub mod clean;
+pub mod collection;
 pub mod config;
 pub mod conformal;
 pub mod cp;

@@ -11,7 +11,7 @@ use std::process::ExitCode;
 /// Arguments of `morphoid evaluate`. At least one of `--labels`,
 /// `--compare`, `--heatmap` says what to do.
 #[derive(Debug, clap::Args)]
-#[command(group(clap::ArgGroup::new("task").required(true).multiple(true).args(["labels", "compare", "heatmap"])))]
+#[command(group(clap::ArgGroup::new("task").required(true).multiple(true).args(["labels", "compare", "heatmap", "mds", "tree"])))]
 pub struct Args {
     /// Distance matrix CSV (as written by `morphoid matrix`).
     #[arg(long)]
@@ -39,8 +39,18 @@ pub struct Args {
     heatmap: Option<PathBuf>,
     /// In the heatmap, keep the specimens of each taxon at this rank
     /// together (from --labels) and separate the groups by white lines.
-    #[arg(long, value_name = "RANK", requires_all = ["labels", "heatmap"])]
+    /// The MDS plot is coloured and the dendrogram's leaves labelled by it.
+    #[arg(long, value_name = "RANK", requires = "labels")]
     group_rank: Option<String>,
+    /// Classical MDS of --matrix: the coordinates as CSV here, the
+    /// plot of the first two axes next to it (same name, .svg and .png),
+    /// coloured by --group-rank when given.
+    #[arg(long, value_name = "OUT.csv")]
+    mds: Option<PathBuf>,
+    /// The average-linkage tree of --matrix in Newick here, its
+    /// dendrogram next to it (same name, .svg).
+    #[arg(long, value_name = "OUT.nwk")]
+    tree: Option<PathBuf>,
     /// Ranks to evaluate, comma-separated (default: the `[library] ranks`
     /// of --config when one is given, else every column but `name`).
     #[arg(long, value_delimiter = ',')]
@@ -118,6 +128,29 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
             image.height
         );
     }
+    let groups = match (&args.group_rank, &args.labels) {
+        (Some(rank), Some(path)) => {
+            let labels = Labels::read(path, None)?;
+            match labels.column(&matrix.names, rank) {
+                Some(g) => Some((rank.clone(), g)),
+                None => bail!("{}: no rank column `{rank}`", path.display()),
+            }
+        }
+        _ => None,
+    };
+    if let Some(out) = &args.mds {
+        write_mds(&matrix, out, groups.as_ref())?;
+    }
+    if let Some(out) = &args.tree {
+        let tree = eval::average_linkage_tree(&matrix).context("the matrix is empty")?;
+        std::fs::write(out, eval::newick(&tree, &matrix.names))
+            .with_context(|| format!("writing {}", out.display()))?;
+        let svg = out.with_extension("svg");
+        let g = groups.as_ref().map(|(_, g)| g.as_slice());
+        std::fs::write(&svg, eval::dendrogram_svg(&tree, &matrix.names, g))
+            .with_context(|| format!("writing {}", svg.display()))?;
+        eprintln!("wrote {} and {}", out.display(), svg.display());
+    }
     if args.json {
         let mut obj = serde_json::json!({ "specimens": matrix.names.len() });
         if let Some(rows) = &rows {
@@ -186,4 +219,63 @@ fn leave_one_out(
             total: s.total,
         })
         .collect())
+}
+
+/// Classical MDS of `matrix`: coordinates CSV at `out`, the plot of the
+/// first two axes as SVG and PNG next to it.
+fn write_mds(
+    matrix: &DistanceMatrix,
+    out: &Path,
+    groups: Option<&(String, Vec<Option<String>>)>,
+) -> Result<()> {
+    let mds = eval::classical_mds(matrix, 10);
+    let dims = mds.eigenvalues.len();
+    let mut csv = csv::WriterBuilder::new().from_writer(Vec::new());
+    let mut header = vec!["name".to_string()];
+    header.extend((1..=dims).map(|k| format!("MDS{k}")));
+    csv.write_record(&header)?;
+    for (n, c) in matrix.names.iter().zip(&mds.coordinates) {
+        let mut row = vec![n.clone()];
+        row.extend(c.iter().map(|v| format!("{v:?}")));
+        csv.write_record(&row)?;
+    }
+    let bytes = csv.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?;
+    std::fs::write(out, bytes).with_context(|| format!("writing {}", out.display()))?;
+    let total: f64 = mds.eigenvalues.iter().sum();
+    let axis = |k: usize| match mds.eigenvalues.get(k) {
+        Some(l) if total > 0.0 => format!("MDS{} ({:.1} %)", k + 1, 100.0 * l / total),
+        _ => format!("MDS{}", k + 1),
+    };
+    let coord = |c: &Vec<f64>, k: usize| c.get(k).copied().unwrap_or(0.0);
+    let plot = eval::Scatter {
+        title: match groups {
+            Some((rank, _)) => format!(
+                "Classical MDS of {} specimens, by {rank}",
+                matrix.names.len()
+            ),
+            None => format!("Classical MDS of {} specimens", matrix.names.len()),
+        },
+        x_label: axis(0),
+        y_label: axis(1),
+        points: mds
+            .coordinates
+            .iter()
+            .map(|c| [coord(c, 0), coord(c, 1)])
+            .collect(),
+        names: matrix.names.clone(),
+        groups: groups.map_or_else(|| vec![None; matrix.names.len()], |(_, g)| g.clone()),
+    };
+    let svg = out.with_extension("svg");
+    std::fs::write(&svg, eval::scatter_svg(&plot))
+        .with_context(|| format!("writing {}", svg.display()))?;
+    let png = out.with_extension("png");
+    let bytes = eval::encode_png(&eval::scatter_raster(&plot, 900, 640))?;
+    std::fs::write(&png, bytes).with_context(|| format!("writing {}", png.display()))?;
+    eprintln!(
+        "wrote {}, {} and {}",
+        out.display(),
+        svg.display(),
+        png.display()
+    );
+    Ok(())
 }

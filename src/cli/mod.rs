@@ -2,6 +2,7 @@
 //! clap builds the argument structs here; the modules call the library,
 //! print, and turn library errors into one-line messages with context.
 
+mod align;
 mod assets;
 mod check_config;
 mod classify;
@@ -76,6 +77,8 @@ enum Command {
     Synth(synth::Args),
     /// Carry landmarks of a reference onto another surface through cP maps.
     Propagate(propagate::Args),
+    /// Put a whole collection in correspondence: pseudolandmarks, GPA, PCA.
+    Align(align::Args),
     /// Write man pages and shell completions (for packagers).
     #[command(hide = true)]
     Assets(assets::Args),
@@ -100,6 +103,7 @@ pub fn main() -> ExitCode {
         Command::Matrix(a) => matrix::run(a, config),
         Command::Evaluate(a) => evaluate::run(a, config),
         Command::Propagate(a) => propagate::run(a, config),
+        Command::Align(a) => align::run(a, config),
         Command::Run(a) => run::run(a, config),
         Command::CheckConfig(a) => check_config::run(a, config),
         Command::Assets(a) => assets::run(a),

@@ -6,7 +6,12 @@
 //! - `.csv`: `x,y,z` per line, optional header, optional `label` column;
 //! - `.fcsv`: 3D Slicer markups fiducial CSV;
 //! - `.mrk.json` (or `.json`): 3D Slicer markups JSON;
-//! - `.pp`: MeshLab picked points (XML).
+//! - `.pp`: MeshLab picked points (XML);
+//! - `.tps`: TPS (geomorph, MorphoJ), `SCALE=` applied;
+//! - morphologika (`.txt` whose first line is a `[section]`).
+//!
+//! TPS and morphologika files hold a collection ([`read_collection`],
+//! [`write_collection`]); read as one specimen's file they must hold one.
 //!
 //! **Coordinate convention.** A [`Landmarks`] value holds points in the
 //! coordinates of the surface file they belong to. Slicer writes surface
@@ -19,21 +24,27 @@
 mod chain;
 mod matrix;
 mod meshlab;
+mod morphologika;
 mod mst;
 mod procrustes;
 mod propagate;
 mod slicer;
 mod table;
+mod tps;
 
 pub use chain::{
     carry_along, complete_distances, correspondence_csv, far_landmarks, spanning_tree_route,
     with_ends, Carried, ChainError, Specimens,
 };
 pub use matrix::{procrustes_matrix, LandmarkMatrixError};
-use mst::{minimum_spanning_tree, tree_path};
-use procrustes::procrustes_distance;
+pub use morphologika::{format_morphologika, is_morphologika, parse_morphologika};
+pub use mst::{minimum_spanning_tree, tree_path};
+pub use procrustes::procrustes_distance;
 pub use procrustes::ProcrustesError;
-pub use propagate::{propagate, propagate_along, PropagateError, Propagated, Surface};
+pub use propagate::{
+    propagate, propagate_along, surface_point, PropagateError, Propagated, Surface, SurfacePoint,
+};
+pub use tps::{format_tps, parse_tps, NamedLandmarks};
 
 use std::path::{Path, PathBuf};
 
@@ -91,6 +102,11 @@ pub enum Format {
     MarkupsJson,
     /// MeshLab picked points (`.pp`).
     PickedPoints,
+    /// TPS (`.tps`).
+    Tps,
+    /// Morphologika (a `.txt` starting with a `[section]`; see
+    /// [`Format::from_path_and_text`]).
+    Morphologika,
 }
 
 impl Format {
@@ -103,8 +119,23 @@ impl Format {
             "fcsv" => Some(Format::Fcsv),
             "json" => Some(Format::MarkupsJson),
             "pp" => Some(Format::PickedPoints),
+            "tps" => Some(Format::Tps),
             _ => None,
         }
+    }
+
+    /// The format of a file from its extension and, for `.txt`, its text:
+    /// morphologika when it starts with a `[section]`, else CSV.
+    pub fn from_path_and_text(path: &Path, text: &str) -> Option<Format> {
+        let fmt = Format::from_path(path)?;
+        let txt = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("txt"));
+        Some(if txt && is_morphologika(text) {
+            Format::Morphologika
+        } else {
+            fmt
+        })
     }
 }
 
@@ -121,7 +152,9 @@ pub enum LandmarkError {
         source: std::io::Error,
     },
     /// The extension names no landmark format.
-    #[error("{0}: unknown landmark format (use .csv, .fcsv, .mrk.json or .pp)")]
+    #[error(
+        "{0}: unknown landmark format (use .csv, .fcsv, .mrk.json, .pp, .tps or morphologika .txt)"
+    )]
     UnknownFormat(PathBuf),
     /// Malformed content at a line.
     #[error("{path}:{line}: {message}")]
@@ -166,6 +199,20 @@ pub fn parse(text: &str, format: Format, path: &Path) -> Result<Landmarks, Landm
         Format::Fcsv => slicer::parse_fcsv(text, path)?,
         Format::MarkupsJson => slicer::parse_markups_json(text, path)?,
         Format::PickedPoints => meshlab::parse_picked_points(text, path)?,
+        Format::Tps | Format::Morphologika => {
+            let mut all = parse_collection(text, format, path)?;
+            if all.len() != 1 {
+                return Err(LandmarkError::Syntax {
+                    path: path.to_path_buf(),
+                    line: 1,
+                    message: format!(
+                        "{} specimens in the file; one specimen's landmarks were expected",
+                        all.len()
+                    ),
+                });
+            }
+            all.remove(0).landmarks
+        }
     };
     if lm.is_empty() {
         return Err(LandmarkError::Empty(path.to_path_buf()));
@@ -180,7 +227,73 @@ pub fn format(landmarks: &Landmarks, format: Format) -> String {
         Format::Fcsv => slicer::format_fcsv(landmarks),
         Format::MarkupsJson => slicer::format_markups_json(landmarks),
         Format::PickedPoints => meshlab::format_picked_points(landmarks),
+        Format::Tps | Format::Morphologika => {
+            let one = [NamedLandmarks {
+                name: "specimen".into(),
+                landmarks: landmarks.clone(),
+            }];
+            if format == Format::Tps {
+                format_tps(&one)
+            } else {
+                format_morphologika(&one)
+            }
+        }
     }
+}
+
+/// Parse a collection file (TPS or morphologika; any other format is read
+/// as one specimen named `specimen`).
+fn parse_collection(
+    text: &str,
+    format: Format,
+    path: &Path,
+) -> Result<Vec<NamedLandmarks>, LandmarkError> {
+    match format {
+        Format::Tps => parse_tps(text, path),
+        Format::Morphologika => parse_morphologika(text, path),
+        other => Ok(vec![NamedLandmarks {
+            name: "specimen".into(),
+            landmarks: parse(text, other, path)?,
+        }]),
+    }
+}
+
+/// Read a collection of named landmark sets from a TPS (`.tps`) or
+/// morphologika (`.txt`) file.
+pub fn read_collection(path: &Path) -> Result<Vec<NamedLandmarks>, LandmarkError> {
+    let text = std::fs::read_to_string(path).map_err(|source| LandmarkError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    match Format::from_path_and_text(path, &text) {
+        Some(f @ (Format::Tps | Format::Morphologika)) => parse_collection(&text, f, path),
+        _ => Err(LandmarkError::UnknownFormat(path.to_path_buf())),
+    }
+}
+
+/// Write a collection as TPS (`.tps`) or morphologika (`.txt`), through
+/// an atomic replacement.
+pub fn write_collection(path: &Path, specimens: &[NamedLandmarks]) -> Result<(), LandmarkError> {
+    let text = match Format::from_path(path) {
+        Some(Format::Tps) => format_tps(specimens),
+        Some(Format::Csv)
+            if path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("txt")) =>
+        {
+            format_morphologika(specimens)
+        }
+        _ => return Err(LandmarkError::UnknownFormat(path.to_path_buf())),
+    };
+    write_text(path, &text)
+}
+
+/// Replace `path` with `text` atomically.
+fn write_text(path: &Path, text: &str) -> Result<(), LandmarkError> {
+    crate::atomic_write::write_atomic(path, text.as_bytes()).map_err(|e| LandmarkError::Io {
+        path: path.to_path_buf(),
+        source: std::io::Error::other(e),
+    })
 }
 
 /// Read a landmark file, in the format its extension names; with
@@ -191,6 +304,7 @@ pub fn read(path: &Path, expected: Option<usize>) -> Result<Landmarks, LandmarkE
         path: path.to_path_buf(),
         source,
     })?;
+    let fmt = Format::from_path_and_text(path, &text).unwrap_or(fmt);
     let lm = parse(&text, fmt, path)?;
     check_count(&lm, expected, path)?;
     Ok(lm)
@@ -222,8 +336,8 @@ pub fn write(path: &Path, landmarks: &Landmarks) -> Result<(), LandmarkError> {
 }
 
 /// The extensions a library's landmark file may have, in the order they
-/// are looked for: `landmarks/<name>.{csv,fcsv,mrk.json,pp}`.
-const LIBRARY_EXTENSIONS: [&str; 4] = ["csv", "fcsv", "mrk.json", "pp"];
+/// are looked for: `landmarks/<name>.{csv,fcsv,mrk.json,pp,tps}`.
+const LIBRARY_EXTENSIONS: [&str; 5] = ["csv", "fcsv", "mrk.json", "pp", "tps"];
 
 /// The landmark files of specimen `name` in the library folder `dir`
 /// (`dir/landmarks/<name>.<ext>` for each of `csv`, `fcsv`, `mrk.json`, `pp` that

@@ -119,6 +119,11 @@ impl Surface {
         ])
     }
 
+    /// The point of the surface closest to `p`.
+    pub fn closest(&self, p: [f64; 3]) -> [f64; 3] {
+        self.grid.closest_point(p).point
+    }
+
     /// The point of triangle `face` with barycentric coordinates `bary`.
     pub fn point(&self, face: u32, bary: [f64; 3]) -> Option<[f64; 3]> {
         let t = self.triangle(face)?;

@@ -5,6 +5,8 @@
 
 mod support;
 
+mod align_collection;
+mod align_formats;
 mod classify_result_files;
 mod clean_cloud;
 mod clean_crown;
