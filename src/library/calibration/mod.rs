@@ -137,6 +137,15 @@ impl ReferenceDistances {
         self.held.len() == self.names.len()
     }
 
+    /// The distance between references `i` and `j`, when either was held
+    /// out (has its row).
+    pub fn distance(&self, i: usize, j: usize) -> Option<f64> {
+        self.row(i)
+            .and_then(|r| r.get(j))
+            .or_else(|| self.row(j).and_then(|r| r.get(i)))
+            .copied()
+    }
+
     /// The row of reference `i`, if it was held out.
     fn row(&self, i: usize) -> Option<&[f64]> {
         let k = self.held.binary_search(&i).ok()?;
