@@ -19,6 +19,15 @@ use sha2::{Digest, Sha256};
 /// each compared with every reference, instead of every pair.
 pub const CALIBRATION_SAMPLE: usize = 200;
 
+/// How many comparisons the distances among `n` references take: every
+/// pair up to [`CALIBRATION_SAMPLE`] references, else the pairs with at
+/// least one of the sample.
+pub fn calibration_pairs(n: usize) -> usize {
+    let held = n.min(CALIBRATION_SAMPLE);
+    let rest = n - held;
+    held * held.saturating_sub(1) / 2 + held * rest
+}
+
 /// Bumped whenever the file's layout or the meaning of the distances
 /// changes.
 const FORMAT: u32 = 1;
@@ -193,5 +202,20 @@ impl ReferenceDistances {
             && self.rows.iter().all(|r| r.len() == references.len())
             && self.held.len() == self.rows.len()
             && self.held.iter().all(|&h| h < references.len())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pairs_of_a_whole_and_of_a_sampled_library() {
+        assert_eq!(calibration_pairs(0), 0);
+        assert_eq!(calibration_pairs(5), 10);
+        assert_eq!(calibration_pairs(116), 6670);
+        let (n, h) = (250, CALIBRATION_SAMPLE);
+        // Pairs among the sample, and each of the sample with the rest.
+        assert_eq!(calibration_pairs(n), h * (h - 1) / 2 + h * (n - h));
     }
 }

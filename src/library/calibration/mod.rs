@@ -19,7 +19,7 @@
 mod cached;
 mod statistic;
 
-pub use cached::{reference_distances, CALIBRATION_SAMPLE};
+pub use cached::{calibration_pairs, reference_distances, CALIBRATION_SAMPLE};
 pub use statistic::{
     expected_calibration_error, fit_logistic, novelty_score, reliability, roc_auc, share_caught_at,
     upper_median, upper_quantile, Logistic, ReliabilityBin, CROWDING_WEIGHT,
