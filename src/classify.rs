@@ -14,8 +14,8 @@ use crate::cp;
 use crate::eval::Labels;
 use crate::landmarks::{self, Landmarks, PropagateError, Surface};
 use crate::library::{
-    self, BuildOutcome, Cache, CacheError, CachedReference, DistanceRow, LandmarkPoint, Library,
-    ScanLandmarks, ScanOutcome,
+    self, BuildOutcome, Cache, CacheError, CachedReference, Calibration, DistanceRow,
+    LandmarkPoint, Library, ScanLandmarks, ScanOutcome,
 };
 use crate::mesh::io::{self, Format, LoadError};
 use crate::pipeline::{self, PipelineError, PreparedSurface, Settings};
@@ -66,6 +66,8 @@ pub struct Classifier {
     /// Where [`run_job`] writes the result files of each scan (`None`:
     /// nowhere).
     results: Option<ResultFiles>,
+    /// The library's confidence model (`None`: not calibrated).
+    calibration: Option<Calibration>,
 }
 
 /// Why a scan could not be identified; the message names the file.
@@ -97,10 +99,14 @@ impl Classifier {
             settings,
             landmarks: BTreeMap::new(),
             results: None,
+            calibration: None,
         }
     }
 
-    /// Prepare (or take from the cache) every reference of `library`.
+    /// Prepare (or take from the cache) every reference of `library`, and
+    /// calibrate the confidence on the prepared references (their
+    /// distances to each other come from the cache when the references
+    /// and settings are unchanged; see [`library::Calibration`]).
     /// References that fail are left out and reported in the outcome.
     /// The prepared references and their landmarks move into the
     /// classifier: the outcome comes back without them (a prepared library
@@ -118,8 +124,40 @@ impl Classifier {
             settings: settings.clone(),
             landmarks: std::mem::take(&mut outcome.landmarks.by_name),
             results: None,
-        };
+            calibration: None,
+        }
+        .calibrated(Some(cache));
         Ok((classifier, outcome))
+    }
+
+    /// The same classifier with its confidence calibrated on its own
+    /// references (leave-one-out), the distances among them taken from
+    /// `cache` or computed (and stored there). A library of fewer than
+    /// [`library::MIN_HELD`] references is left without calibration.
+    pub fn calibrated(mut self, cache: Option<&Cache>) -> Self {
+        if self.references.len() < library::MIN_HELD {
+            self.calibration = None;
+            return self;
+        }
+        let distances =
+            library::reference_distances(&self.references, &self.settings, cache, |_| {});
+        let calibration = library::Calibration::fit(distances, &self.labels);
+        for r in calibration.ranks() {
+            tracing::info!(
+                rank = %r.rank,
+                held = r.held,
+                right = r.right,
+                threshold = ?r.threshold,
+                "calibrated"
+            );
+        }
+        self.calibration = Some(calibration);
+        self
+    }
+
+    /// The library's confidence model, if calibrated.
+    pub fn calibration(&self) -> Option<&Calibration> {
+        self.calibration.as_ref()
     }
 
     /// The same classifier writing result files (`None`: none).
@@ -130,7 +168,8 @@ impl Classifier {
 
     /// The same references compared under other settings. The preparation
     /// settings must stay those the references were prepared with; only
-    /// the comparison may differ.
+    /// the comparison may differ. The calibration is kept as it is: call
+    /// [`Classifier::calibrated`] again to fit it to the new settings.
     pub fn with_settings(mut self, settings: Settings) -> Self {
         self.settings = settings;
         self
@@ -363,7 +402,10 @@ impl Classifier {
                 .collect()
         };
         let compare_ms = t.elapsed().as_secs_f64() * 1e3;
-        let id = library::identify(&distances, &self.labels, NEAREST);
+        let mut id = library::identify(&distances, &self.labels, NEAREST);
+        if let Some(c) = &self.calibration {
+            c.assess(&distances, &mut id.ranks);
+        }
         let mut timings_ms = BTreeMap::from([
             ("load".to_string(), load_ms),
             ("clean".to_string(), surface.timings.clean),

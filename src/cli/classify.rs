@@ -116,8 +116,9 @@ fn write_known(
     Ok(())
 }
 
-/// One line per scan for people: the taxon at each rank (and how many
-/// landmarks were carried onto the scan).
+/// One line per scan for people: the taxon at each rank with its
+/// probability and the "NO CLOSE MATCH" flag when the library is
+/// calibrated (and how many landmarks were carried onto the scan).
 pub fn summary(r: &ScanRecord) -> String {
     match r.status {
         ScanStatus::Ok => {
@@ -129,8 +130,20 @@ pub fn summary(r: &ScanRecord) -> String {
                         (Some(t), Some(m)) => format!("; next {t} +{m:.4}"),
                         _ => String::new(),
                     };
+                    let confidence = match &k.confidence {
+                        Some(c) => format!(
+                            "; p {:.2}{}",
+                            c.probability,
+                            if c.no_close_match == Some(true) {
+                                "; NO CLOSE MATCH"
+                            } else {
+                                ""
+                            }
+                        ),
+                        None => String::new(),
+                    };
                     format!(
-                        "{} {} ({} at {:.4}{runner})",
+                        "{} {} ({} at {:.4}{runner}{confidence})",
                         k.rank, k.taxon, k.reference, k.distance
                     )
                 })

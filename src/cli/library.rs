@@ -57,6 +57,29 @@ fn build(args: &ConfigArgs, file: ConfigFile) -> Result<ExitCode> {
         started.elapsed().as_secs_f64(),
         cache.dir().display()
     );
+    // The confidence calibration is part of the library: its distances
+    // among the references are computed now (once; then from the cache),
+    // not at the first scan.
+    if out.references.len() >= library::MIN_HELD {
+        let n = out.references.len();
+        let bar = progress_bar(library::calibration_pairs(n) as u64, "calibrating");
+        let distances =
+            library::reference_distances(&out.references, &config.settings(), Some(&cache), |_| {
+                bar.inc(1)
+            });
+        bar.finish_and_clear();
+        let calibration = library::Calibration::fit(distances, lib.labels());
+        for r in calibration.ranks() {
+            let threshold = match r.threshold {
+                Some(t) => format!("no close match above novelty {t:.3}"),
+                None => "no threshold (too few shared taxa)".to_string(),
+            };
+            println!(
+                "calibration {}: {}/{} right in leave-one-out; {threshold}",
+                r.rank, r.right, r.held
+            );
+        }
+    }
     if let Some(count) = out.landmarks.count {
         println!(
             "{} references with landmarks ({count} each), {} landmark files not usable",

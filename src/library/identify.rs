@@ -20,6 +20,26 @@ pub struct RankResult {
     pub runner_up: Option<String>,
     /// Distance to the runner-up minus `distance`.
     pub margin: Option<f64>,
+    /// How far the answer can be trusted, when the library is calibrated
+    /// (see [`Calibration`](super::Calibration)).
+    pub confidence: Option<Confidence>,
+}
+
+/// The calibrated confidence of the answer at one rank.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Confidence {
+    /// Probability that the nearest taxon is right, from the library's
+    /// own leave-one-out.
+    pub probability: f64,
+    /// The novelty score ([`novelty_score`](super::novelty_score)): larger
+    /// is farther from the library than its own members are.
+    pub novelty: f64,
+    /// The score above which a scan is "no close match" (`None`: the
+    /// library has too few members of shared taxa to set one).
+    pub novelty_threshold: Option<f64>,
+    /// Whether the scan is farther from the library than a member of a
+    /// taxon it holds would be (`None` without a threshold).
+    pub no_close_match: Option<bool>,
 }
 
 /// Distance between the scan and one reference.
@@ -99,7 +119,8 @@ pub struct Identification {
 /// taxon of the nearest reference known at that rank, the runner-up taxon
 /// and the margin; plus the `nearest_count` nearest references. Ties go to
 /// the reference that comes first by name, so the answer never depends on
-/// input order.
+/// input order. The confidence is left to
+/// [`Calibration::assess`](super::Calibration::assess).
 pub fn identify(
     distances: &[DistanceRow],
     labels: &Labels,
@@ -130,6 +151,7 @@ pub fn identify(
                 distance: best.distance,
                 runner_up: runner.map(|(_, t)| t.to_string()),
                 margin: runner.map(|(n, _)| n.distance - best.distance),
+                confidence: None,
             })
         })
         .collect();

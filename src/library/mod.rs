@@ -7,16 +7,25 @@
 //! [`members`] lists any folder of surfaces; [`Preparation`] takes their
 //! prepared forms from the [`Cache`] or prepares them; [`build`] prepares
 //! a whole library; [`identify`] turns the distances of a scan to the
-//! references into the nearest taxon at each rank.
+//! references into the nearest taxon at each rank, and [`Calibration`]
+//! (learnt from the library's own leave-one-out) into a probability and a
+//! "no close match" flag.
 
 mod cache;
+mod calibration;
 mod identify;
 mod matrix;
 
 pub use cache::{Cache, CacheError, CachedReference};
+pub use calibration::{
+    calibration_pairs, expected_calibration_error, fit_logistic, novelty_score,
+    reference_distances, reliability, roc_auc, share_caught_at, upper_median, upper_quantile,
+    Calibration, DistancesError, Logistic, RankCalibration, ReferenceDistances, ReliabilityBin,
+    CALIBRATION_SAMPLE, CROWDING_WEIGHT, FALSE_FLAG_RATE, MIN_HELD, MIN_PRESENT,
+};
 pub use identify::{
-    identify, DistanceRow, Identification, LandmarkPoint, Nearest, RankResult, ScanLandmarks,
-    ScanOutcome,
+    identify, Confidence, DistanceRow, Identification, LandmarkPoint, Nearest, RankResult,
+    ScanLandmarks, ScanOutcome,
 };
 pub use matrix::{landscape, SurfaceDistance, SurfaceMatrixError};
 

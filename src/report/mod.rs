@@ -27,19 +27,23 @@ pub use scene::{
 
 use crate::store::ScanRecord;
 
-// ---- Calibrated confidence and "no close match" (issue 12, part 3) -------
-// The one place reports and the overview read them from. The record has no
-// calibrated fields yet: both return `None`, shown as "not calibrated".
-// Wire them to the record's fields when the calibration lands.
+// The one place reports and the overview read the calibrated confidence
+// and the "no close match" flag from; `None` is shown as "not calibrated".
 
 /// The calibrated probability that the nearest taxon at `rank` is right
 /// (`None`: not calibrated).
-pub fn rank_confidence(_record: &ScanRecord, _rank: &str) -> Option<f64> {
-    None
+pub fn rank_confidence(record: &ScanRecord, rank: &str) -> Option<f64> {
+    record
+        .ranks
+        .iter()
+        .find(|r| r.rank == rank)?
+        .confidence
+        .as_ref()
+        .map(|c| c.probability)
 }
 
 /// Whether the scan is farther from the library than a member of a known
 /// taxon would be (`None`: not calibrated).
-pub fn no_close_match(_record: &ScanRecord) -> Option<bool> {
-    None
+pub fn no_close_match(record: &ScanRecord) -> Option<bool> {
+    record.no_close_match()
 }

@@ -45,6 +45,7 @@
 //!             distance: 0.031,
 //!             runner_up: None,
 //!             margin: None,
+//!             confidence: None,
 //!         }],
 //!         distances: vec![DistanceRow {
 //!             reference: "x21".into(),

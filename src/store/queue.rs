@@ -298,8 +298,9 @@ fn insert_outcome(
     };
     let mut insert_result = conn.prepare_cached(
         "INSERT INTO result
-         (scan_id, ordinal, rank, taxon, reference_id, distance, runner_up, margin)
-         VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)",
+         (scan_id, ordinal, rank, taxon, reference_id, distance, runner_up, margin,
+          probability, novelty, novelty_threshold, no_close_match)
+         VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12)",
     )?;
     for (ordinal, r) in outcome.ranks.iter().enumerate() {
         let ordinal =
@@ -312,7 +313,11 @@ fn insert_outcome(
             lookup(&r.reference)?,
             r.distance,
             r.runner_up,
-            r.margin
+            r.margin,
+            r.confidence.as_ref().map(|c| c.probability),
+            r.confidence.as_ref().map(|c| c.novelty),
+            r.confidence.as_ref().and_then(|c| c.novelty_threshold),
+            r.confidence.as_ref().and_then(|c| c.no_close_match)
         ])?;
     }
     let mut insert_distance = conn.prepare_cached(
@@ -391,6 +396,18 @@ fn validate_outcome(outcome: &ScanOutcome) -> Result<(), StoreError> {
         check(format!("{} distance", r.rank), r.distance, true)?;
         if let Some(m) = r.margin {
             check(format!("{} margin", r.rank), m, true)?;
+        }
+        if let Some(c) = &r.confidence {
+            check(format!("{} novelty", r.rank), c.novelty, false)?;
+            if let Some(t) = c.novelty_threshold {
+                check(format!("{} novelty threshold", r.rank), t, false)?;
+            }
+            if !(0.0..=1.0).contains(&c.probability) {
+                return Err(StoreError::InvalidNumber {
+                    field: format!("{} probability", r.rank),
+                    value: c.probability,
+                });
+            }
         }
     }
     for d in &outcome.distances {

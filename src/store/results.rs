@@ -5,7 +5,7 @@ use super::{
     from_json, parse_status, Original, ScanRecord, ScanStatus, StatusCounts, Store, StoreError,
     DEFAULT_NEAREST,
 };
-use crate::library::{LandmarkPoint, Nearest, RankResult, ScanLandmarks};
+use crate::library::{Confidence, LandmarkPoint, Nearest, RankResult, ScanLandmarks};
 use rusqlite::types::Value;
 use rusqlite::{params, Connection, Row};
 use std::collections::BTreeMap;
@@ -184,7 +184,9 @@ fn ranks_of(conn: &Connection, scan_id: i64) -> Result<Vec<RankResult>, StoreErr
     let mut stmt = conn.prepare_cached(
         "SELECT result.rank AS rank, result.taxon AS taxon, reference.name AS reference,
                 result.distance AS distance, result.runner_up AS runner_up,
-                result.margin AS margin
+                result.margin AS margin, result.probability AS probability,
+                result.novelty AS novelty, result.novelty_threshold AS novelty_threshold,
+                result.no_close_match AS no_close_match
          FROM result JOIN reference ON reference.id = result.reference_id
          WHERE result.scan_id = ?1 ORDER BY result.ordinal",
     )?;
@@ -196,6 +198,7 @@ fn ranks_of(conn: &Connection, scan_id: i64) -> Result<Vec<RankResult>, StoreErr
             distance: r.get("distance")?,
             runner_up: r.get("runner_up")?,
             margin: r.get("margin")?,
+            confidence: confidence_from_row(r)?,
         })
     })?;
     Ok(rows.collect::<Result<_, _>>()?)
@@ -246,4 +249,20 @@ fn landmarks_of(conn: &Connection, scan_id: i64) -> Result<Option<ScanLandmarks>
         }
     }
     Ok(carried)
+}
+
+/// The confidence columns of a `result` row (all null when the library
+/// was not calibrated, or the result predates migration 4).
+fn confidence_from_row(r: &Row<'_>) -> rusqlite::Result<Option<Confidence>> {
+    let probability: Option<f64> = r.get("probability")?;
+    let novelty: Option<f64> = r.get("novelty")?;
+    Ok(match (probability, novelty) {
+        (Some(probability), Some(novelty)) => Some(Confidence {
+            probability,
+            novelty,
+            novelty_threshold: r.get("novelty_threshold")?,
+            no_close_match: r.get("no_close_match")?,
+        }),
+        _ => None,
+    })
 }

@@ -14,7 +14,7 @@ use std::path::Path;
 pub const APPLICATION_ID: i32 = 0x4d52_5048;
 
 /// The migrations, in order; migration k (1-based) is `MIGRATIONS[k - 1]`.
-pub const MIGRATIONS: &[&str] = &[MIGRATION_1, MIGRATION_2, MIGRATION_3];
+pub const MIGRATIONS: &[&str] = &[MIGRATION_1, MIGRATION_2, MIGRATION_3, MIGRATION_4];
 
 /// The schema version this build writes and understands.
 pub const SCHEMA_VERSION: u32 = MIGRATIONS.len() as u32;
@@ -144,6 +144,19 @@ CREATE INDEX scan_status ON scan (status, id);
 CREATE INDEX scan_finished_at ON scan (finished_at);
 CREATE INDEX scan_duplicate_of ON scan (duplicate_of) WHERE duplicate_of IS NOT NULL;
 CREATE INDEX scan_files_due ON scan (id) WHERE files_due = 1;
+"#;
+
+/// Migration 4: the calibrated confidence of each rank's answer (see
+/// `library::Calibration`): the probability that the taxon is right, the
+/// novelty score, the library's threshold for it and the "no close match"
+/// flag. Null when the library was not calibrated (and for older results).
+const MIGRATION_4: &str = r#"
+ALTER TABLE result ADD COLUMN probability REAL
+    CHECK (probability IS NULL OR (probability >= 0 AND probability <= 1));
+ALTER TABLE result ADD COLUMN novelty REAL;
+ALTER TABLE result ADD COLUMN novelty_threshold REAL;
+ALTER TABLE result ADD COLUMN no_close_match INTEGER
+    CHECK (no_close_match IS NULL OR no_close_match IN (0, 1));
 "#;
 
 /// Bring the database on `conn` to [`SCHEMA_VERSION`]: refuse a file of

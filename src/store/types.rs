@@ -212,6 +212,17 @@ pub struct ScanRecord {
     pub duplicate_of: Option<Original>,
 }
 
+impl ScanRecord {
+    /// Whether the scan is "no close match" at any rank (`None`: no rank
+    /// has a calibrated flag).
+    pub fn no_close_match(&self) -> Option<bool> {
+        self.ranks
+            .iter()
+            .filter_map(|r| r.confidence.as_ref()?.no_close_match)
+            .reduce(|a, b| a || b)
+    }
+}
+
 /// The earlier scan a duplicate points at.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Original {
@@ -225,7 +236,9 @@ pub struct Original {
     pub status: ScanStatus,
 }
 
-/// `{"taxon", "reference", "distance", "runner_up", "margin"}` of one rank.
+/// `{"taxon", "reference", "distance", "runner_up", "margin",
+/// "probability", "novelty", "novelty_threshold", "no_close_match"}` of one
+/// rank (the last four null when the library is not calibrated).
 #[derive(Serialize)]
 struct RankJson<'a> {
     taxon: &'a str,
@@ -233,6 +246,10 @@ struct RankJson<'a> {
     distance: f64,
     runner_up: Option<&'a str>,
     margin: Option<f64>,
+    probability: Option<f64>,
+    novelty: Option<f64>,
+    novelty_threshold: Option<f64>,
+    no_close_match: Option<bool>,
 }
 
 /// The ranks as a JSON object in rank order (broadest first).
@@ -250,6 +267,10 @@ impl Serialize for RanksJson<'_> {
                     distance: r.distance,
                     runner_up: r.runner_up.as_deref(),
                     margin: r.margin,
+                    probability: r.confidence.as_ref().map(|c| c.probability),
+                    novelty: r.confidence.as_ref().map(|c| c.novelty),
+                    novelty_threshold: r.confidence.as_ref().and_then(|c| c.novelty_threshold),
+                    no_close_match: r.confidence.as_ref().and_then(|c| c.no_close_match),
                 },
             )?;
         }
@@ -257,8 +278,9 @@ impl Serialize for RanksJson<'_> {
     }
 }
 
-/// The design's result form: `{"scan", "status", "ranks", "nearest",
-/// "cleaning", "timings_ms"}` for `ok` (plus `"landmarks": [{"label", "x",
+/// The design's result form: `{"scan", "status", "ranks",
+/// "no_close_match", "nearest", "cleaning", "timings_ms"}` for `ok`
+/// (`no_close_match`: [`ScanRecord::no_close_match`]) (plus `"landmarks": [{"label", "x",
 /// "y", "z"}, …]` and `"landmarks_reference"` when landmarks were carried
 /// onto the scan), `{"scan", "status": "error",
 /// "error"}` for an error, `{"scan", "status"}` while pending or running;
@@ -281,6 +303,7 @@ impl Serialize for ScanRecord {
         match shown {
             ScanStatus::Ok => {
                 map.serialize_entry("ranks", &RanksJson(&self.ranks))?;
+                map.serialize_entry("no_close_match", &self.no_close_match())?;
                 map.serialize_entry("nearest", &self.nearest)?;
                 map.serialize_entry("cleaning", &self.cleaning)?;
                 map.serialize_entry("timings_ms", &self.timings_ms)?;

@@ -40,6 +40,7 @@ mod io_huge_header;
 mod io_real_data;
 mod io_roundtrip;
 mod io_synth;
+mod library_confidence;
 mod library_heldout;
 mod lm_classify;
 mod lm_daemon;

@@ -93,12 +93,26 @@ fn reports_show_the_answer_the_pictures_and_the_error() {
         let html = read(&path);
         let size = std::fs::metadata(&path).unwrap().len();
         assert!(size < 3_000_000, "{}: {size} bytes", path.display());
-        // The answer per rank, with the genus right, and the placeholder
-        // for the calibrated confidence.
+        // The answer per rank, with the genus right, and the calibrated
+        // confidence and flag as the JSON result records them.
         let ranks = element(&html, "ranks");
         assert!(ranks.contains(&format!("<b>{}</b>", genus(*g))), "{ranks}");
-        assert!(ranks.contains("not calibrated"), "{ranks}");
-        assert!(element(&html, "novelty").contains("not calibrated"));
+        let json: serde_json::Value =
+            serde_json::from_str(&read(&path.with_extension("json"))).unwrap();
+        let genus_rank = &json["ranks"]["genus"];
+        match genus_rank["probability"].as_f64() {
+            Some(p) => assert!(
+                ranks.contains(&format!("{:.0} %", p * 100.0)),
+                "{p}: {ranks}"
+            ),
+            None => assert!(ranks.contains("not calibrated"), "{ranks}"),
+        }
+        let novelty = element(&html, "novelty");
+        match json["no_close_match"].as_bool() {
+            Some(true) => assert!(novelty.contains("NO CLOSE MATCH"), "{novelty}"),
+            Some(false) => assert!(novelty.contains("close match"), "{novelty}"),
+            None => assert!(novelty.contains("not calibrated"), "{novelty}"),
+        }
         // File name and hash, cleaning report and timings.
         let hash = morphoid::hash::content_hash(&std::fs::read(scan).unwrap());
         assert!(element(&html, "scan").contains(&hash));

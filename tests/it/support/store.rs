@@ -64,6 +64,7 @@ pub fn outcome(seed: u64, n_refs: usize) -> ScanOutcome {
             distance: nearest.1,
             runner_up: Some(format!("{rank}-other")),
             margin: Some(0.005),
+            confidence: None,
         })
         .collect();
     let mut timings_ms = BTreeMap::new();

@@ -1,0 +1,322 @@
+//! The numbers behind calibrated confidence: the novelty score of one
+//! scan at one rank, the logistic map from that score to the probability
+//! that the nearest taxon is right, and the quantile that sets the "no
+//! close match" threshold. Pure functions over plain numbers.
+
+use serde::{Deserialize, Serialize};
+
+/// Weight of the crowding term of [`novelty_score`]; chosen on the
+/// 116-tooth data (see `docs/design.md`, *Calibrated confidence*).
+pub const CROWDING_WEIGHT: f64 = 0.1;
+
+/// The median of the finite `values`: the upper one of the two middle
+/// values for an even count (so it is always one of the values); `None`
+/// without finite values.
+pub fn upper_median(values: &[f64]) -> Option<f64> {
+    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    let mid = v.len() / 2;
+    let (_, m, _) = v.select_nth_unstable_by(mid, f64::total_cmp);
+    Some(*m)
+}
+
+/// How far a scan is from the library at one rank, in units that do not
+/// depend on the scan's own scale of distances:
+/// `ln(nearest / median) + weight · ln(1 + crowding)`, where `nearest` is
+/// the distance to the nearest reference known at the rank, `median` the
+/// scan's median distance to the library, and `crowding` the number of
+/// references nearer to that nearest reference than the scan is. A scan
+/// of a taxon the library holds sits well inside the bulk of its
+/// distances and among its nearest reference's own neighbours; a scan of
+/// a taxon it does not hold does neither. `None` when a distance is not
+/// positive and finite.
+pub fn novelty_score(nearest: f64, median: f64, crowding: usize, weight: f64) -> Option<f64> {
+    let ok = |x: f64| x.is_finite() && x > 0.0;
+    if !ok(nearest) || !ok(median) {
+        return None;
+    }
+    Some((nearest / median).ln() + weight * (1.0 + crowding as f64).ln())
+}
+
+/// The `q`-quantile (0 ≤ q ≤ 1) of `values` as the smallest value with at
+/// least a share `q` of the values at or below it; `None` when empty.
+pub fn upper_quantile(values: &[f64], q: f64) -> Option<f64> {
+    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let k = ((q.clamp(0.0, 1.0) * v.len() as f64).ceil() as usize).clamp(1, v.len());
+    Some(v[k - 1])
+}
+
+/// `P(right) = 1 / (1 + exp(-(intercept + slope · score)))`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Logistic {
+    /// Log-odds at score 0.
+    pub intercept: f64,
+    /// Change of the log-odds per unit of score.
+    pub slope: f64,
+}
+
+impl Logistic {
+    /// The probability at `score`.
+    pub fn probability(&self, score: f64) -> f64 {
+        let z = self.intercept + self.slope * score;
+        1.0 / (1.0 + (-z).exp())
+    }
+}
+
+/// Ridge penalty on the slope: keeps the fit finite when the outcomes are
+/// separable (a library where every held-out reference was right).
+const RIDGE: f64 = 1e-2;
+
+/// The logistic regression of `outcomes` (right or wrong) on `scores` by
+/// maximum likelihood with a small ridge on the slope (Newton's method).
+/// The outcomes enter as Platt's targets, (right + 1)/(right + 2) and
+/// 1/(wrong + 2) instead of 1 and 0, so that a library where every
+/// held-out reference was right gives a probability below 1 that grows
+/// with its size. `None` when there is no pair or the lengths differ.
+pub fn fit_logistic(scores: &[f64], outcomes: &[bool]) -> Option<Logistic> {
+    if scores.is_empty() || scores.len() != outcomes.len() {
+        return None;
+    }
+    let right = outcomes.iter().filter(|&&y| y).count() as f64;
+    let wrong = outcomes.len() as f64 - right;
+    let target_right = (right + 1.0) / (right + 2.0);
+    let target_wrong = 1.0 / (wrong + 2.0);
+    let (mut a, mut b) = (0.0f64, 0.0f64);
+    for _ in 0..100 {
+        // Gradient and Hessian of the penalized negative log-likelihood.
+        let (mut ga, mut gb, mut haa, mut hab, mut hbb) = (0.0, RIDGE * b, 0.0, 0.0, RIDGE);
+        for (&s, &y) in scores.iter().zip(outcomes) {
+            let p = Logistic {
+                intercept: a,
+                slope: b,
+            }
+            .probability(s);
+            let r = p - if y { target_right } else { target_wrong };
+            let w = p * (1.0 - p);
+            ga += r;
+            gb += r * s;
+            haa += w;
+            hab += w * s;
+            hbb += w * s * s;
+        }
+        let det = haa * hbb - hab * hab;
+        if !(det.is_finite() && det > 0.0) {
+            break;
+        }
+        let da = (hbb * ga - hab * gb) / det;
+        let db = (haa * gb - hab * ga) / det;
+        a -= da;
+        b -= db;
+        if da.abs().max(db.abs()) < 1e-10 {
+            break;
+        }
+    }
+    (a.is_finite() && b.is_finite()).then_some(Logistic {
+        intercept: a,
+        slope: b,
+    })
+}
+
+/// Expected calibration error of `probabilities` against `outcomes` over
+/// `bins` equal-width bins of the probability: the mean, weighted by bin
+/// size, of |mean probability − share right|. `None` when empty.
+pub fn expected_calibration_error(
+    probabilities: &[f64],
+    outcomes: &[bool],
+    bins: usize,
+) -> Option<f64> {
+    reliability(probabilities, outcomes, bins).map(|rows| {
+        let n: usize = rows.iter().map(|r| r.count).sum();
+        rows.iter()
+            .map(|r| r.count as f64 * (r.mean_probability - r.share_right).abs())
+            .sum::<f64>()
+            / n as f64
+    })
+}
+
+/// One bin of a reliability table.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ReliabilityBin {
+    /// Lower edge of the bin (probability).
+    pub from: f64,
+    /// Upper edge.
+    pub to: f64,
+    /// How many predictions fell in it.
+    pub count: usize,
+    /// Their mean probability.
+    pub mean_probability: f64,
+    /// The share of them that were right.
+    pub share_right: f64,
+}
+
+/// The reliability table of `probabilities` against `outcomes`: the
+/// non-empty ones of `bins` equal-width bins (the last includes 1).
+/// `None` when empty or the lengths differ.
+pub fn reliability(
+    probabilities: &[f64],
+    outcomes: &[bool],
+    bins: usize,
+) -> Option<Vec<ReliabilityBin>> {
+    if probabilities.is_empty() || probabilities.len() != outcomes.len() || bins == 0 {
+        return None;
+    }
+    let mut sum = vec![(0usize, 0.0f64, 0usize); bins];
+    for (&p, &y) in probabilities.iter().zip(outcomes) {
+        let k = ((p.clamp(0.0, 1.0) * bins as f64) as usize).min(bins - 1);
+        sum[k].0 += 1;
+        sum[k].1 += p;
+        sum[k].2 += usize::from(y);
+    }
+    Some(
+        sum.iter()
+            .enumerate()
+            .filter(|(_, s)| s.0 > 0)
+            .map(|(k, &(count, p, right))| ReliabilityBin {
+                from: k as f64 / bins as f64,
+                to: (k + 1) as f64 / bins as f64,
+                count,
+                mean_probability: p / count as f64,
+                share_right: right as f64 / count as f64,
+            })
+            .collect(),
+    )
+}
+
+/// Area under the ROC curve of `positive` against `negative` scores (the
+/// probability that a positive scores above a negative, ties counting
+/// half); `None` when either is empty.
+pub fn roc_auc(positive: &[f64], negative: &[f64]) -> Option<f64> {
+    if positive.is_empty() || negative.is_empty() {
+        return None;
+    }
+    let mut wins = 0.0;
+    for &p in positive {
+        for &n in negative {
+            wins += match p.total_cmp(&n) {
+                std::cmp::Ordering::Greater => 1.0,
+                std::cmp::Ordering::Equal => 0.5,
+                std::cmp::Ordering::Less => 0.0,
+            };
+        }
+    }
+    Some(wins / (positive.len() * negative.len()) as f64)
+}
+
+/// The largest share of `positive` scores above a threshold that puts at
+/// most a share `rate` of `negative` scores above it (the ROC curve read
+/// at a false-positive rate); `None` when either is empty.
+pub fn share_caught_at(positive: &[f64], negative: &[f64], rate: f64) -> Option<f64> {
+    if positive.is_empty() || negative.is_empty() {
+        return None;
+    }
+    let above = |v: &[f64], t: f64| v.iter().filter(|&&x| x > t).count() as f64 / v.len() as f64;
+    positive
+        .iter()
+        .chain(negative)
+        .copied()
+        .filter(|&t| above(negative, t) <= rate)
+        .map(|t| above(positive, t))
+        .fold(None, |best: Option<f64>, s| {
+            Some(best.map_or(s, |b| b.max(s)))
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn upper_median_and_quantile() {
+        assert_eq!(upper_median(&[3.0, 1.0, 2.0]), Some(2.0));
+        assert_eq!(upper_median(&[4.0, 1.0, 3.0, 2.0]), Some(3.0));
+        assert_eq!(upper_median(&[f64::NAN]), None);
+        let v: Vec<f64> = (1..=20).map(f64::from).collect();
+        assert_eq!(upper_quantile(&v, 0.95), Some(19.0));
+        assert_eq!(upper_quantile(&v, 1.0), Some(20.0));
+        assert_eq!(upper_quantile(&v, 0.0), Some(1.0));
+        assert_eq!(upper_quantile(&[], 0.5), None);
+    }
+
+    #[test]
+    fn novelty_grows_with_the_relative_distance_and_the_crowding() {
+        let s = |d, m, c| novelty_score(d, m, c, CROWDING_WEIGHT).unwrap();
+        assert!((s(0.05, 0.1, 0) - 0.5f64.ln()).abs() < 1e-12);
+        assert!(s(0.08, 0.1, 0) > s(0.05, 0.1, 0));
+        assert!(s(0.05, 0.1, 9) > s(0.05, 0.1, 0));
+        // Scaling every distance of a scan leaves the score alone.
+        assert!((s(0.5, 1.0, 3) - s(0.05, 0.1, 3)).abs() < 1e-12);
+        assert_eq!(novelty_score(0.0, 0.1, 0, 0.1), None);
+        assert_eq!(novelty_score(0.1, f64::NAN, 0, 0.1), None);
+    }
+
+    /// Outcomes drawn from a known logistic law are fitted back to it.
+    #[test]
+    fn logistic_fit_recovers_a_known_law() {
+        let truth = Logistic {
+            intercept: -1.0,
+            slope: -4.0,
+        };
+        let mut scores = Vec::new();
+        let mut outcomes = Vec::new();
+        // A deterministic stand-in for sampling: at each score, the share
+        // of right outcomes among 200 follows the law.
+        for k in 0..41 {
+            let s = -2.0 + k as f64 * 0.075;
+            let right = (truth.probability(s) * 200.0).round() as usize;
+            for i in 0..200 {
+                scores.push(s);
+                outcomes.push(i < right);
+            }
+        }
+        let fit = fit_logistic(&scores, &outcomes).unwrap();
+        assert!((fit.intercept - truth.intercept).abs() < 0.05, "{fit:?}");
+        assert!((fit.slope - truth.slope).abs() < 0.1, "{fit:?}");
+        // And the probabilities of the fit are calibrated on those data.
+        let p: Vec<f64> = scores.iter().map(|&s| fit.probability(s)).collect();
+        assert!(expected_calibration_error(&p, &outcomes, 10).unwrap() < 0.01);
+    }
+
+    #[test]
+    fn logistic_fit_stays_below_one_when_all_are_right() {
+        let fit = fit_logistic(&[-1.0, -0.5, 0.0], &[true, true, true]).unwrap();
+        // Platt's target for three right of three: 4/5.
+        assert!((fit.probability(-0.5) - 0.8).abs() < 1e-6, "{fit:?}");
+        let many = fit_logistic(&[-0.5; 98], &[true; 98]).unwrap();
+        assert!((many.probability(-0.5) - 0.99).abs() < 1e-6, "{many:?}");
+        assert_eq!(fit_logistic(&[], &[]), None);
+        assert_eq!(fit_logistic(&[1.0], &[]), None);
+    }
+
+    #[test]
+    fn reliability_bins_and_calibration_error() {
+        let p = [0.05, 0.95, 0.95, 0.55, 0.45];
+        let y = [false, true, false, true, false];
+        let t = reliability(&p, &y, 10).unwrap();
+        assert_eq!(t.len(), 4);
+        let top = t.last().unwrap();
+        assert_eq!((top.count, top.share_right), (2, 0.5));
+        assert!((top.mean_probability - 0.95).abs() < 1e-12);
+        // |0.05-0|·1 + |0.45-0|·1 + |0.55-1|·1 + |0.95-0.5|·2, over 5.
+        let e = expected_calibration_error(&p, &y, 10).unwrap();
+        assert!((e - (0.05 + 0.45 + 0.45 + 0.9) / 5.0).abs() < 1e-12, "{e}");
+    }
+
+    #[test]
+    fn auc_and_share_caught() {
+        assert_eq!(roc_auc(&[3.0, 4.0], &[1.0, 2.0]), Some(1.0));
+        assert_eq!(roc_auc(&[1.0], &[1.0]), Some(0.5));
+        assert_eq!(roc_auc(&[1.0, 4.0], &[2.0, 3.0]), Some(0.5));
+        let neg: Vec<f64> = (0..20).map(f64::from).collect();
+        // One negative (19) may lie above the threshold at 5 %.
+        let pos = [18.5, 18.7, 30.0, 40.0];
+        assert_eq!(share_caught_at(&pos, &neg, 0.05), Some(1.0));
+        assert_eq!(share_caught_at(&pos, &neg, 0.0), Some(0.5));
+        assert_eq!(roc_auc(&[], &neg), None);
+    }
+}
