@@ -8,6 +8,7 @@
 //! - [`conformal`]: normalization and conformal flattening to the unit disk;
 //! - [`cp`]: prepared surfaces and the continuous Procrustes distance;
 //! - [`cwn`]: the conformal Wasserstein neighbourhood dissimilarity distance;
+//! - [`cw`]: the conformal Wasserstein distance (transport over Möbius maps);
 //! - [`pipeline`]: one file or mesh to one prepared surface;
 //! - [`config`]: the TOML configuration;
 //! - [`eval`]: distance matrices and leave-one-out classification;
@@ -33,6 +34,7 @@ pub mod collection;
 pub mod config;
 pub mod conformal;
 pub mod cp;
+pub mod cw;
 pub mod cwn;
 pub mod daemon;
 pub mod eval;

@@ -1,10 +1,12 @@
 //! `morphoid distance`: the cP distance and correspondence of two surfaces,
-//! or their cWn distance (`--method cwn`).
+//! their cWn distance (`--method cwn`), or their cW distance and the
+//! correspondence of its map (`--method cw`).
 
 use super::common::ConfigFile;
-use super::method::{CwnArgs, Method};
+use super::method::{CwArgs, CwnArgs, Method};
 use anyhow::{bail, Context, Result};
 use morphoid::cp;
+use morphoid::cw;
 use morphoid::cwn;
 use morphoid::landmarks;
 use morphoid::library::{self, SurfaceDistance};
@@ -32,12 +34,15 @@ pub struct Args {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
-    /// Which distance: cp (continuous Procrustes) or cwn (conformal
-    /// Wasserstein neighbourhood dissimilarity).
+    /// Which distance: cp (continuous Procrustes), cwn (conformal
+    /// Wasserstein neighbourhood dissimilarity) or cw (conformal
+    /// Wasserstein; `--map` writes the correspondence of its map).
     #[arg(long, value_enum, default_value_t = Method::Cp)]
     method: Method,
     #[command(flatten)]
     cwn: CwnArgs,
+    #[command(flatten)]
+    cw: CwArgs,
 }
 
 #[derive(Debug, Serialize)]
@@ -102,6 +107,7 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     match args.method {
         Method::Cp => run_cp(args, &settings),
         Method::Cwn => run_cwn(args, &settings),
+        Method::Cw => run_cw(args, &settings),
         Method::Landmarks => bail!(
             "--method landmarks compares the landmark files of a library: use `morphoid matrix --method landmarks`"
         ),
@@ -167,6 +173,90 @@ fn run_cwn(args: Args, settings: &Settings) -> Result<ExitCode> {
             out.distance,
             out.radius,
             100.0 * out.reflected_share,
+            compare_ms
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The cW result as JSON.
+#[derive(Debug, Serialize)]
+struct CwOutput {
+    a: String,
+    b: String,
+    method: &'static str,
+    distance: f64,
+    reflections: bool,
+    /// Whether the best map reverses orientation (mirror images).
+    reflected: bool,
+    /// The best map from A's disk to B's.
+    mobius: cp::Mobius,
+    /// Candidate maps screened and exact transport problems solved.
+    screened: usize,
+    exact_solves: usize,
+    area_a: f64,
+    area_b: f64,
+    timings_ms: CwTimings,
+}
+
+#[derive(Debug, Serialize)]
+struct CwTimings {
+    a: StageTimings,
+    b: StageTimings,
+    screen: f64,
+    exact: f64,
+    compare: f64,
+}
+
+/// The cW distance and, with `--map`, the correspondence of its map.
+fn run_cw(args: Args, settings: &Settings) -> Result<ExitCode> {
+    let params = args.cw.params();
+    SurfaceDistance::Cw(params.clone()).validate()?;
+    let (a, b) = prepare_both(&args, settings)?;
+    let t = Instant::now();
+    let r = {
+        let _s =
+            tracing::info_span!("cw", a = %a.prepared.name(), b = %b.prepared.name()).entered();
+        cw::distance(&a.prepared, &b.prepared, &params)?
+    };
+    let compare_ms = t.elapsed().as_secs_f64() * 1e3;
+    if let Some(out) = &args.map {
+        let directed = cw::correspondence(&a.prepared, &b.prepared, &r)
+            .context("the cW map has no correspondence (a surface without triangles)")?;
+        let text = landmarks::correspondence_csv(&a, &b, &directed)
+            .context("the correspondence does not fit the surfaces")?;
+        std::fs::write(out, text)
+            .with_context(|| format!("writing the correspondence to {}", out.display()))?;
+    }
+    let out = CwOutput {
+        a: args.a.display().to_string(),
+        b: args.b.display().to_string(),
+        method: Method::Cw.name(),
+        distance: r.distance,
+        reflections: params.reflections,
+        reflected: r.reflected,
+        mobius: r.mobius,
+        screened: r.screened,
+        exact_solves: r.exact_solves,
+        area_a: a.cleaning.area,
+        area_b: b.cleaning.area,
+        timings_ms: CwTimings {
+            a: a.timings,
+            b: b.timings,
+            screen: r.screen_ms,
+            exact: r.exact_ms,
+            compare: compare_ms,
+        },
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&out)?);
+    } else {
+        println!(
+            "cW distance {:.6}{} ({} maps screened, {} exact transports); compared in {:.1} ms",
+            out.distance,
+            if out.reflected { ", mirror images" } else { "" },
+            out.screened,
+            out.exact_solves,
             compare_ms
         );
     }

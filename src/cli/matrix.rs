@@ -1,11 +1,12 @@
 //! `morphoid matrix`: the all-pairs cP distance matrix of a folder, whole
 //! or in shards for cluster job arrays (`--shard K/N`, then `matrix merge`);
-//! with `--method cwn` the cWn matrix (whole only); with `--method
+//! with `--method cwn` the cWn matrix and with `--method cw` the cW
+//! matrix (whole only); with `--method
 //! landmarks`, the discrete Procrustes distance matrix of the folder's
 //! landmark files (the paper's ODLP).
 
 use super::common::{progress_bar, ConfigFile};
-use super::method::{CwnArgs, Method};
+use super::method::{CwArgs, CwnArgs, Method};
 use anyhow::{bail, Context, Result};
 use morphoid::eval::{self, Shard, ShardFile};
 use morphoid::landmarks;
@@ -43,7 +44,8 @@ pub struct Args {
     #[arg(long)]
     threads: Option<usize>,
     /// Which distance: cp (continuous Procrustes), cwn (conformal
-    /// Wasserstein neighbourhood dissimilarity; no --shard) or landmarks
+    /// Wasserstein neighbourhood dissimilarity; no --shard), cw (conformal
+    /// Wasserstein; no --shard) or landmarks
     /// (the discrete Procrustes distance of
     /// `landmarks/<name>.{csv,fcsv,mrk.json,pp}`, every specimen with the
     /// same number of landmarks).
@@ -51,6 +53,8 @@ pub struct Args {
     method: Method,
     #[command(flatten)]
     cwn: CwnArgs,
+    #[command(flatten)]
+    cw: CwArgs,
     /// With `--method landmarks`: allow reflections in the optimal
     /// superimposition (default: rotations only).
     #[arg(long)]
@@ -92,6 +96,7 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     let distance = match args.method {
         Method::Cp => SurfaceDistance::Cp,
         Method::Cwn => SurfaceDistance::Cwn(args.cwn.params()),
+        Method::Cw => SurfaceDistance::Cw(args.cw.params()),
         Method::Landmarks => {
             if args.shard.is_some() || args.cache.is_some() {
                 bail!("--shard and --cache apply to --method cp only");

@@ -1,6 +1,7 @@
 //! `--method`: which distance `distance` and `matrix` compute, and the
-//! options of the cWn distance.
+//! options of the cWn and cW distances.
 
+use morphoid::cw::CwParams;
 use morphoid::cwn::CwnParams;
 
 /// The distance between two surfaces.
@@ -12,6 +13,10 @@ pub enum Method {
     /// Conformal Wasserstein neighbourhood dissimilarity distance
     /// (intrinsic, research use).
     Cwn,
+    /// Conformal Wasserstein distance: optimal transport of the conformal
+    /// densities, minimized over Möbius maps of the disk (intrinsic,
+    /// research use).
+    Cw,
     /// The discrete Procrustes distance between the landmark files of the
     /// library (`landmarks/<name>.{csv,fcsv,mrk.json,pp}`): the paper's ODLP
     /// (`matrix` only).
@@ -19,11 +24,12 @@ pub enum Method {
 }
 
 impl Method {
-    /// The name used in outputs (`cp`, `cwn`).
+    /// The name used in outputs (`cp`, `cwn`, `cw`, `landmarks`).
     pub fn name(self) -> &'static str {
         match self {
             Method::Cp => "cp",
             Method::Cwn => "cwn",
+            Method::Cw => "cw",
             Method::Landmarks => "landmarks",
         }
     }
@@ -47,6 +53,24 @@ impl CwnArgs {
             radius: self.cwn_radius,
             reflections: !self.cwn_no_reflections,
             ..CwnParams::default()
+        }
+    }
+}
+
+/// Options of the cW distance (ignored by the other methods).
+#[derive(Debug, Clone, clap::Args)]
+pub struct CwArgs {
+    /// cW: search orientation-preserving maps only, not mirror images.
+    #[arg(long)]
+    cw_no_reflections: bool,
+}
+
+impl CwArgs {
+    /// The cW parameters these options select (checked when used).
+    pub fn params(&self) -> CwParams {
+        CwParams {
+            reflections: !self.cw_no_reflections,
+            ..CwParams::default()
         }
     }
 }

@@ -44,12 +44,14 @@ pub use comparison::{Comparison, Correspondence, Directed};
 pub use error::{CpError, Inconsistency};
 pub use locate::Location;
 pub use mobius::Mobius;
+pub(crate) use optimize::nelder_mead;
 pub(crate) use params::check;
 pub use params::{CompareParams, CpParams, ParamError, PrepareParams, Requirement};
 pub use prepare::prepare;
 pub use prepared::Prepared;
 pub use procrustes::{Handedness, Moments};
 pub use search::search_directed;
+pub(crate) use search::{candidate_maps, directed_for_mobius};
 pub use warp::DiskWarp;
 
 /// A prepared synthetic crown of 1,500 vertices (genus index, seed): the

@@ -193,16 +193,46 @@ fn coarse_candidates(
     params: &CompareParams,
     required: usize,
 ) -> Vec<Candidate> {
-    let orientations: &[bool] = if params.reflections {
+    let coarse = params.coarse_samples.max(1);
+    let mut coarse_hints = vec![NO_TRIANGLE; coarse.min(s.samples.len())];
+    let mut cands = Vec::new();
+    for (k, m) in candidate_maps(s, t, params.angles, params.reflections)
+        .into_iter()
+        .enumerate()
+    {
+        let matches = if required > 1 || warps_candidates(params) {
+            features.matched(&m, params)
+        } else {
+            Vec::new()
+        };
+        if required > 1 && matches.len() < required {
+            continue;
+        }
+        // Candidates are far apart: no hints between them.
+        coarse_hints.fill(NO_TRIANGLE);
+        let score = DiskMap::with_matches(m, &matches, params).residual(s, t, &mut coarse_hints);
+        cands.push((score, k + 1, m));
+    }
+    cands
+}
+
+/// The maps the search starts from, in search order: for each feature
+/// pair `(p, q)` of `s` and `t`, orientation (reversing ones only with
+/// `reflections`) and one of `angles` rotation angles, the Möbius map
+/// sending `p` to `q` (the cW search starts from the same maps).
+pub(crate) fn candidate_maps(
+    s: &Prepared,
+    t: &Prepared,
+    angles: usize,
+    reflections: bool,
+) -> Vec<Mobius> {
+    let orientations: &[bool] = if reflections {
         &[false, true]
     } else {
         &[false]
     };
-    let angles = params.angles.max(1);
-    let coarse = params.coarse_samples.max(1);
-    let mut coarse_hints = vec![NO_TRIANGLE; coarse.min(s.samples.len())];
-    let mut cands = Vec::new();
-    let mut index = 0usize;
+    let angles = angles.max(1);
+    let mut maps = Vec::new();
     for &p in &s.features {
         for &q in &t.features {
             let (Some(&zp), Some(&zq)) = (s.uv.get(p as usize), t.uv.get(q as usize)) else {
@@ -211,29 +241,12 @@ fn coarse_candidates(
             for &refl in orientations {
                 for k in 0..angles {
                     let th = k as f64 / angles as f64 * std::f64::consts::TAU;
-                    let m = Mobius::sending(zp, zq, th, refl);
-                    index += 1;
-                    let matches = if required > 1 || warps_candidates(params) {
-                        features.matched(&m, params)
-                    } else {
-                        Vec::new()
-                    };
-                    if required > 1 && matches.len() < required {
-                        continue;
-                    }
-                    // Candidates are far apart: no hints between them.
-                    coarse_hints.fill(NO_TRIANGLE);
-                    let score = DiskMap::with_matches(m, &matches, params).residual(
-                        s,
-                        t,
-                        &mut coarse_hints,
-                    );
-                    cands.push((score, index, m));
+                    maps.push(Mobius::sending(zp, zq, th, refl));
                 }
             }
         }
     }
-    cands
+    maps
 }
 
 /// The candidates of the coarse search, best first. Maps must bring
@@ -326,6 +339,26 @@ fn area_correct(s: &Prepared, t: &Prepared, e: &mut Evaluated) {
         e.fit = fit;
         e.corr = corr;
     }
+}
+
+/// The Möbius map `m` alone as a directed result `S → S′`: evaluated on
+/// every vertex of `s` (the optimal rigid motion, the residual as its
+/// distance, the correspondence), with no deformation or area correction
+/// (the cW distance returns its map this way). `None` only for a target
+/// without triangles.
+pub(crate) fn directed_for_mobius(s: &Prepared, t: &Prepared, m: Mobius) -> Option<Directed> {
+    let e = DiskMap::mobius(m).evaluate(s, t)?;
+    let distance = e.residual.max(0.0).sqrt();
+    Some(Directed {
+        distance,
+        reflected: m.reverses_orientation(),
+        mobius: m,
+        warp: None,
+        search_distance: distance,
+        rotation: e.fit.rotation,
+        translation: e.fit.translation,
+        correspondence: e.corr,
+    })
 }
 
 /// The directed comparison `S → S′` up to the final descent: the search

@@ -32,7 +32,7 @@ pub use landscape::Landscape;
 pub use transport::{Marginal, TransportError};
 
 use landscape::dissimilarity_matrix;
-use transport::optimal_transport;
+pub(crate) use transport::{optimal_transport, TransportPlan};
 
 use crate::cp::{CpError, ParamError, Prepared, Requirement};
 use crate::eval::{pairwise_matrix, DistanceMatrix};

@@ -1,8 +1,9 @@
 //! The distance matrix of a folder of prepared surfaces, by either
-//! surface distance (cP or cWn).
+//! surface distance (cP, cWn or cW).
 
 use crate::cp::ParamError;
 use crate::cp::Prepared;
+use crate::cw::{self, CwError, CwParams};
 use crate::cwn::{self, CwnError, CwnParams, Landscape};
 use crate::eval::{self, DistanceMatrix};
 use crate::pipeline::Settings;
@@ -16,6 +17,8 @@ pub enum SurfaceDistance {
     Cp,
     /// The conformal Wasserstein neighbourhood dissimilarity distance.
     Cwn(CwnParams),
+    /// The conformal Wasserstein distance.
+    Cw(CwParams),
 }
 
 /// Why a matrix of surfaces cannot be computed.
@@ -36,14 +39,18 @@ pub enum SurfaceMatrixError {
     /// Two landscapes cannot be compared.
     #[error(transparent)]
     Cwn(CwnError),
+    /// Two surfaces cannot be compared by cW.
+    #[error(transparent)]
+    Cw(CwError),
 }
 
 impl SurfaceDistance {
-    /// The name used in outputs (`cp`, `cwn`).
+    /// The name used in outputs (`cp`, `cwn`, `cw`).
     pub fn name(&self) -> &'static str {
         match self {
             SurfaceDistance::Cp => "cp",
             SurfaceDistance::Cwn(_) => "cwn",
+            SurfaceDistance::Cw(_) => "cw",
         }
     }
 
@@ -52,6 +59,7 @@ impl SurfaceDistance {
         match self {
             SurfaceDistance::Cp => Ok(()),
             SurfaceDistance::Cwn(params) => params.validate().map_err(SurfaceMatrixError::Params),
+            SurfaceDistance::Cw(params) => params.validate().map_err(SurfaceMatrixError::Params),
         }
     }
 
@@ -78,6 +86,9 @@ impl SurfaceDistance {
                     .map(|p| landscape(p, params))
                     .collect::<Result<Vec<_>, _>>()?;
                 cwn::distance_matrix(&landscapes, params, progress).map_err(SurfaceMatrixError::Cwn)
+            }
+            SurfaceDistance::Cw(params) => {
+                cw::distance_matrix(prepared, params, progress).map_err(SurfaceMatrixError::Cw)
             }
         }
     }

@@ -25,6 +25,7 @@ mod cp_accuracy;
 mod cp_invariance;
 mod cp_prepare_all;
 mod cp_synthetic;
+mod cw_teeth;
 mod cwn_teeth;
 mod daemon_faults;
 mod daemon_files;
