@@ -117,6 +117,36 @@ impl Classifier {
         settings: &Settings,
         progress: impl Fn(&str) + Sync,
     ) -> Result<(Self, BuildOutcome), CacheError> {
+        let (classifier, outcome) = Self::build_uncalibrated(library, cache, settings, progress)?;
+        Ok((classifier.calibrated(Some(cache)), outcome))
+    }
+
+    /// [`Classifier::build`] with the configuration's settings, calibrated
+    /// unless `[library] calibrate = false`.
+    pub fn build_with(
+        library: &Library,
+        cache: &Cache,
+        config: &crate::config::Config,
+        progress: impl Fn(&str) + Sync,
+    ) -> Result<(Self, BuildOutcome), CacheError> {
+        let settings = config.settings();
+        if config.library.calibrate {
+            Self::build(library, cache, &settings, progress)
+        } else {
+            Self::build_uncalibrated(library, cache, &settings, progress)
+        }
+    }
+
+    /// [`Classifier::build`] without the calibration (`[library] calibrate
+    /// = false`): answers carry no confidence, and a library that is new
+    /// to the cache starts without comparing its references with each
+    /// other.
+    pub fn build_uncalibrated(
+        library: &Library,
+        cache: &Cache,
+        settings: &Settings,
+        progress: impl Fn(&str) + Sync,
+    ) -> Result<(Self, BuildOutcome), CacheError> {
         let mut outcome = library::build(library, cache, settings, progress)?;
         let classifier = Classifier {
             references: std::mem::take(&mut outcome.references),
@@ -125,8 +155,7 @@ impl Classifier {
             landmarks: std::mem::take(&mut outcome.landmarks.by_name),
             results: None,
             calibration: None,
-        }
-        .calibrated(Some(cache));
+        };
         Ok((classifier, outcome))
     }
 

@@ -77,6 +77,10 @@ pub struct LibraryConfig {
     pub ranks: Vec<String>,
     /// Cache of prepared references (absent: the user's cache folder).
     pub cache: Option<PathBuf>,
+    /// Calibrate the confidence and the "no close match" flag on the
+    /// library's own leave-one-out (compares every pair of references
+    /// once per library, then cached).
+    pub calibrate: bool,
 }
 
 impl Default for LibraryConfig {
@@ -85,6 +89,7 @@ impl Default for LibraryConfig {
             dir: "library".into(),
             ranks: vec!["order".into(), "family".into(), "genus".into()],
             cache: None,
+            calibrate: true,
         }
     }
 }

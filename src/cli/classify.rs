@@ -34,7 +34,7 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     let lib = config.open_library()?;
     let cache = config.open_cache()?;
     let bar = progress_bar(lib.members().len() as u64, "library");
-    let (classifier, built) = Classifier::build(&lib, &cache, &config.settings(), |_| bar.inc(1))?;
+    let (classifier, built) = Classifier::build_with(&lib, &cache, &config, |_| bar.inc(1))?;
     bar.finish_and_clear();
     let db = &config.database.path;
     let mut store = Store::open(db)?;

@@ -46,7 +46,7 @@ impl Loader for Daemon<'_> {
         };
         let lib = config.open_library().map_err(|e| failed(e.into()))?;
         let cache = config.open_cache().map_err(|e| failed(e.into()))?;
-        Classifier::build(&lib, &cache, &config.settings(), |_| {}).map_err(|e| failed(e.into()))
+        Classifier::build_with(&lib, &cache, config, |_| {}).map_err(|e| failed(e.into()))
     }
 }
 

@@ -277,8 +277,20 @@ fn a_read_only_results_folder_gets_every_result_file_once_writable() {
         d.log_text()
     );
     assert_exactly_once(&env, &d, &names, Duration::from_secs(10));
-    let files: Vec<_> = std::fs::read_dir(&results).unwrap().collect();
-    assert_eq!(files.len(), names.len(), "{files:?}");
+    // Each scan's JSON, report and thumbnail once, and the overview.
+    let files: Vec<String> = std::fs::read_dir(&results)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    for ext in [".json", ".html", ".png"] {
+        let n = files
+            .iter()
+            .filter(|f| f.ends_with(ext) && f.as_str() != "index.html")
+            .count();
+        assert_eq!(n, names.len(), "{ext}: {files:?}");
+    }
+    assert!(files.iter().any(|f| f == "index.html"), "{files:?}");
+    assert_eq!(files.len(), 3 * names.len() + 1, "{files:?}");
     assert!(d.log_text().contains("results folder available again"));
 }
 

@@ -103,10 +103,14 @@ fn the_real_library_identifies_its_own_teeth_in_bounded_memory() {
     }
     let db = root.join("db.sqlite");
     let config = root.join("m.toml");
+    // Without the calibration: it compares all 6,670 pairs of references
+    // once per library (minutes), and this test is about identification's
+    // memory; the calibration has its own tests (library_confidence).
     std::fs::write(
         &config,
         format!(
             "[watch]\ndir = {export:?}\nsettle_seconds = 1\n[library]\ndir = {data:?}\ncache = {:?}\n\
+             calibrate = false\n\
              [database]\npath = {db:?}\n",
             root.join("cache")
         ),
