@@ -45,7 +45,7 @@ pub use error::{CpError, Inconsistency};
 pub use locate::Location;
 pub use mobius::Mobius;
 pub(crate) use optimize::nelder_mead;
-pub(crate) use params::check;
+pub(crate) use params::{check, check_count};
 pub use params::{CompareParams, CpParams, ParamError, PrepareParams, Requirement};
 pub use prepare::prepare;
 pub use prepared::Prepared;

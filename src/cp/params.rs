@@ -287,6 +287,22 @@ pub struct ParamError {
     pub requirement: Requirement,
 }
 
+/// `Ok` if the whole number `value` lies in `min..=max`, else the error
+/// naming `key` and `value`.
+pub(crate) fn check_count(
+    key: &'static str,
+    value: usize,
+    min: u32,
+    max: u32,
+) -> Result<(), ParamError> {
+    check(
+        key,
+        value as f64,
+        Requirement::Between { min, max },
+        (min as usize..=max as usize).contains(&value),
+    )
+}
+
 /// `Ok` if `holds`, else the error naming `key` and `value`.
 pub(crate) fn check(
     key: &'static str,

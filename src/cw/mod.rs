@@ -108,12 +108,7 @@ impl CwParams {
             ("refine_rounds", self.refine_rounds, 0, 1000),
             ("refine_evaluations", self.refine_evaluations, 0, 100_000),
         ] {
-            cp::check(
-                key,
-                value as f64,
-                Requirement::Between { min, max },
-                (min as usize..=max as usize).contains(&value),
-            )?;
+            cp::check_count(key, value, min, max)?;
         }
         Ok(())
     }

@@ -82,12 +82,7 @@ impl CwnParams {
             ("rings", self.rings, 1, 64),
             ("angles", self.angles, 4, 720),
         ] {
-            crate::cp::check(
-                key,
-                value as f64,
-                Requirement::Between { min, max },
-                (min as usize..=max as usize).contains(&value),
-            )?;
+            crate::cp::check_count(key, value, min, max)?;
         }
         Ok(())
     }
