@@ -123,12 +123,7 @@ fn remeshing_moves_a_tooth_less_than_a_quarter_of_the_nearest_neighbour_distance
     };
     let params = CpParams::default();
     let names = crate::support::cp::tooth_names(&dir);
-    let prepared: Vec<_> = names
-        .par_iter()
-        .map(|n| {
-            cp::prepare(&crate::support::cp::load_tooth(&dir, n), &params.prepare).expect("prepare")
-        })
-        .collect();
+    let prepared = crate::support::cp::prepare_teeth(&dir, &names, &params);
     // The library's median nearest-neighbour distance, from twelve teeth
     // spread over it (each against all 115 others).
     let mut nearest: Vec<f64> = (0..names.len())

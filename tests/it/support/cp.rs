@@ -51,6 +51,10 @@ where
 /// Every tooth of `names` loaded, cleaned and prepared with `params` (in
 /// parallel) by `pipeline::prepare_file`, as `morphoid matrix` does; each
 /// carries its name.
+///
+/// Prepared surfaces are kept for the life of the test process, keyed by
+/// file and preparation parameters: several tests need the same teeth, and
+/// preparing all 116 costs about a minute of CPU each time.
 pub fn prepare_teeth(
     dir: &Path,
     names: &[String],
@@ -61,15 +65,40 @@ pub fn prepare_teeth(
         cp: params.clone(),
         ..Default::default()
     };
+    let key_params = serde_json::to_string(&params.prepare).expect("parameters serialize");
     names
         .par_iter()
         .map(|n| {
             let path = dir.join("meshes").join(format!("{n}.ply"));
-            morphoid::pipeline::prepare_file(&path, &settings)
-                .expect("tooth prepares")
-                .prepared
+            let slot = prepared_slot(&path, &key_params);
+            slot.get_or_init(|| {
+                morphoid::pipeline::prepare_file(&path, &settings)
+                    .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+                    .prepared
+            })
+            .clone()
         })
         .collect()
+}
+
+/// The process-wide slot of one prepared tooth: filled once, by whichever
+/// test gets there first, while the others wait for it.
+fn prepared_slot(
+    path: &Path,
+    params: &str,
+) -> std::sync::Arc<std::sync::OnceLock<morphoid::cp::Prepared>> {
+    use std::collections::HashMap;
+    use std::sync::{Arc, Mutex, OnceLock};
+    type Slots = Mutex<HashMap<(PathBuf, String), Arc<OnceLock<morphoid::cp::Prepared>>>>;
+    static SLOTS: OnceLock<Slots> = OnceLock::new();
+    let mut slots = SLOTS
+        .get_or_init(Default::default)
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
+    slots
+        .entry((path.to_path_buf(), params.to_string()))
+        .or_default()
+        .clone()
 }
 
 /// The pair the benchmarks compare: the real teeth H10 and H16 (loaded and
