@@ -55,7 +55,7 @@ impl Dendrogram {
 /// indices). O(n³), for the few hundred specimens of a collection.
 /// `None` for an empty matrix.
 pub fn average_linkage_tree(m: &DistanceMatrix) -> Option<Dendrogram> {
-    let n = m.names.len();
+    let n = m.names().len();
     let big = (0..n)
         .flat_map(|i| (0..n).map(move |j| (i, j)))
         .map(|(i, j)| m.get(i, j))
@@ -229,13 +229,13 @@ mod tests {
 
     fn line() -> DistanceMatrix {
         let x: [f64; 4] = [0.0, 1.0, 5.0, 5.5];
-        DistanceMatrix {
-            names: vec!["a".into(), "b c".into(), "d'e".into(), "f".into()],
-            values: x
-                .iter()
+        DistanceMatrix::new(
+            vec!["a".into(), "b c".into(), "d'e".into(), "f".into()],
+            x.iter()
                 .map(|p| x.iter().map(|q| (p - q).abs()).collect())
                 .collect(),
-        }
+        )
+        .unwrap()
     }
 
     #[test]
@@ -246,17 +246,13 @@ mod tests {
         let t = average_linkage_tree(&m).unwrap();
         assert_eq!(t.leaves(), vec![0, 1, 2, 3]);
         assert!((t.height() - 4.75 / 2.0).abs() < 1e-12);
-        let text = newick(&t, &m.names);
+        let text = newick(&t, m.names());
         assert_eq!(
             text,
             "((a:0.5,'b c':0.5):1.875,('d''e':0.25,f:0.25):2.125);\n"
         );
-        let svg = dendrogram_svg(&t, &m.names, None);
+        let svg = dendrogram_svg(&t, m.names(), None);
         assert_eq!(svg.matches("<text").count(), 4);
-        assert!(average_linkage_tree(&DistanceMatrix {
-            names: vec![],
-            values: vec![]
-        })
-        .is_none());
+        assert!(average_linkage_tree(&DistanceMatrix::new(vec![], vec![]).unwrap()).is_none());
     }
 }

@@ -52,9 +52,9 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Landmarks {
     /// Positions, in the units and coordinates of their surface file.
-    pub points: Vec<[f64; 3]>,
+    points: Vec<[f64; 3]>,
     /// One optional label per point; an empty label is stored as `None`.
-    pub labels: Vec<Option<String>>,
+    labels: Vec<Option<String>>,
 }
 
 impl Landmarks {
@@ -62,6 +62,33 @@ impl Landmarks {
     pub fn from_points(points: Vec<[f64; 3]>) -> Self {
         let labels = vec![None; points.len()];
         Self { points, labels }
+    }
+
+    /// Labelled landmarks: one label per point (an empty label counts as
+    /// none); `None` when the lengths differ.
+    pub fn with_labels(points: Vec<[f64; 3]>, labels: Vec<Option<String>>) -> Option<Self> {
+        (points.len() == labels.len()).then(|| Self {
+            points,
+            labels: labels
+                .into_iter()
+                .map(|l| l.filter(|l| !l.is_empty()))
+                .collect(),
+        })
+    }
+
+    /// The positions, in the units and coordinates of their surface file.
+    pub fn points(&self) -> &[[f64; 3]] {
+        &self.points
+    }
+
+    /// The positions, to move them in place (the number stays).
+    pub fn points_mut(&mut self) -> &mut [[f64; 3]] {
+        &mut self.points
+    }
+
+    /// One optional label per point.
+    pub fn labels(&self) -> &[Option<String>] {
+        &self.labels
     }
 
     /// Number of landmarks.
@@ -380,12 +407,35 @@ fn display_paths(files: &[PathBuf]) -> String {
 #[derive(Debug, Default)]
 pub struct LibraryLandmarks {
     /// Usable landmarks, by specimen name.
-    pub by_name: std::collections::BTreeMap<String, Landmarks>,
+    by_name: std::collections::BTreeMap<String, Landmarks>,
     /// Specimens whose landmark file could not be used, by name (sorted).
-    pub problems: Vec<(String, LandmarkProblem)>,
+    problems: Vec<(String, LandmarkProblem)>,
     /// The number of landmarks per specimen (the most common count among
     /// the readable files; on a tie, the larger).
-    pub count: Option<usize>,
+    count: Option<usize>,
+}
+
+impl LibraryLandmarks {
+    /// Usable landmarks, by specimen name.
+    pub fn by_name(&self) -> &std::collections::BTreeMap<String, Landmarks> {
+        &self.by_name
+    }
+
+    /// Specimens whose landmark file could not be used, by name (sorted).
+    pub fn problems(&self) -> &[(String, LandmarkProblem)] {
+        &self.problems
+    }
+
+    /// The number of landmarks per specimen (the most common count among
+    /// the readable files; on a tie, the larger).
+    pub fn count(&self) -> Option<usize> {
+        self.count
+    }
+
+    /// Move out the usable landmarks, leaving the problems and the count.
+    pub fn take_by_name(&mut self) -> std::collections::BTreeMap<String, Landmarks> {
+        std::mem::take(&mut self.by_name)
+    }
 }
 
 /// Read the landmark files of the specimens `names` of the library folder
