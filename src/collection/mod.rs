@@ -322,7 +322,7 @@ impl Alignment {
             .map(|&v| sup.apply(v).map(|x| x * scale))
             .collect();
         let faces = if sup.reflects() {
-            mesh.faces.iter().map(|f| [f[0], f[2], f[1]]).collect()
+            crate::mesh::reversed_winding(&mesh.faces)
         } else {
             mesh.faces.clone()
         };

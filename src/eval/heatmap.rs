@@ -6,6 +6,7 @@
 //! them.
 
 use super::mantel::{align_to, check_distance_matrix, MantelError};
+use super::tree::average_linkage_merges;
 use super::DistanceMatrix;
 
 /// An 8-bit RGB raster, row-major, top row first.
@@ -114,70 +115,18 @@ fn normalized(m: &DistanceMatrix) -> Vec<Vec<f64>> {
 }
 
 /// The leaf order of the average-linkage (UPGMA) hierarchical clustering
-/// of `m`: near specimens end up next to each other. At each merge the two
-/// leaf sequences are joined (the one holding the lower index first) and
-/// flipped where that brings the two facing ends closest. Clusters are
-/// merged by the nearest-neighbour chain algorithm (O(n²) time), with ties
-/// broken by index, so the order is deterministic.
+/// of `m` ([`average_linkage_merges`]): near specimens end up next to each
+/// other. At each merge the two leaf sequences are joined (the one holding
+/// the lower index first) and flipped where that brings the two facing
+/// ends closest. The order is deterministic.
 pub fn average_linkage_order(m: &DistanceMatrix) -> Vec<usize> {
-    let n = m.names().len();
-    if n == 0 {
-        return Vec::new();
+    let mut leaves: Vec<Vec<usize>> = (0..m.len()).map(|i| vec![i]).collect();
+    for merge in average_linkage_merges(m) {
+        leaves[merge.keep] = join_leaves(&leaves[merge.keep], &leaves[merge.gone], m);
+        leaves[merge.gone].clear();
     }
-    let mut d: Vec<f64> = (0..n * n).map(|k| m.get(k / n, k % n)).collect();
-    let mut size = vec![1usize; n];
-    let mut leaves: Vec<Vec<usize>> = (0..n).map(|i| vec![i]).collect();
-    let mut active = vec![true; n];
-    let mut remaining = n;
-    let mut chain: Vec<usize> = Vec::new();
-    while remaining > 1 {
-        if chain.is_empty() {
-            if let Some(first) = active.iter().position(|&a| a) {
-                chain.push(first);
-            }
-        }
-        // Grow the chain until its last two clusters are each other's
-        // nearest neighbours.
-        let (a, b) = loop {
-            let Some(&a) = chain.last() else { break (0, 0) };
-            let prev = chain.len().checked_sub(2).map(|k| chain[k]);
-            let mut best = prev;
-            let mut best_d = prev.map_or(f64::INFINITY, |p| d[a * n + p]);
-            for c in (0..n).filter(|&c| active[c] && c != a) {
-                if best.is_none() || d[a * n + c] < best_d {
-                    best = Some(c);
-                    best_d = d[a * n + c];
-                }
-            }
-            match best {
-                Some(c) if Some(c) == prev => break (a, c),
-                Some(c) => chain.push(c),
-                None => break (a, a),
-            }
-        };
-        if a == b {
-            break;
-        }
-        chain.truncate(chain.len() - 2);
-        let (keep, gone) = (a.min(b), a.max(b));
-        let joined = join_leaves(&leaves[keep], &leaves[gone], m);
-        leaves[keep] = joined;
-        leaves[gone].clear();
-        let (sk, sg) = (size[keep] as f64, size[gone] as f64);
-        for c in (0..n).filter(|&c| active[c] && c != keep && c != gone) {
-            let v = (sk * d[keep * n + c] + sg * d[gone * n + c]) / (sk + sg);
-            d[keep * n + c] = v;
-            d[c * n + keep] = v;
-        }
-        size[keep] += size[gone];
-        active[gone] = false;
-        remaining -= 1;
-    }
-    active
-        .iter()
-        .position(|&a| a)
-        .map(|k| std::mem::take(&mut leaves[k]))
-        .unwrap_or_default()
+    // Cluster 0 is never merged away: it is the lowest index.
+    leaves.into_iter().next().unwrap_or_default()
 }
 
 /// Concatenate two leaf sequences, the one with the lower first index

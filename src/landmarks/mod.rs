@@ -484,6 +484,34 @@ pub fn load_library(dir: &Path, names: &[String]) -> LibraryLandmarks {
     out
 }
 
+/// The non-blank lines of a collection file, trimmed (a byte-order mark
+/// dropped), with their 1-based numbers.
+fn content_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
+    text.lines()
+        .enumerate()
+        .map(|(k, raw)| (k + 1, raw.trim().trim_start_matches('\u{feff}')))
+        .filter(|(_, t)| !t.is_empty())
+}
+
+/// One landmark written as `x y z` (whitespace-separated).
+fn parse_xyz(line: &str) -> Result<[f64; 3], String> {
+    let fields: Vec<&str> = line.split_whitespace().collect();
+    if fields.len() != 3 {
+        return Err(format!("{} values; a 3D landmark has 3", fields.len()));
+    }
+    let mut q = [0.0; 3];
+    for (d, f) in fields.iter().enumerate() {
+        q[d] = parse_coordinate(f)?;
+    }
+    Ok(q)
+}
+
+/// The `x y z` line of one landmark, each value in the shortest form that
+/// reads back exactly.
+fn xyz_line(p: &[f64; 3]) -> String {
+    format!("{:?} {:?} {:?}\n", p[0], p[1], p[2])
+}
+
 /// Parse one coordinate; non-finite values are rejected.
 fn parse_coordinate(field: &str) -> Result<f64, String> {
     let t = field.trim();

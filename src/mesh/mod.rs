@@ -136,18 +136,32 @@ pub fn vertex_areas(mesh: &Mesh) -> Vec<f64> {
     areas
 }
 
-/// Axis-aligned bounding box `(min, max)`; `None` for an empty mesh.
-pub fn bounding_box(mesh: &Mesh) -> Option<([f64; 3], [f64; 3])> {
-    let first = *mesh.vertices.first()?;
-    let mut lo = first;
-    let mut hi = first;
-    for v in &mesh.vertices {
+/// Axis-aligned bounding box `(min, max)` of `points`; `None` when there
+/// is no point.
+pub fn points_bounding_box(
+    points: impl IntoIterator<Item = [f64; 3]>,
+) -> Option<([f64; 3], [f64; 3])> {
+    let mut points = points.into_iter();
+    let first = points.next()?;
+    let (mut lo, mut hi) = (first, first);
+    for v in points {
         for k in 0..3 {
             lo[k] = lo[k].min(v[k]);
             hi[k] = hi[k].max(v[k]);
         }
     }
     Some((lo, hi))
+}
+
+/// Axis-aligned bounding box `(min, max)` of the vertices; `None` for an
+/// empty mesh.
+pub fn bounding_box(mesh: &Mesh) -> Option<([f64; 3], [f64; 3])> {
+    points_bounding_box(mesh.vertices.iter().copied())
+}
+
+/// The triangles with their winding reversed: every normal flipped.
+pub fn reversed_winding(faces: &[[u32; 3]]) -> Vec<[u32; 3]> {
+    faces.iter().map(|f| [f[0], f[2], f[1]]).collect()
 }
 
 /// Length of the bounding-box diagonal (0 for an empty mesh).

@@ -3,7 +3,7 @@
 //! given seed.
 
 pub use crate::mesh::subdivide_midpoint;
-use crate::mesh::{bbox_diagonal, norm, sub, Mesh};
+use crate::mesh::{bbox_diagonal, norm, reversed_winding, sub, Mesh};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -100,7 +100,7 @@ pub fn scale(mesh: &Mesh, factor: f64) -> Mesh {
 pub fn mirror(mesh: &Mesh) -> Mesh {
     Mesh::new(
         mesh.vertices.iter().map(|p| [-p[0], p[1], p[2]]).collect(),
-        mesh.faces.iter().map(|f| [f[0], f[2], f[1]]).collect(),
+        reversed_winding(&mesh.faces),
     )
 }
 
