@@ -1,7 +1,7 @@
 //! `morphoid evaluate`: leave-one-out nearest-neighbour classification,
 //! the Mantel test against a second matrix, the Figure 1 heatmap.
 
-use super::common::ConfigFile;
+use super::common::{write_output, ConfigFile};
 use anyhow::{bail, Context, Result};
 use morphoid::eval::{self, DistanceMatrix, Labels, Mantel, DEFAULT_PERMUTATIONS, DEFAULT_SEED};
 use serde::Serialize;
@@ -120,7 +120,7 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
             eval::default_cell_size(matrix.names().len()),
         )?;
         let bytes = eval::encode_png(&image)?;
-        std::fs::write(out, bytes).with_context(|| format!("writing {}", out.display()))?;
+        write_output(out, bytes)?;
         eprintln!(
             "wrote {} ({} × {} pixels)",
             out.display(),
@@ -143,12 +143,10 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     }
     if let Some(out) = &args.tree {
         let tree = eval::average_linkage_tree(&matrix).context("the matrix is empty")?;
-        std::fs::write(out, eval::newick(&tree, matrix.names()))
-            .with_context(|| format!("writing {}", out.display()))?;
+        write_output(out, eval::newick(&tree, matrix.names()))?;
         let svg = out.with_extension("svg");
         let g = groups.as_ref().map(|(_, g)| g.as_slice());
-        std::fs::write(&svg, eval::dendrogram_svg(&tree, matrix.names(), g))
-            .with_context(|| format!("writing {}", svg.display()))?;
+        write_output(&svg, eval::dendrogram_svg(&tree, matrix.names(), g))?;
         eprintln!("wrote {} and {}", out.display(), svg.display());
     }
     if args.json {
@@ -240,7 +238,7 @@ fn write_mds(
         csv.write_record(&row)?;
     }
     let bytes = csv.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?;
-    std::fs::write(out, bytes).with_context(|| format!("writing {}", out.display()))?;
+    write_output(out, bytes)?;
     let total: f64 = mds.eigenvalues.iter().sum();
     let axis = |k: usize| match mds.eigenvalues.get(k) {
         Some(l) if total > 0.0 => format!("MDS{} ({:.1} %)", k + 1, 100.0 * l / total),
@@ -266,11 +264,10 @@ fn write_mds(
         groups: groups.map_or_else(|| vec![None; matrix.names().len()], |(_, g)| g.clone()),
     };
     let svg = out.with_extension("svg");
-    std::fs::write(&svg, eval::scatter_svg(&plot))
-        .with_context(|| format!("writing {}", svg.display()))?;
+    write_output(&svg, eval::scatter_svg(&plot))?;
     let png = out.with_extension("png");
     let bytes = eval::encode_png(&eval::scatter_raster(&plot, 900, 640))?;
-    std::fs::write(&png, bytes).with_context(|| format!("writing {}", png.display()))?;
+    write_output(&png, bytes)?;
     eprintln!(
         "wrote {}, {} and {}",
         out.display(),

@@ -170,7 +170,7 @@ impl Format {
 /// file and, for content errors, the line (or the JSON element).
 #[derive(Debug, thiserror::Error)]
 pub enum LandmarkError {
-    /// The file cannot be read or written.
+    /// The file cannot be read.
     #[error("{path}: {source}")]
     Io {
         /// The file.
@@ -178,6 +178,9 @@ pub enum LandmarkError {
         /// The I/O error.
         source: std::io::Error,
     },
+    /// The file cannot be written (the error names it and the step).
+    #[error(transparent)]
+    Write(#[from] crate::atomic_write::AtomicWriteError),
     /// The extension names no landmark format.
     #[error(
         "{0}: unknown landmark format (use .csv, .fcsv, .mrk.json, .pp, .tps or morphologika .txt)"
@@ -353,13 +356,14 @@ fn check_count(
     }
 }
 
-/// Write a landmark file in the format its extension names.
+/// Write a landmark file in the format its extension names, whole or not
+/// at all.
 pub fn write(path: &Path, landmarks: &Landmarks) -> Result<(), LandmarkError> {
     let fmt = Format::from_path(path).ok_or_else(|| LandmarkError::UnknownFormat(path.into()))?;
-    std::fs::write(path, format(landmarks, fmt)).map_err(|source| LandmarkError::Io {
-        path: path.to_path_buf(),
-        source,
-    })
+    Ok(crate::atomic_write::write_atomic(
+        path,
+        format(landmarks, fmt).as_bytes(),
+    )?)
 }
 
 /// The extensions a library's landmark file may have, in the order they
