@@ -320,10 +320,7 @@ pub fn write_collection(path: &Path, specimens: &[NamedLandmarks]) -> Result<(),
 
 /// Replace `path` with `text` atomically.
 fn write_text(path: &Path, text: &str) -> Result<(), LandmarkError> {
-    crate::atomic_write::write_atomic(path, text.as_bytes()).map_err(|e| LandmarkError::Io {
-        path: path.to_path_buf(),
-        source: std::io::Error::other(e),
-    })
+    Ok(crate::atomic_write::write_atomic(path, text.as_bytes())?)
 }
 
 /// Read a landmark file, in the format its extension names; with
@@ -360,10 +357,7 @@ fn check_count(
 /// at all.
 pub fn write(path: &Path, landmarks: &Landmarks) -> Result<(), LandmarkError> {
     let fmt = Format::from_path(path).ok_or_else(|| LandmarkError::UnknownFormat(path.into()))?;
-    Ok(crate::atomic_write::write_atomic(
-        path,
-        format(landmarks, fmt).as_bytes(),
-    )?)
+    write_text(path, &format(landmarks, fmt))
 }
 
 /// The extensions a library's landmark file may have, in the order they
