@@ -93,6 +93,37 @@ pub fn norm(a: [f64; 3]) -> f64 {
     dot(a, a).sqrt()
 }
 
+/// `a` scaled to length one (zero stays zero).
+pub fn unit(a: [f64; 3]) -> [f64; 3] {
+    let l = norm(a);
+    if l > 0.0 {
+        a.map(|x| x / l)
+    } else {
+        a
+    }
+}
+
+/// Unit vertex normals: the sum of the (area-weighted) normals of the
+/// faces around each vertex; zero for a vertex in no face. Faces with an
+/// index out of range are skipped.
+pub fn vertex_normals(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> Vec<[f64; 3]> {
+    let mut n = vec![[0.0; 3]; vertices.len()];
+    for f in faces {
+        let [a, b, c] = f.map(|i| i as usize);
+        let (Some(&pa), Some(&pb), Some(&pc)) = (vertices.get(a), vertices.get(b), vertices.get(c))
+        else {
+            continue;
+        };
+        let face = triangle_normal2(pa, pb, pc);
+        for v in [a, b, c] {
+            for d in 0..3 {
+                n[v][d] += face[d];
+            }
+        }
+    }
+    n.into_iter().map(unit).collect()
+}
+
 /// Area-weighted (unnormalized) normal of a triangle: `(b - a) × (c - a)`,
 /// whose length is twice the triangle's area.
 #[inline]
