@@ -57,9 +57,9 @@ fn timed_build(
     eprintln!(
         "library build: {} references ({} prepared, {} from the cache, {} failed) in {secs:.2} s",
         classifier.references().len(),
-        outcome.prepared,
-        outcome.reused,
-        outcome.failures.len()
+        outcome.prepared(),
+        outcome.reused(),
+        outcome.failures().len()
     );
     (classifier, outcome, secs)
 }
@@ -95,7 +95,7 @@ fn bench(c: &mut Criterion) {
     classifier
         .register(&mut store, &outcome)
         .expect("references recorded");
-    let source = io::load(&lib.members()[0].path)
+    let source = io::load(lib.members()[0].path())
         .expect("a library surface loads")
         .mesh;
     let mut seed = 0u64;

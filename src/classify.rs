@@ -148,11 +148,12 @@ impl Classifier {
         progress: impl Fn(&str) + Sync,
     ) -> Result<(Self, BuildOutcome), CacheError> {
         let mut outcome = library::build(library, cache, settings, progress)?;
+        let (references, landmarks) = outcome.take_references();
         let classifier = Classifier {
-            references: std::mem::take(&mut outcome.references),
+            references,
             labels: library.labels().clone(),
             settings: settings.clone(),
-            landmarks: std::mem::take(&mut outcome.landmarks.by_name),
+            landmarks,
             results: None,
             calibration: None,
         };
@@ -218,10 +219,10 @@ impl Classifier {
     /// so that results can point at them, and log what the build left out.
     pub fn register(&self, store: &mut Store, outcome: &BuildOutcome) -> Result<(), StoreError> {
         self.register_references(store)?;
-        for f in &outcome.failures {
-            tracing::warn!(reference = %f.name, "reference left out: {}", f.error);
+        for f in outcome.failures() {
+            tracing::warn!(reference = %f.name(), "reference left out: {}", f.error());
         }
-        for (name, why) in &outcome.landmarks.problems {
+        for (name, why) in outcome.landmarks().problems() {
             tracing::warn!(reference = %name, "landmarks left out: {why}");
         }
         Ok(())
@@ -239,14 +240,14 @@ impl Classifier {
                 .map(|rank| {
                     (
                         rank.clone(),
-                        self.labels.get(&r.name, rank).map(str::to_string),
+                        self.labels.get(r.name(), rank).map(str::to_string),
                     )
                 })
                 .collect();
-            store.register_reference(&r.name, &r.content_hash, &labels)?;
-            store.mark_reference_prepared(&r.name)?;
+            store.register_reference(r.name(), r.content_hash(), &labels)?;
+            store.mark_reference_prepared(r.name())?;
         }
-        let names: Vec<&str> = self.references.iter().map(|r| r.name.as_str()).collect();
+        let names: Vec<&str> = self.references.iter().map(|r| r.name()).collect();
         store.remove_references_except(&names)?;
         Ok(())
     }
@@ -316,11 +317,11 @@ impl Classifier {
         let references: Vec<SceneReference<'_>> = nearest
             .iter()
             .filter_map(|(name, distance)| {
-                let r = self.references.iter().find(|r| &r.name == name)?;
+                let r = self.references.iter().find(|r| r.name() == name)?;
                 Some(SceneReference {
-                    name: &r.name,
+                    name: r.name(),
                     distance: *distance,
-                    prepared: &r.prepared,
+                    prepared: r.prepared(),
                 })
             })
             .take(REPORT_NEAREST)
@@ -419,9 +420,9 @@ impl Classifier {
             self.references
                 .par_iter()
                 .map(|r| {
-                    let c = cp::compare(&surface.prepared, &r.prepared, &self.settings.cp.compare);
+                    let c = cp::compare(&surface.prepared, r.prepared(), &self.settings.cp.compare);
                     DistanceRow {
-                        reference: r.name.clone(),
+                        reference: r.name().to_string(),
                         forward: c.forward.distance,
                         backward: c.backward.distance,
                         distance: c.distance,
@@ -473,14 +474,14 @@ impl Classifier {
         let reference = self
             .references
             .iter()
-            .find(|r| r.name == nearest.reference)?;
+            .find(|r| r.name() == nearest.reference)?;
         match self.carry(reference, lm, scan) {
             Ok(points) => Some(ScanLandmarks {
-                reference: reference.name.clone(),
+                reference: reference.name().to_string(),
                 points,
             }),
             Err(e) => {
-                tracing::warn!(reference = %reference.name, "landmarks not carried over: {e}");
+                tracing::warn!(reference = %reference.name(), "landmarks not carried over: {e}");
                 None
             }
         }
@@ -496,16 +497,16 @@ impl Classifier {
         scan: &PreparedSurface,
     ) -> Result<Vec<LandmarkPoint>, PropagateError> {
         let map = cp::compare_directed(
-            &reference.prepared,
+            reference.prepared(),
             &scan.prepared,
             &self.settings.cp.compare,
         );
-        let source = Surface::from_normalized(&reference.prepared)?;
+        let source = Surface::from_normalized(reference.prepared())?;
         let target = Surface::from_prepared(scan)?;
         let out = landmarks::propagate(lm, &source, &target, &map.correspondence)?;
         Ok(out
             .landmarks
-            .points
+            .points()
             .iter()
             .enumerate()
             .map(|(i, p)| LandmarkPoint {
@@ -706,11 +707,11 @@ mod tests {
         settings.clean.target_vertices = 600;
         let (classifier, outcome) = Classifier::build(&library, &cache, &settings, |_| {}).unwrap();
         let n = library.members().len();
-        assert_eq!((classifier.references().len(), outcome.prepared), (n, n));
+        assert_eq!((classifier.references().len(), outcome.prepared()), (n, n));
         // One copy of the prepared references, the classifier's: the
         // report a caller keeps must not hold a second one.
-        assert!(outcome.references.is_empty());
-        assert!(outcome.landmarks.by_name.is_empty());
-        assert!(outcome.failures.is_empty());
+        assert!(outcome.references().is_empty());
+        assert!(outcome.landmarks().by_name().is_empty());
+        assert!(outcome.failures().is_empty());
     }
 }

@@ -1,7 +1,7 @@
 //! Closest point on a triangle mesh, accelerated with a uniform grid of
 //! triangle buckets.
 
-use crate::mesh::{dot, norm, sub, Mesh};
+use crate::mesh::{dot, norm, points_bounding_box, sub, Mesh};
 use rustc_hash::FxHashMap as HashMap;
 
 /// The closest point of `p` on the triangle `abc` (Ericson, Real-Time
@@ -96,19 +96,21 @@ impl TriangleGrid {
         if mesh.faces.iter().flatten().any(|&v| v as usize >= nv) {
             return None;
         }
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
         let mut edge_sum = 0.0;
         for f in &mesh.faces {
             for k in 0..3 {
                 let p = mesh.vertices[f[k] as usize];
-                for d in 0..3 {
-                    lo[d] = lo[d].min(p[d]);
-                    hi[d] = hi[d].max(p[d]);
-                }
                 edge_sum += norm(sub(p, mesh.vertices[f[(k + 1) % 3] as usize]));
             }
         }
+        // The box of the vertices faces use (unreferenced ones are no
+        // candidates); there is one, the faces are not empty.
+        let (lo, hi) = points_bounding_box(
+            mesh.faces
+                .iter()
+                .flatten()
+                .map(|&v| mesh.vertices[v as usize]),
+        )?;
         let diag = norm(sub(hi, lo));
         let mean_edge = edge_sum / (3 * mesh.faces.len()) as f64;
         // Cap the number of cells at about 64 per face.

@@ -1,6 +1,8 @@
 //! Consistent face orientation and the choice of the outward side.
 
-use crate::mesh::{dot, edge_face_map, has_directed_edge, triangle_normal2, Mesh};
+use crate::mesh::{
+    dot, edge_face_map, has_directed_edge, reversed_winding, triangle_normal2, Mesh,
+};
 use std::collections::VecDeque;
 
 /// Orientation could not be made consistent.
@@ -82,10 +84,7 @@ pub fn orient_faces_consistently(mesh: &Mesh) -> Result<(Mesh, usize), NonOrient
 
 /// Reverse every face.
 pub fn reverse_faces(mesh: &Mesh) -> Mesh {
-    Mesh::new(
-        mesh.vertices.clone(),
-        mesh.faces.iter().map(|f| [f[0], f[2], f[1]]).collect(),
-    )
+    Mesh::new(mesh.vertices.clone(), reversed_winding(&mesh.faces))
 }
 
 /// Orientation test of a consistently oriented surface with boundary

@@ -72,7 +72,7 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     }
     let started = Instant::now();
     let members = library::members(&args.library)?;
-    if args.template != "auto" && !members.iter().any(|m| m.name == args.template) {
+    if args.template != "auto" && !members.iter().any(|m| m.name() == args.template) {
         bail!(
             "template `{}` is not among the specimens of {}",
             args.template,
@@ -88,7 +88,7 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     bar.finish_and_clear();
     let left_out: Vec<(String, String)> = failures
         .iter()
-        .map(|f| (f.name.clone(), f.error.to_string()))
+        .map(|f| (f.name().to_string(), f.error().to_string()))
         .collect();
     for (name, why) in &left_out {
         eprintln!("warning: `{name}` left out: {why}");

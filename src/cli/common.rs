@@ -1,7 +1,7 @@
 //! What several subcommands share: the configuration with command-line
 //! overrides, progress bars.
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use morphoid::config::Config;
 use std::path::{Path, PathBuf};
@@ -50,6 +50,13 @@ impl ConfigArgs {
         }
         Ok(config)
     }
+}
+
+/// Write an output file whole or not at all (a run stopped midway leaves
+/// no half file), naming it in the error.
+pub fn write_output(path: &Path, bytes: impl AsRef<[u8]>) -> Result<()> {
+    morphoid::atomic_write::write_atomic(path, bytes.as_ref())
+        .with_context(|| format!("writing {}", path.display()))
 }
 
 /// A progress bar on stderr; indicatif draws nothing when stderr is not a

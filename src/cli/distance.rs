@@ -2,7 +2,7 @@
 //! their cWn distance (`--method cwn`), or their cW distance and the
 //! correspondence of its map (`--method cw`).
 
-use super::common::ConfigFile;
+use super::common::{write_output, ConfigFile};
 use super::method::{CwArgs, CwnArgs, Method};
 use anyhow::{bail, Context, Result};
 use morphoid::cp;
@@ -12,7 +12,7 @@ use morphoid::landmarks;
 use morphoid::library::{self, SurfaceDistance};
 use morphoid::pipeline::{self, PreparedSurface, Settings, StageTimings};
 use serde::Serialize;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -123,6 +123,18 @@ fn prepare_both(args: &Args, settings: &Settings) -> Result<(PreparedSurface, Pr
     }
 }
 
+/// Write the correspondence of `map` from `a` to `b` (`--map`).
+fn write_correspondence(
+    out: &Path,
+    a: &PreparedSurface,
+    b: &PreparedSurface,
+    map: &cp::Directed,
+) -> Result<()> {
+    let text = landmarks::correspondence_csv(a, b, map)
+        .context("the correspondence does not fit the surfaces")?;
+    write_output(out, text).context("writing the correspondence")
+}
+
 /// The cWn distance: landscapes of both surfaces, then one transport.
 fn run_cwn(args: Args, settings: &Settings) -> Result<ExitCode> {
     if args.map.is_some() {
@@ -223,10 +235,7 @@ fn run_cw(args: Args, settings: &Settings) -> Result<ExitCode> {
     if let Some(out) = &args.map {
         let directed = cw::correspondence(&a.prepared, &b.prepared, &r)
             .context("the cW map has no correspondence (a surface without triangles)")?;
-        let text = landmarks::correspondence_csv(&a, &b, &directed)
-            .context("the correspondence does not fit the surfaces")?;
-        std::fs::write(out, text)
-            .with_context(|| format!("writing the correspondence to {}", out.display()))?;
+        write_correspondence(out, &a, &b, &directed)?;
     }
     let out = CwOutput {
         a: args.a.display().to_string(),
@@ -274,10 +283,7 @@ fn run_cp(args: Args, settings: &Settings) -> Result<ExitCode> {
     };
     let compare_ms = t.elapsed().as_secs_f64() * 1e3;
     if let Some(out) = &args.map {
-        let text = landmarks::correspondence_csv(&a, &b, &c.forward)
-            .context("the correspondence does not fit the surfaces")?;
-        std::fs::write(out, text)
-            .with_context(|| format!("writing the correspondence to {}", out.display()))?;
+        write_correspondence(out, &a, &b, &c.forward)?;
     }
     let out = Output {
         a: args.a.display().to_string(),

@@ -1,7 +1,7 @@
 //! `morphoid evaluate`: leave-one-out nearest-neighbour classification,
 //! the Mantel test against a second matrix, the Figure 1 heatmap.
 
-use super::common::ConfigFile;
+use super::common::{write_output, ConfigFile};
 use anyhow::{bail, Context, Result};
 use morphoid::eval::{self, DistanceMatrix, Labels, Mantel, DEFAULT_PERMUTATIONS, DEFAULT_SEED};
 use serde::Serialize;
@@ -103,7 +103,7 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
         let mut boundaries = Vec::new();
         if let (Some(rank), Some(path)) = (&args.group_rank, &args.labels) {
             let labels = Labels::read(path, None)?;
-            let Some(group) = labels.column(&matrix.names, rank) else {
+            let Some(group) = labels.column(matrix.names(), rank) else {
                 bail!(
                     "{}: no rank column `{rank}` (ranks: {})",
                     path.display(),
@@ -117,10 +117,10 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
             lower,
             &order,
             &boundaries,
-            eval::default_cell_size(matrix.names.len()),
+            eval::default_cell_size(matrix.names().len()),
         )?;
         let bytes = eval::encode_png(&image)?;
-        std::fs::write(out, bytes).with_context(|| format!("writing {}", out.display()))?;
+        write_output(out, bytes)?;
         eprintln!(
             "wrote {} ({} × {} pixels)",
             out.display(),
@@ -131,7 +131,7 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     let groups = match (&args.group_rank, &args.labels) {
         (Some(rank), Some(path)) => {
             let labels = Labels::read(path, None)?;
-            match labels.column(&matrix.names, rank) {
+            match labels.column(matrix.names(), rank) {
                 Some(g) => Some((rank.clone(), g)),
                 None => bail!("{}: no rank column `{rank}`", path.display()),
             }
@@ -143,16 +143,14 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     }
     if let Some(out) = &args.tree {
         let tree = eval::average_linkage_tree(&matrix).context("the matrix is empty")?;
-        std::fs::write(out, eval::newick(&tree, &matrix.names))
-            .with_context(|| format!("writing {}", out.display()))?;
+        write_output(out, eval::newick(&tree, matrix.names()))?;
         let svg = out.with_extension("svg");
         let g = groups.as_ref().map(|(_, g)| g.as_slice());
-        std::fs::write(&svg, eval::dendrogram_svg(&tree, &matrix.names, g))
-            .with_context(|| format!("writing {}", svg.display()))?;
+        write_output(&svg, eval::dendrogram_svg(&tree, matrix.names(), g))?;
         eprintln!("wrote {} and {}", out.display(), svg.display());
     }
     if args.json {
-        let mut obj = serde_json::json!({ "specimens": matrix.names.len() });
+        let mut obj = serde_json::json!({ "specimens": matrix.names().len() });
         if let Some(rows) = &rows {
             obj["ranks"] = serde_json::to_value(rows)?;
         }
@@ -168,7 +166,7 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
         if let Some(rows) = &rows {
             println!(
                 "leave-one-out nearest neighbour, {} specimens",
-                matrix.names.len()
+                matrix.names().len()
             );
             for r in rows {
                 println!(
@@ -180,7 +178,7 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
         if let Some(m) = &mantel {
             println!(
                 "Mantel test, {} specimens: r = {:.4}, p = {:.4} ({} permutations, seed {})",
-                matrix.names.len(),
+                matrix.names().len(),
                 m.r,
                 m.p,
                 m.permutations,
@@ -199,7 +197,7 @@ fn leave_one_out(
     ranks: Option<&[String]>,
 ) -> Result<Vec<RankJson>> {
     let labels = Labels::read(path, ranks)?;
-    let missing = labels.unlabelled(&matrix.names);
+    let missing = labels.unlabelled(matrix.names());
     if !missing.is_empty() {
         bail!(
             "{}: no label row for {} specimen(s) of {}: {}",
@@ -234,13 +232,13 @@ fn write_mds(
     let mut header = vec!["name".to_string()];
     header.extend((1..=dims).map(|k| format!("MDS{k}")));
     csv.write_record(&header)?;
-    for (n, c) in matrix.names.iter().zip(&mds.coordinates) {
+    for (n, c) in matrix.names().iter().zip(&mds.coordinates) {
         let mut row = vec![n.clone()];
         row.extend(c.iter().map(|v| format!("{v:?}")));
         csv.write_record(&row)?;
     }
     let bytes = csv.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?;
-    std::fs::write(out, bytes).with_context(|| format!("writing {}", out.display()))?;
+    write_output(out, bytes)?;
     let total: f64 = mds.eigenvalues.iter().sum();
     let axis = |k: usize| match mds.eigenvalues.get(k) {
         Some(l) if total > 0.0 => format!("MDS{} ({:.1} %)", k + 1, 100.0 * l / total),
@@ -251,9 +249,9 @@ fn write_mds(
         title: match groups {
             Some((rank, _)) => format!(
                 "Classical MDS of {} specimens, by {rank}",
-                matrix.names.len()
+                matrix.names().len()
             ),
-            None => format!("Classical MDS of {} specimens", matrix.names.len()),
+            None => format!("Classical MDS of {} specimens", matrix.names().len()),
         },
         x_label: axis(0),
         y_label: axis(1),
@@ -262,15 +260,14 @@ fn write_mds(
             .iter()
             .map(|c| [coord(c, 0), coord(c, 1)])
             .collect(),
-        names: matrix.names.clone(),
-        groups: groups.map_or_else(|| vec![None; matrix.names.len()], |(_, g)| g.clone()),
+        names: matrix.names().to_vec(),
+        groups: groups.map_or_else(|| vec![None; matrix.names().len()], |(_, g)| g.clone()),
     };
     let svg = out.with_extension("svg");
-    std::fs::write(&svg, eval::scatter_svg(&plot))
-        .with_context(|| format!("writing {}", svg.display()))?;
+    write_output(&svg, eval::scatter_svg(&plot))?;
     let png = out.with_extension("png");
     let bytes = eval::encode_png(&eval::scatter_raster(&plot, 900, 640))?;
-    std::fs::write(&png, bytes).with_context(|| format!("writing {}", png.display()))?;
+    write_output(&png, bytes)?;
     eprintln!(
         "wrote {}, {} and {}",
         out.display(),

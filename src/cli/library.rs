@@ -38,35 +38,37 @@ fn build(args: &ConfigArgs, file: ConfigFile) -> Result<ExitCode> {
     let bar = progress_bar(lib.members().len() as u64, "preparing");
     let out = library::build(&lib, &cache, &config.settings(), |_| bar.inc(1))?;
     bar.finish_and_clear();
-    for f in &out.failures {
-        eprintln!("morphoid: error: reference {}: {}", f.name, f.error);
+    for f in out.failures() {
+        eprintln!("morphoid: error: reference {}: {}", f.name(), f.error());
     }
     // A reference whose landmark file cannot be used still identifies
     // scans, without landmarks; the file needs fixing all the same.
-    for (name, why) in &out.landmarks.problems {
+    for (name, why) in out.landmarks().problems() {
         eprintln!("morphoid: error: landmarks of reference {name}: {why}");
     }
     println!(
         "{}: {} references ({} prepared, {} from the cache, {} failed; {} stale cache entries removed) in {:.1} s; cache {}",
         lib.dir().display(),
-        out.references.len(),
-        out.prepared,
-        out.reused,
-        out.failures.len(),
-        out.removed,
+        out.references().len(),
+        out.prepared(),
+        out.reused(),
+        out.failures().len(),
+        out.removed(),
         started.elapsed().as_secs_f64(),
         cache.dir().display()
     );
     // The confidence calibration is part of the library: its distances
     // among the references are computed now (once; then from the cache),
     // not at the first scan.
-    if out.references.len() >= library::MIN_HELD {
-        let n = out.references.len();
+    if out.references().len() >= library::MIN_HELD {
+        let n = out.references().len();
         let bar = progress_bar(library::calibration_pairs(n) as u64, "calibrating");
-        let distances =
-            library::reference_distances(&out.references, &config.settings(), Some(&cache), |_| {
-                bar.inc(1)
-            });
+        let distances = library::reference_distances(
+            out.references(),
+            &config.settings(),
+            Some(&cache),
+            |_| bar.inc(1),
+        );
         bar.finish_and_clear();
         let calibration = library::Calibration::fit(distances, lib.labels());
         for r in calibration.ranks() {
@@ -80,15 +82,15 @@ fn build(args: &ConfigArgs, file: ConfigFile) -> Result<ExitCode> {
             );
         }
     }
-    if let Some(count) = out.landmarks.count {
+    if let Some(count) = out.landmarks().count() {
         println!(
             "{} references with landmarks ({count} each), {} landmark files not usable",
-            out.landmarks.by_name.len(),
-            out.landmarks.problems.len()
+            out.landmarks().by_name().len(),
+            out.landmarks().problems().len()
         );
     }
     Ok(
-        if out.failures.is_empty() && out.landmarks.problems.is_empty() {
+        if out.failures().is_empty() && out.landmarks().problems().is_empty() {
             ExitCode::SUCCESS
         } else {
             ExitCode::FAILURE
@@ -112,11 +114,11 @@ fn list(args: &ConfigArgs, file: ConfigFile) -> Result<ExitCode> {
             Some(false) => "not prepared",
             None => "unreadable",
         };
-        let mut row = format!("{:<16}", m.name);
+        let mut row = format!("{:<16}", m.name());
         for r in lib.labels().ranks() {
             row.push_str(&format!(
                 " {:<18}",
-                lib.labels().get(&m.name, r).unwrap_or("NA")
+                lib.labels().get(m.name(), r).unwrap_or("NA")
             ));
         }
         println!("{row} {state}");

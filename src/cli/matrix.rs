@@ -182,7 +182,7 @@ fn run_shard(
     preparation: &Preparation,
     settings: &Settings,
 ) -> Result<ExitCode> {
-    let names: Vec<String> = members.iter().map(|m| m.name.clone()).collect();
+    let names: Vec<String> = members.iter().map(|m| m.name().to_string()).collect();
     let started = Instant::now();
     let own_pairs = eval::shard_pairs(names.len(), which);
     let (pairs, needed) = (own_pairs.len(), eval::pair_specimens(&own_pairs).len());
@@ -224,7 +224,7 @@ fn merge(args: MergeArgs) -> Result<ExitCode> {
     eprintln!(
         "merged {} shards: {} specimens; wrote {}",
         shards.len(),
-        matrix.names.len(),
+        matrix.names().len(),
         args.out.display()
     );
     Ok(ExitCode::SUCCESS)
@@ -238,7 +238,7 @@ fn run_landmarks(
     out: &Path,
     allow_reflection: bool,
 ) -> Result<ExitCode> {
-    let names: Vec<String> = members.iter().map(|m| m.name.clone()).collect();
+    let names: Vec<String> = members.iter().map(|m| m.name().to_string()).collect();
     let (matrix, count) = landmarks::procrustes_matrix(library, &names, allow_reflection)?;
     matrix
         .write_csv(out)

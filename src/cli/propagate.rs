@@ -94,7 +94,10 @@ fn mst_route(
     settings: &Settings,
 ) -> Result<(Vec<PreparedSurface>, Vec<usize>)> {
     let members = library::members(dir)?;
-    let (names, files) = members.into_iter().map(|m| (m.name, m.path)).unzip();
+    let (names, files) = members
+        .into_iter()
+        .map(|m| (m.name().to_string(), m.path().to_path_buf()))
+        .unzip();
     let Specimens {
         names,
         files,

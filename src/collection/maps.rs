@@ -152,7 +152,7 @@ pub fn carry_template(
             &map.correspondence,
         )
         .map_err(err)?;
-        images[b] = Some(carried.landmarks.points);
+        images[b] = Some(carried.landmarks.points().to_vec());
         reflected[b] = reflected[a] ^ map.reflected;
     }
     Ok(TemplateImages {

@@ -131,7 +131,7 @@ pub fn prepare_collection(
         .par_iter()
         .map(|m| {
             let r = preparation.prepare(m);
-            progress(&m.name);
+            progress(m.name());
             r
         })
         .collect();
@@ -139,10 +139,7 @@ pub fn prepare_collection(
     for (m, r) in members.iter().zip(results) {
         match r {
             Ok(p) => ok.push(p),
-            Err(error) => failed.push(Failure {
-                name: m.name.clone(),
-                error,
-            }),
+            Err(error) => failed.push(Failure::new(m.name().to_string(), error)),
         }
     }
     (ok, failed)
@@ -160,7 +157,7 @@ pub fn collection_distances(
 ) -> (DistanceMatrix, usize) {
     let names: Vec<String> = prepared.iter().map(|p| p.name().to_string()).collect();
     let index: Option<std::collections::HashMap<&str, usize>> = known.map(|m| {
-        m.names
+        m.names()
             .iter()
             .enumerate()
             .map(|(i, n)| (n.as_str(), i))
@@ -222,10 +219,10 @@ pub fn align(
     if params.pseudolandmarks < 3 {
         return Err(AlignError::NoPseudolandmarks);
     }
-    if distances.values.len() != n || distances.values.iter().any(|r| r.len() != n) {
+    if distances.values().len() != n || distances.values().iter().any(|r| r.len() != n) {
         return Err(AlignError::MatrixSize {
             expected: n,
-            found: distances.values.len(),
+            found: distances.values().len(),
         });
     }
     let names: Vec<String> = prepared.iter().map(|p| p.name().to_string()).collect();
@@ -234,7 +231,7 @@ pub fn align(
             .iter()
             .position(|n| n == t)
             .ok_or_else(|| AlignError::UnknownTemplate(t.clone()))?,
-        None => medoid(&distances.values).unwrap_or(0),
+        None => medoid(distances.values()).unwrap_or(0),
     };
     let surfaces: Vec<Surface> = prepared
         .par_iter()
@@ -245,7 +242,7 @@ pub fn align(
             })
         })
         .collect::<Result<_, _>>()?;
-    let steps = carrying_steps(&distances.values, template, params.consistency);
+    let steps = carrying_steps(distances.values(), template, params.consistency);
     let mut reached = vec![false; n];
     reached[template] = true;
     for &(_, b) in &steps {
@@ -325,7 +322,7 @@ impl Alignment {
             .map(|&v| sup.apply(v).map(|x| x * scale))
             .collect();
         let faces = if sup.reflects() {
-            mesh.faces.iter().map(|f| [f[0], f[2], f[1]]).collect()
+            crate::mesh::reversed_winding(&mesh.faces)
         } else {
             mesh.faces.clone()
         };

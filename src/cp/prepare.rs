@@ -91,9 +91,7 @@ pub fn prepare(input: &Mesh, params: &PrepareParams) -> Result<Prepared, CpError
     let boundary = loops.first().ok_or(CpError::NoBoundary)?;
     let reoriented = capped_volume(&m, boundary) < 0.0;
     if reoriented {
-        for f in &mut m.faces {
-            f.swap(1, 2);
-        }
+        m.faces = mesh::reversed_winding(&m.faces);
     }
     let disk = conformal::flatten_to_disk(&m)?;
     let (uv, center) = (disk.uv, disk.center);

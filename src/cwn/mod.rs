@@ -325,13 +325,13 @@ mod tests {
             })
             .collect();
         let m = distance_matrix(&ls, &params, |_| {}).unwrap();
-        assert_eq!(m.names, vec!["s0", "s1", "s2"]);
+        assert_eq!(m.names(), vec!["s0", "s1", "s2"]);
         for i in 0..3 {
-            assert_eq!(m.values[i][i], 0.0);
+            assert_eq!(m.values()[i][i], 0.0);
             for j in i + 1..3 {
                 let d = distance(&ls[i], &ls[j], &params).unwrap().distance;
-                assert_eq!(m.values[i][j], d);
-                assert_eq!(m.values[j][i], d);
+                assert_eq!(m.values()[i][j], d);
+                assert_eq!(m.values()[j][i], d);
             }
         }
     }

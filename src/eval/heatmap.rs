@@ -6,6 +6,7 @@
 //! them.
 
 use super::mantel::{align_to, check_distance_matrix, MantelError};
+use super::tree::average_linkage_merges;
 use super::DistanceMatrix;
 
 /// An 8-bit RGB raster, row-major, top row first.
@@ -85,7 +86,7 @@ fn viridis(t: f64) -> [u8; 3] {
 /// The matrix rescaled to `[0, 1]` over the range of its off-diagonal
 /// entries (all zero when they are constant).
 fn normalized(m: &DistanceMatrix) -> Vec<Vec<f64>> {
-    let n = m.names.len();
+    let n = m.names().len();
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for i in 0..n {
         for j in (0..n).filter(|&j| j != i) {
@@ -114,70 +115,18 @@ fn normalized(m: &DistanceMatrix) -> Vec<Vec<f64>> {
 }
 
 /// The leaf order of the average-linkage (UPGMA) hierarchical clustering
-/// of `m`: near specimens end up next to each other. At each merge the two
-/// leaf sequences are joined (the one holding the lower index first) and
-/// flipped where that brings the two facing ends closest. Clusters are
-/// merged by the nearest-neighbour chain algorithm (O(n²) time), with ties
-/// broken by index, so the order is deterministic.
+/// of `m` ([`average_linkage_merges`]): near specimens end up next to each
+/// other. At each merge the two leaf sequences are joined (the one holding
+/// the lower index first) and flipped where that brings the two facing
+/// ends closest. The order is deterministic.
 pub fn average_linkage_order(m: &DistanceMatrix) -> Vec<usize> {
-    let n = m.names.len();
-    if n == 0 {
-        return Vec::new();
+    let mut leaves: Vec<Vec<usize>> = (0..m.len()).map(|i| vec![i]).collect();
+    for merge in average_linkage_merges(m) {
+        leaves[merge.keep] = join_leaves(&leaves[merge.keep], &leaves[merge.gone], m);
+        leaves[merge.gone].clear();
     }
-    let mut d: Vec<f64> = (0..n * n).map(|k| m.get(k / n, k % n)).collect();
-    let mut size = vec![1usize; n];
-    let mut leaves: Vec<Vec<usize>> = (0..n).map(|i| vec![i]).collect();
-    let mut active = vec![true; n];
-    let mut remaining = n;
-    let mut chain: Vec<usize> = Vec::new();
-    while remaining > 1 {
-        if chain.is_empty() {
-            if let Some(first) = active.iter().position(|&a| a) {
-                chain.push(first);
-            }
-        }
-        // Grow the chain until its last two clusters are each other's
-        // nearest neighbours.
-        let (a, b) = loop {
-            let Some(&a) = chain.last() else { break (0, 0) };
-            let prev = chain.len().checked_sub(2).map(|k| chain[k]);
-            let mut best = prev;
-            let mut best_d = prev.map_or(f64::INFINITY, |p| d[a * n + p]);
-            for c in (0..n).filter(|&c| active[c] && c != a) {
-                if best.is_none() || d[a * n + c] < best_d {
-                    best = Some(c);
-                    best_d = d[a * n + c];
-                }
-            }
-            match best {
-                Some(c) if Some(c) == prev => break (a, c),
-                Some(c) => chain.push(c),
-                None => break (a, a),
-            }
-        };
-        if a == b {
-            break;
-        }
-        chain.truncate(chain.len() - 2);
-        let (keep, gone) = (a.min(b), a.max(b));
-        let joined = join_leaves(&leaves[keep], &leaves[gone], m);
-        leaves[keep] = joined;
-        leaves[gone].clear();
-        let (sk, sg) = (size[keep] as f64, size[gone] as f64);
-        for c in (0..n).filter(|&c| active[c] && c != keep && c != gone) {
-            let v = (sk * d[keep * n + c] + sg * d[gone * n + c]) / (sk + sg);
-            d[keep * n + c] = v;
-            d[c * n + keep] = v;
-        }
-        size[keep] += size[gone];
-        active[gone] = false;
-        remaining -= 1;
-    }
-    active
-        .iter()
-        .position(|&a| a)
-        .map(|k| std::mem::take(&mut leaves[k]))
-        .unwrap_or_default()
+    // Cluster 0 is never merged away: it is the lowest index.
+    leaves.into_iter().next().unwrap_or_default()
 }
 
 /// Concatenate two leaf sequences, the one with the lower first index
@@ -269,7 +218,7 @@ pub fn heatmap(
 ) -> Result<RgbImage, HeatmapError> {
     check_distance_matrix(upper)?;
     let lower = align_to(upper, lower)?;
-    let n = upper.names.len();
+    let n = upper.names().len();
     if n == 0 {
         return Err(HeatmapError::Empty);
     }
@@ -363,7 +312,7 @@ mod tests {
             }
         }
         let names = (0..n).map(|i| format!("x{i:02}")).collect();
-        (DistanceMatrix { names, values }, group)
+        (DistanceMatrix::new(names, values).unwrap(), group)
     }
 
     #[test]
@@ -373,7 +322,7 @@ mod tests {
             let order = average_linkage_order(&m);
             let mut sorted = order.clone();
             sorted.sort();
-            assert_eq!(sorted, (0..m.names.len()).collect::<Vec<_>>());
+            assert_eq!(sorted, (0..m.names().len()).collect::<Vec<_>>());
             // Along the order the group changes exactly twice.
             let changes = order
                 .windows(2)
@@ -388,13 +337,13 @@ mod tests {
     fn order_follows_a_line() {
         // Points on a line: the order must be monotone along it.
         let xs = [5.0, 1.0, 9.0, 3.0, 7.0, 0.0, 8.0, 2.0, 6.0, 4.0];
-        let m = DistanceMatrix {
-            names: (0..xs.len()).map(|i| i.to_string()).collect(),
-            values: xs
-                .iter()
+        let m = DistanceMatrix::new(
+            (0..xs.len()).map(|i| i.to_string()).collect(),
+            xs.iter()
                 .map(|a| xs.iter().map(|b: &f64| (a - b).abs()).collect())
                 .collect(),
-        };
+        )
+        .unwrap();
         let along: Vec<f64> = average_linkage_order(&m).iter().map(|&k| xs[k]).collect();
         let up = along.windows(2).all(|w| w[0] < w[1]);
         let down = along.windows(2).all(|w| w[0] > w[1]);
@@ -404,17 +353,17 @@ mod tests {
     #[test]
     fn triangles_come_from_their_matrices() {
         let (a, _) = planted(1);
-        let n = a.names.len();
+        let n = a.names().len();
         // b: a different matrix over the same names, listed in reverse.
         let (b0, _) = planted(2);
         let rev: Vec<usize> = (0..n).rev().collect();
-        let b = DistanceMatrix {
-            names: rev.iter().map(|&i| a.names[i].clone()).collect(),
-            values: rev
-                .iter()
-                .map(|&i| rev.iter().map(|&j| b0.values[i][j]).collect())
+        let b = DistanceMatrix::new(
+            rev.iter().map(|&i| a.names()[i].clone()).collect(),
+            rev.iter()
+                .map(|&i| rev.iter().map(|&j| b0.values()[i][j]).collect())
                 .collect(),
-        };
+        )
+        .unwrap();
         let order = average_linkage_order(&a);
         let cell = 3;
         let img = heatmap(&a, &b, &order, &[], cell).unwrap();
@@ -456,7 +405,7 @@ mod tests {
         assert_eq!(bounds, vec![1, 3, 5]);
 
         let (m, _) = planted(4);
-        let n = m.names.len() as u32;
+        let n = m.names().len() as u32;
         let order = average_linkage_order(&m);
         let img = heatmap(&m, &m, &order, &[3], 4).unwrap();
         let plain = heatmap(&m, &m, &order, &[], 4).unwrap();
@@ -478,14 +427,15 @@ mod tests {
         // Lightness (green channel here) increases monotonically.
         let g: Vec<u8> = (0..=100).map(|k| viridis(k as f64 / 100.0)[1]).collect();
         assert!(g.windows(2).all(|w| w[0] <= w[1]));
-        let m = DistanceMatrix {
-            names: vec!["a".into(), "b".into(), "c".into()],
-            values: vec![
+        let m = DistanceMatrix::new(
+            vec!["a".into(), "b".into(), "c".into()],
+            vec![
                 vec![0.0, 2.0, 4.0],
                 vec![2.0, 0.0, 3.0],
                 vec![4.0, 3.0, 0.0],
             ],
-        };
+        )
+        .unwrap();
         let nm = normalized(&m);
         assert_eq!(nm[0][1], 0.0);
         assert_eq!(nm[0][2], 1.0);
@@ -509,8 +459,9 @@ mod tests {
             heatmap(&a, &a, &[0, 1, 2], &[], 2),
             Err(HeatmapError::BadOrder(15))
         ));
-        let mut other = a.clone();
-        other.names[0] = "nobody".into();
+        let (mut names, values) = a.clone().into_parts();
+        names[0] = "nobody".into();
+        let other = DistanceMatrix::new(names, values).unwrap();
         let e = heatmap(&a, &other, &average_linkage_order(&a), &[], 2).unwrap_err();
         assert!(e.to_string().contains("nobody"), "{e}");
     }

@@ -34,7 +34,7 @@ pub fn leave_one_out(matrix: &DistanceMatrix, labels: &Labels, ranks: &[String])
         .iter()
         .map(|rank| {
             let known: Vec<Option<&str>> =
-                matrix.names.iter().map(|n| labels.get(n, rank)).collect();
+                matrix.names().iter().map(|n| labels.get(n, rank)).collect();
             let mut correct = 0;
             let mut total = 0;
             for (i, vi) in known.iter().enumerate() {
@@ -83,7 +83,7 @@ mod tests {
             vec![5.0, 5.5, 0.0, 0.5],
             vec![6.0, 6.5, 0.5, 0.0],
         ];
-        let m = DistanceMatrix { names, values: v };
+        let m = DistanceMatrix::new(names, v).unwrap();
         let l = Labels::parse(
             "name,order,genus\na,X,G\nb,X,G\nc,X,H\nd,Y,NA\n",
             None,

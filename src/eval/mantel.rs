@@ -45,24 +45,6 @@ pub enum MantelError {
     /// A name occurs twice in one matrix.
     #[error("specimen `{0}` occurs more than once in a matrix")]
     DuplicateName(String),
-    /// A matrix has a different number of rows than names.
-    #[error("a matrix has {rows} rows for {names} names")]
-    RowCount {
-        /// Number of names.
-        names: usize,
-        /// Number of rows.
-        rows: usize,
-    },
-    /// A row of a matrix has a different length than the name list.
-    #[error("a matrix is not square: {names} names, row {row} has {len} values")]
-    NotSquare {
-        /// Number of names.
-        names: usize,
-        /// The offending row.
-        row: usize,
-        /// Its length.
-        len: usize,
-    },
     /// A matrix is not symmetric.
     #[error("a matrix is not symmetric: d({a}, {b}) = {ab} but d({b}, {a}) = {ba}")]
     NotSymmetric {
@@ -112,38 +94,25 @@ fn pearson(x: &[f64], y: &[f64]) -> Option<f64> {
 
 /// The entries above the diagonal, row by row: `d(0,1), d(0,2), …, d(1,2), …`.
 fn upper_triangle(m: &DistanceMatrix) -> Vec<f64> {
-    let n = m.names.len();
+    let n = m.names().len();
     (0..n)
         .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
         .map(|(i, j)| m.get(i, j))
         .collect()
 }
 
-/// Check that `m` is square, finite and symmetric (to a relative 1e-9 of
+/// Check that `m` (square by construction) is finite and symmetric (to a relative 1e-9 of
 /// its largest entry) with unique names.
 pub(super) fn check_distance_matrix(m: &DistanceMatrix) -> Result<(), MantelError> {
-    let n = m.names.len();
+    let n = m.names().len();
     let mut seen = BTreeSet::new();
-    for name in &m.names {
+    for name in m.names() {
         if !seen.insert(name) {
             return Err(MantelError::DuplicateName(name.clone()));
         }
     }
-    if m.values.len() != n {
-        return Err(MantelError::RowCount {
-            names: n,
-            rows: m.values.len(),
-        });
-    }
     let mut largest: f64 = 0.0;
-    for (row, (name, r)) in m.names.iter().zip(&m.values).enumerate() {
-        if r.len() != n {
-            return Err(MantelError::NotSquare {
-                names: n,
-                row,
-                len: r.len(),
-            });
-        }
+    for (name, r) in m.names().iter().zip(m.values()) {
         if r.iter().any(|v| !v.is_finite()) {
             return Err(MantelError::NotFinite(name.clone()));
         }
@@ -155,8 +124,8 @@ pub(super) fn check_distance_matrix(m: &DistanceMatrix) -> Result<(), MantelErro
             let (ab, ba) = (m.get(i, j), m.get(j, i));
             if (ab - ba).abs() > tol {
                 return Err(MantelError::NotSymmetric {
-                    a: m.names[i].clone(),
-                    b: m.names[j].clone(),
+                    a: m.names()[i].clone(),
+                    b: m.names()[j].clone(),
                     ab,
                     ba,
                 });
@@ -175,20 +144,20 @@ pub(super) fn align_to(
     check_distance_matrix(reference)?;
     check_distance_matrix(other)?;
     let index: HashMap<&str, usize> = other
-        .names
+        .names()
         .iter()
         .enumerate()
         .map(|(i, n)| (n.as_str(), i))
         .collect();
     let only_first: Vec<String> = reference
-        .names
+        .names()
         .iter()
         .filter(|n| !index.contains_key(n.as_str()))
         .cloned()
         .collect();
-    let ref_names: BTreeSet<&str> = reference.names.iter().map(String::as_str).collect();
+    let ref_names: BTreeSet<&str> = reference.names().iter().map(String::as_str).collect();
     let only_second: Vec<String> = other
-        .names
+        .names()
         .iter()
         .filter(|n| !ref_names.contains(n.as_str()))
         .cloned()
@@ -200,7 +169,7 @@ pub(super) fn align_to(
         });
     }
     let map: Vec<usize> = reference
-        .names
+        .names()
         .iter()
         .filter_map(|n| index.get(n.as_str()).copied())
         .collect();
@@ -208,17 +177,14 @@ pub(super) fn align_to(
         .iter()
         .map(|&i| map.iter().map(|&j| other.get(i, j)).collect())
         .collect();
-    Ok(DistanceMatrix {
-        names: reference.names.clone(),
-        values,
-    })
+    Ok(DistanceMatrix::square(reference.names().to_vec(), values))
 }
 
 /// The Mantel correlation: Pearson r of the upper triangles of `a` and `b`,
 /// matching specimens by name.
 fn mantel_r(a: &DistanceMatrix, b: &DistanceMatrix) -> Result<f64, MantelError> {
     let b = align_to(a, b)?;
-    let n = a.names.len();
+    let n = a.names().len();
     if n < 3 {
         return Err(MantelError::TooFew(n));
     }
@@ -239,7 +205,7 @@ pub fn mantel_test(
     seed: u64,
 ) -> Result<Mantel, MantelError> {
     let b = align_to(a, b)?;
-    let n = a.names.len();
+    let n = a.names().len();
     if n < 3 {
         return Err(MantelError::TooFew(n));
     }
@@ -275,7 +241,7 @@ pub fn mantel_test(
 /// are the upper-triangle values centred on their mean and scaled to unit
 /// sum of squares over the upper triangle; `None` when they are constant.
 fn standardized_square(m: &DistanceMatrix) -> Option<Vec<f64>> {
-    let n = m.names.len();
+    let n = m.names().len();
     let upper = upper_triangle(m);
     let mean = upper.iter().sum::<f64>() / upper.len() as f64;
     let norm = upper.iter().map(|v| (v - mean).powi(2)).sum::<f64>().sqrt();
@@ -315,10 +281,7 @@ mod tests {
     use rand::Rng;
 
     fn matrix(names: &[&str], values: Vec<Vec<f64>>) -> DistanceMatrix {
-        DistanceMatrix {
-            names: names.iter().map(|s| s.to_string()).collect(),
-            values,
-        }
+        DistanceMatrix::new(names.iter().map(|s| s.to_string()).collect(), values).unwrap()
     }
 
     /// A random symmetric matrix with zero diagonal (distances between
@@ -334,10 +297,17 @@ mod tests {
                     .collect()
             })
             .collect();
-        DistanceMatrix {
-            names: (0..n).map(|i| format!("s{i:03}")).collect(),
-            values,
-        }
+        DistanceMatrix::new((0..n).map(|i| format!("s{i:03}")).collect(), values).unwrap()
+    }
+
+    /// A copy of `m` with its names and rows changed by `edit`.
+    fn edited(
+        m: &DistanceMatrix,
+        edit: impl FnOnce(&mut Vec<String>, &mut Vec<Vec<f64>>),
+    ) -> DistanceMatrix {
+        let (mut names, mut values) = m.clone().into_parts();
+        edit(&mut names, &mut values);
+        DistanceMatrix::new(names, values).unwrap()
     }
 
     fn from_upper(names: &[&str], upper: &[f64]) -> DistanceMatrix {
@@ -406,12 +376,13 @@ mod tests {
         // b = a plus independent noise of a third of its size.
         let a = random_matrix(30, 3);
         let noise = random_matrix(30, 4);
-        let mut b = a.clone();
-        for i in 0..30 {
-            for j in 0..30 {
-                b.values[i][j] += 0.3 * noise.values[i][j];
+        let b = edited(&a, |_, v| {
+            for (row, noise) in v.iter_mut().zip(noise.values()) {
+                for (x, e) in row.iter_mut().zip(noise) {
+                    *x += 0.3 * e;
+                }
             }
-        }
+        });
         let t = mantel_test(&a, &b, 999, 5).unwrap();
         assert!(t.r > 0.5 && t.p < 0.01, "{t:?}");
     }
@@ -424,13 +395,13 @@ mod tests {
         let larger = perms
             .iter()
             .filter(|p| {
-                let relabeled = DistanceMatrix {
-                    names: b.names.clone(),
-                    values: p
-                        .iter()
-                        .map(|&i| p.iter().map(|&j| b.values[i][j]).collect())
+                let relabeled = DistanceMatrix::new(
+                    b.names().to_vec(),
+                    p.iter()
+                        .map(|&i| p.iter().map(|&j| b.values()[i][j]).collect())
                         .collect(),
-                };
+                )
+                .unwrap();
                 pearson(&x, &upper_triangle(&relabeled)).unwrap() >= r - TIE_TOLERANCE
             })
             .count();
@@ -443,12 +414,13 @@ mod tests {
         let a = random_matrix(n, 21);
         let b = random_matrix(n, 22);
         // Make the pair mildly related so that the count is neither 0 nor all.
-        let mut c = b.clone();
-        for i in 0..n {
-            for j in 0..n {
-                c.values[i][j] += 0.1 * a.values[i][j];
+        let c = edited(&b, |_, v| {
+            for (row, a_row) in v.iter_mut().zip(a.values()) {
+                for (x, y) in row.iter_mut().zip(a_row) {
+                    *x += 0.1 * y;
+                }
             }
-        }
+        });
         let perms: Vec<Vec<usize>> = (1..=200u64)
             .map(|k| {
                 let mut rng = ChaCha8Rng::seed_from_u64(9);
@@ -469,13 +441,14 @@ mod tests {
         let a = random_matrix(12, 31);
         // The same matrix with its specimens in reverse order.
         let order: Vec<usize> = (0..12).rev().collect();
-        let b = DistanceMatrix {
-            names: order.iter().map(|&i| a.names[i].clone()).collect(),
-            values: order
+        let b = DistanceMatrix::new(
+            order.iter().map(|&i| a.names()[i].clone()).collect(),
+            order
                 .iter()
-                .map(|&i| order.iter().map(|&j| a.values[i][j]).collect())
+                .map(|&i| order.iter().map(|&j| a.values()[i][j]).collect())
                 .collect(),
-        };
+        )
+        .unwrap();
         assert!((mantel_r(&a, &b).unwrap() - 1.0).abs() < 1e-12);
         let t1 = mantel_test(&a, &b, 99, 3).unwrap();
         assert_eq!(t1.p, 0.01);
@@ -498,13 +471,11 @@ mod tests {
     #[test]
     fn errors_name_the_specimens() {
         let a = random_matrix(5, 1);
-        let mut b = a.clone();
-        b.names[1] = "zz".into();
+        let b = edited(&a, |names, _| names[1] = "zz".into());
         let e = mantel_test(&a, &b, 9, 1).unwrap_err();
         let msg = e.to_string();
         assert!(msg.contains("s001") && msg.contains("zz"), "{msg}");
-        let mut c = a.clone();
-        c.values[0][2] += 1.0;
+        let c = edited(&a, |_, v| v[0][2] += 1.0);
         assert!(matches!(
             mantel_r(&a, &c),
             Err(MantelError::NotSymmetric { .. })
@@ -513,23 +484,9 @@ mod tests {
         assert_eq!(mantel_r(&flat, &flat), Err(MantelError::Constant));
         let two = from_upper(&["a", "b"], &[1.0]);
         assert_eq!(mantel_r(&two, &two), Err(MantelError::TooFew(2)));
-        let mut short = a.clone();
-        short.values.pop();
-        assert!(matches!(
-            mantel_r(&a, &short),
-            Err(MantelError::RowCount { names: 5, rows: 4 })
-        ));
-        let mut ragged = a.clone();
-        ragged.values[3].pop();
-        assert!(matches!(
-            mantel_r(&ragged, &a),
-            Err(MantelError::NotSquare { row: 3, len: 4, .. })
-        ));
-        let mut nan = a.clone();
-        nan.values[1][1] = f64::NAN;
+        let nan = edited(&a, |_, v| v[1][1] = f64::NAN);
         assert!(matches!(mantel_r(&a, &nan), Err(MantelError::NotFinite(_))));
-        let mut dup = a.clone();
-        dup.names[2] = dup.names[0].clone();
+        let dup = edited(&a, |names, _| names[2] = names[0].clone());
         assert!(matches!(
             mantel_r(&dup, &a),
             Err(MantelError::DuplicateName(_))

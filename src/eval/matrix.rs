@@ -10,12 +10,81 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 #[derive(Debug, Clone, PartialEq)]
 pub struct DistanceMatrix {
     /// Specimen names (row and column order).
-    pub names: Vec<String>,
-    /// `values[i][j]`: distance between specimens `i` and `j`.
-    pub values: Vec<Vec<f64>>,
+    names: Vec<String>,
+    /// `values[i][j]`: distance between specimens `i` and `j`; one row of
+    /// `names.len()` values per name.
+    values: Vec<Vec<f64>>,
+}
+
+/// A matrix whose rows do not match its names.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("a distance matrix of {names} names has {rows} rows; row {row} has {len} values")]
+pub struct MatrixShapeError {
+    /// Number of names.
+    pub names: usize,
+    /// Number of rows.
+    pub rows: usize,
+    /// The first row of the wrong length (or `rows` when the row count is wrong).
+    pub row: usize,
+    /// Its length (0 when the row count is wrong).
+    pub len: usize,
 }
 
 impl DistanceMatrix {
+    /// The matrix of `values[i][j]` between `names[i]` and `names[j]`;
+    /// fails unless there is one row of `names.len()` values per name.
+    pub fn new(names: Vec<String>, values: Vec<Vec<f64>>) -> Result<Self, MatrixShapeError> {
+        let n = names.len();
+        let bad = |row: usize, len: usize| MatrixShapeError {
+            names: n,
+            rows: values.len(),
+            row,
+            len,
+        };
+        if values.len() != n {
+            return Err(bad(values.len(), 0));
+        }
+        if let Some((row, r)) = values.iter().enumerate().find(|(_, r)| r.len() != n) {
+            return Err(bad(row, r.len()));
+        }
+        Ok(Self { names, values })
+    }
+
+    /// A matrix built in this crate with one row of `names.len()` values
+    /// per name by construction (checked in debug builds).
+    pub(crate) fn square(names: Vec<String>, values: Vec<Vec<f64>>) -> Self {
+        debug_assert!(
+            values.len() == names.len() && values.iter().all(|r| r.len() == names.len()),
+            "a distance matrix must be square"
+        );
+        Self { names, values }
+    }
+
+    /// The names and the rows, taken apart.
+    pub fn into_parts(self) -> (Vec<String>, Vec<Vec<f64>>) {
+        (self.names, self.values)
+    }
+
+    /// Specimen names (row and column order).
+    pub fn names(&self) -> &[String] {
+        &self.names
+    }
+
+    /// The rows: `values()[i][j]` is the distance between specimens `i` and `j`.
+    pub fn values(&self) -> &[Vec<f64>] {
+        &self.values
+    }
+
+    /// Number of specimens.
+    pub fn len(&self) -> usize {
+        self.names.len()
+    }
+
+    /// Whether the matrix has no specimen.
+    pub fn is_empty(&self) -> bool {
+        self.names.is_empty()
+    }
+
     /// Distance between specimens `i` and `j` (NaN when out of range).
     pub fn get(&self, i: usize, j: usize) -> f64 {
         self.values

@@ -18,7 +18,7 @@ pub struct Mds {
 /// sign makes its largest-magnitude coordinate positive. Non-finite
 /// distances count as 0.
 pub fn classical_mds(m: &DistanceMatrix, dimensions: usize) -> Mds {
-    let n = m.names.len();
+    let n = m.names().len();
     if n == 0 {
         return Mds {
             coordinates: Vec::new(),
@@ -77,20 +77,20 @@ mod tests {
         let pts = [[0.0, 0.0], [3.0, 0.0], [0.0, 4.0], [1.0, 1.0], [2.0, 5.0]];
         let dist =
             |a: [f64; 2], b: [f64; 2]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
-        let m = DistanceMatrix {
-            names: (0..5).map(|i| i.to_string()).collect(),
-            values: pts
-                .iter()
+        let m = DistanceMatrix::new(
+            (0..5).map(|i| i.to_string()).collect(),
+            pts.iter()
                 .map(|&a| pts.iter().map(|&b| dist(a, b)).collect())
                 .collect(),
-        };
+        )
+        .unwrap();
         let mds = classical_mds(&m, 5);
         assert_eq!(mds.eigenvalues.len(), 2);
         for i in 0..5 {
             for j in 0..5 {
                 let c = &mds.coordinates;
                 let d = ((c[i][0] - c[j][0]).powi(2) + (c[i][1] - c[j][1]).powi(2)).sqrt();
-                assert!((d - m.values[i][j]).abs() < 1e-9);
+                assert!((d - m.values()[i][j]).abs() < 1e-9);
             }
         }
     }

@@ -20,7 +20,7 @@ pub use heatmap::{
 pub use labels::Labels;
 pub use loo::{leave_one_out, RankScore};
 pub use mantel::{mantel_test, Mantel, MantelError, DEFAULT_PERMUTATIONS, DEFAULT_SEED};
-pub use matrix::{distance_matrix, pairwise_matrix, DistanceMatrix};
+pub use matrix::{distance_matrix, pairwise_matrix, DistanceMatrix, MatrixShapeError};
 pub use mds::{classical_mds, Mds};
 pub use plot::{scatter_raster, scatter_svg, Scatter};
 pub use shard::{

@@ -518,10 +518,7 @@ pub fn merge_shards(shards: &[(PathBuf, ShardFile)]) -> Result<DistanceMatrix, S
             )));
         }
     }
-    Ok(DistanceMatrix {
-        names: first.names.clone(),
-        values,
-    })
+    Ok(DistanceMatrix::square(first.names.clone(), values))
 }
 
 /// What is wrong with the values of a pair, if anything: each must be
@@ -674,9 +671,9 @@ mod tests {
         let names = ["a", "b", "c", "d", "e"];
         let shards = fake_shards(&names, 3);
         let m = merge_shards(&shards).unwrap();
-        assert_eq!(m.values[1][3], 13.125);
-        assert_eq!(m.values[3][1], 13.125);
-        assert_eq!(m.values[2][2], 0.0);
+        assert_eq!(m.values()[1][3], 13.125);
+        assert_eq!(m.values()[3][1], 13.125);
+        assert_eq!(m.values()[2][2], 0.0);
 
         let e = merge_shards(&shards[..2]).unwrap_err().to_string();
         assert!(e.contains("missing shard(s) 3/3"), "{e}");

@@ -49,70 +49,119 @@ impl Dendrogram {
     }
 }
 
-/// The average-linkage tree of `m` (symmetrized; non-finite distances
-/// count as the largest finite one): repeatedly the two clusters with the
-/// smallest average distance merge (ties: the pair with the lowest
-/// indices). O(n³), for the few hundred specimens of a collection.
-/// `None` for an empty matrix.
-pub fn average_linkage_tree(m: &DistanceMatrix) -> Option<Dendrogram> {
-    let n = m.names.len();
+/// One merge of average-linkage clustering. A cluster is known by the
+/// lowest index among its specimens; after the merge it lives on as
+/// `keep`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Merge {
+    /// The surviving cluster (the lower index).
+    pub(super) keep: usize,
+    /// The cluster merged into it.
+    pub(super) gone: usize,
+    /// The average distance between the two clusters.
+    pub(super) distance: f64,
+}
+
+/// The `n - 1` merges of the average-linkage (UPGMA) clustering of `m`
+/// (symmetrized; non-finite distances count as the largest finite one).
+/// Found by the nearest-neighbour chain algorithm, O(n²) time: merges come
+/// in chain order, not by distance, but average linkage is reducible, so
+/// the clusters are those of merging the closest pair first. Ties are
+/// broken by index, so the result is deterministic.
+pub(super) fn average_linkage_merges(m: &DistanceMatrix) -> Vec<Merge> {
+    let n = m.len();
     let big = (0..n)
         .flat_map(|i| (0..n).map(move |j| (i, j)))
         .map(|(i, j)| m.get(i, j))
         .filter(|v| v.is_finite())
         .fold(0.0, f64::max);
-    let mut d: Vec<Vec<f64>> = (0..n)
-        .map(|i| {
-            (0..n)
-                .map(|j| {
-                    let v = 0.5 * (m.get(i, j) + m.get(j, i));
-                    if v.is_finite() {
-                        v
-                    } else {
-                        big
-                    }
-                })
-                .collect()
+    let mut d: Vec<f64> = (0..n * n)
+        .map(|k| {
+            let (i, j) = (k / n, k % n);
+            let v = 0.5 * (m.get(i, j) + m.get(j, i));
+            if v.is_finite() {
+                v
+            } else {
+                big
+            }
         })
         .collect();
-    let mut clusters: Vec<Option<(Dendrogram, usize)>> =
-        (0..n).map(|i| Some((Dendrogram::Leaf(i), 1))).collect();
-    for _ in 1..n {
-        let mut best: Option<(usize, usize, f64)> = None;
-        for a in 0..n {
-            if clusters[a].is_none() {
-                continue;
+    let mut size = vec![1usize; n];
+    let mut active = vec![true; n];
+    let mut merges = Vec::with_capacity(n.saturating_sub(1));
+    let mut chain: Vec<usize> = Vec::new();
+    while merges.len() + 1 < n {
+        if chain.is_empty() {
+            if let Some(first) = active.iter().position(|&a| a) {
+                chain.push(first);
             }
-            for b in a + 1..n {
-                if clusters[b].is_some() && best.is_none_or(|(_, _, v)| d[a][b] < v) {
-                    best = Some((a, b, d[a][b]));
+        }
+        // Grow the chain until its last two clusters are each other's
+        // nearest neighbours.
+        let (a, b) = loop {
+            let Some(&a) = chain.last() else { break (0, 0) };
+            let prev = chain.len().checked_sub(2).map(|k| chain[k]);
+            let mut best = prev;
+            let mut best_d = prev.map_or(f64::INFINITY, |p| d[a * n + p]);
+            for c in (0..n).filter(|&c| active[c] && c != a) {
+                if best.is_none() || d[a * n + c] < best_d {
+                    best = Some(c);
+                    best_d = d[a * n + c];
                 }
             }
-        }
-        let (a, b, dist) = best?;
-        let (ta, na) = clusters[a].take()?;
-        let (tb, nb) = clusters[b].take()?;
-        for c in 0..n {
-            if clusters[c].is_some() {
-                let v = (na as f64 * d[a][c] + nb as f64 * d[b][c]) / (na + nb) as f64;
-                d[a][c] = v;
-                d[c][a] = v;
+            match best {
+                Some(c) if Some(c) == prev => break (a, c),
+                Some(c) => chain.push(c),
+                None => break (a, a),
             }
+        };
+        if a == b {
+            break;
         }
+        chain.truncate(chain.len() - 2);
+        let (keep, gone) = (a.min(b), a.max(b));
+        merges.push(Merge {
+            keep,
+            gone,
+            distance: d[keep * n + gone],
+        });
+        let (sk, sg) = (size[keep] as f64, size[gone] as f64);
+        for c in (0..n).filter(|&c| active[c] && c != keep && c != gone) {
+            let v = (sk * d[keep * n + c] + sg * d[gone * n + c]) / (sk + sg);
+            d[keep * n + c] = v;
+            d[c * n + keep] = v;
+        }
+        size[keep] += size[gone];
+        active[gone] = false;
+    }
+    merges
+}
+
+/// The average-linkage tree of `m` (see [`average_linkage_merges`] for
+/// how distances are read and ties broken), each merge at half the
+/// average distance between its clusters. `None` for an empty matrix.
+pub fn average_linkage_tree(m: &DistanceMatrix) -> Option<Dendrogram> {
+    let mut clusters: Vec<Option<Dendrogram>> =
+        (0..m.len()).map(|i| Some(Dendrogram::Leaf(i))).collect();
+    for Merge {
+        keep,
+        gone,
+        distance,
+    } in average_linkage_merges(m)
+    {
+        let ta = clusters[keep].take()?;
+        let tb = clusters[gone].take()?;
         let children = if ta.min_leaf() <= tb.min_leaf() {
             [ta, tb]
         } else {
             [tb, ta]
         };
-        clusters[a] = Some((
-            Dendrogram::Merge {
-                height: dist / 2.0,
-                children: Box::new(children),
-            },
-            na + nb,
-        ));
+        clusters[keep] = Some(Dendrogram::Merge {
+            height: distance / 2.0,
+            children: Box::new(children),
+        });
     }
-    clusters.into_iter().flatten().next().map(|(t, _)| t)
+    clusters.into_iter().flatten().next()
 }
 
 /// A Newick label: bare when it has no special character, else quoted
@@ -229,13 +278,13 @@ mod tests {
 
     fn line() -> DistanceMatrix {
         let x: [f64; 4] = [0.0, 1.0, 5.0, 5.5];
-        DistanceMatrix {
-            names: vec!["a".into(), "b c".into(), "d'e".into(), "f".into()],
-            values: x
-                .iter()
+        DistanceMatrix::new(
+            vec!["a".into(), "b c".into(), "d'e".into(), "f".into()],
+            x.iter()
                 .map(|p| x.iter().map(|q| (p - q).abs()).collect())
                 .collect(),
-        }
+        )
+        .unwrap()
     }
 
     #[test]
@@ -246,17 +295,13 @@ mod tests {
         let t = average_linkage_tree(&m).unwrap();
         assert_eq!(t.leaves(), vec![0, 1, 2, 3]);
         assert!((t.height() - 4.75 / 2.0).abs() < 1e-12);
-        let text = newick(&t, &m.names);
+        let text = newick(&t, m.names());
         assert_eq!(
             text,
             "((a:0.5,'b c':0.5):1.875,('d''e':0.25,f:0.25):2.125);\n"
         );
-        let svg = dendrogram_svg(&t, &m.names, None);
+        let svg = dendrogram_svg(&t, m.names(), None);
         assert_eq!(svg.matches("<text").count(), 4);
-        assert!(average_linkage_tree(&DistanceMatrix {
-            names: vec![],
-            values: vec![]
-        })
-        .is_none());
+        assert!(average_linkage_tree(&DistanceMatrix::new(vec![], vec![]).unwrap()).is_none());
     }
 }

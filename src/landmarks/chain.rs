@@ -95,8 +95,8 @@ pub fn complete_distances(
     let n = surfaces.len();
     let lookup = |i: usize, j: usize| -> Option<f64> {
         let m = known?;
-        let a = m.names.iter().position(|x| *x == names[i])?;
-        let b = m.names.iter().position(|x| *x == names[j])?;
+        let a = m.names().iter().position(|x| *x == names[i])?;
+        let b = m.names().iter().position(|x| *x == names[j])?;
         Some(m.get(a, b)).filter(|d| d.is_finite())
     };
     let pairs: Vec<(usize, usize)> = (0..n)

@@ -119,7 +119,7 @@ mod tests {
         let names: Vec<String> = ["a", "b,1", "c"].map(String::from).to_vec();
         let (m, count) = procrustes_matrix(dir.path(), &names, false).unwrap();
         assert_eq!(count, 4);
-        assert_eq!(m.names, names);
+        assert_eq!(m.names(), names);
         assert!(m.get(0, 1) < 1e-12, "{}", m.get(0, 1));
         assert!(m.get(0, 2) > 0.1 && m.get(0, 2) == m.get(2, 0));
 

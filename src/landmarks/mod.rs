@@ -52,9 +52,9 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Landmarks {
     /// Positions, in the units and coordinates of their surface file.
-    pub points: Vec<[f64; 3]>,
+    points: Vec<[f64; 3]>,
     /// One optional label per point; an empty label is stored as `None`.
-    pub labels: Vec<Option<String>>,
+    labels: Vec<Option<String>>,
 }
 
 impl Landmarks {
@@ -62,6 +62,33 @@ impl Landmarks {
     pub fn from_points(points: Vec<[f64; 3]>) -> Self {
         let labels = vec![None; points.len()];
         Self { points, labels }
+    }
+
+    /// Labelled landmarks: one label per point (an empty label counts as
+    /// none); `None` when the lengths differ.
+    pub fn with_labels(points: Vec<[f64; 3]>, labels: Vec<Option<String>>) -> Option<Self> {
+        (points.len() == labels.len()).then(|| Self {
+            points,
+            labels: labels
+                .into_iter()
+                .map(|l| l.filter(|l| !l.is_empty()))
+                .collect(),
+        })
+    }
+
+    /// The positions, in the units and coordinates of their surface file.
+    pub fn points(&self) -> &[[f64; 3]] {
+        &self.points
+    }
+
+    /// The positions, to move them in place (the number stays).
+    pub fn points_mut(&mut self) -> &mut [[f64; 3]] {
+        &mut self.points
+    }
+
+    /// One optional label per point.
+    pub fn labels(&self) -> &[Option<String>] {
+        &self.labels
     }
 
     /// Number of landmarks.
@@ -143,7 +170,7 @@ impl Format {
 /// file and, for content errors, the line (or the JSON element).
 #[derive(Debug, thiserror::Error)]
 pub enum LandmarkError {
-    /// The file cannot be read or written.
+    /// The file cannot be read.
     #[error("{path}: {source}")]
     Io {
         /// The file.
@@ -151,6 +178,9 @@ pub enum LandmarkError {
         /// The I/O error.
         source: std::io::Error,
     },
+    /// The file cannot be written (the error names it and the step).
+    #[error(transparent)]
+    Write(#[from] crate::atomic_write::AtomicWriteError),
     /// The extension names no landmark format.
     #[error(
         "{0}: unknown landmark format (use .csv, .fcsv, .mrk.json, .pp, .tps or morphologika .txt)"
@@ -290,10 +320,7 @@ pub fn write_collection(path: &Path, specimens: &[NamedLandmarks]) -> Result<(),
 
 /// Replace `path` with `text` atomically.
 fn write_text(path: &Path, text: &str) -> Result<(), LandmarkError> {
-    crate::atomic_write::write_atomic(path, text.as_bytes()).map_err(|e| LandmarkError::Io {
-        path: path.to_path_buf(),
-        source: std::io::Error::other(e),
-    })
+    Ok(crate::atomic_write::write_atomic(path, text.as_bytes())?)
 }
 
 /// Read a landmark file, in the format its extension names; with
@@ -326,13 +353,11 @@ fn check_count(
     }
 }
 
-/// Write a landmark file in the format its extension names.
+/// Write a landmark file in the format its extension names, whole or not
+/// at all.
 pub fn write(path: &Path, landmarks: &Landmarks) -> Result<(), LandmarkError> {
     let fmt = Format::from_path(path).ok_or_else(|| LandmarkError::UnknownFormat(path.into()))?;
-    std::fs::write(path, format(landmarks, fmt)).map_err(|source| LandmarkError::Io {
-        path: path.to_path_buf(),
-        source,
-    })
+    write_text(path, &format(landmarks, fmt))
 }
 
 /// The extensions a library's landmark file may have, in the order they
@@ -380,12 +405,35 @@ fn display_paths(files: &[PathBuf]) -> String {
 #[derive(Debug, Default)]
 pub struct LibraryLandmarks {
     /// Usable landmarks, by specimen name.
-    pub by_name: std::collections::BTreeMap<String, Landmarks>,
+    by_name: std::collections::BTreeMap<String, Landmarks>,
     /// Specimens whose landmark file could not be used, by name (sorted).
-    pub problems: Vec<(String, LandmarkProblem)>,
+    problems: Vec<(String, LandmarkProblem)>,
     /// The number of landmarks per specimen (the most common count among
     /// the readable files; on a tie, the larger).
-    pub count: Option<usize>,
+    count: Option<usize>,
+}
+
+impl LibraryLandmarks {
+    /// Usable landmarks, by specimen name.
+    pub fn by_name(&self) -> &std::collections::BTreeMap<String, Landmarks> {
+        &self.by_name
+    }
+
+    /// Specimens whose landmark file could not be used, by name (sorted).
+    pub fn problems(&self) -> &[(String, LandmarkProblem)] {
+        &self.problems
+    }
+
+    /// The number of landmarks per specimen (the most common count among
+    /// the readable files; on a tie, the larger).
+    pub fn count(&self) -> Option<usize> {
+        self.count
+    }
+
+    /// Move out the usable landmarks, leaving the problems and the count.
+    pub fn take_by_name(&mut self) -> std::collections::BTreeMap<String, Landmarks> {
+        std::mem::take(&mut self.by_name)
+    }
 }
 
 /// Read the landmark files of the specimens `names` of the library folder
@@ -432,6 +480,34 @@ pub fn load_library(dir: &Path, names: &[String]) -> LibraryLandmarks {
     }
     out.problems.sort_by(|a, b| a.0.cmp(&b.0));
     out
+}
+
+/// The non-blank lines of a collection file, trimmed (a byte-order mark
+/// dropped), with their 1-based numbers.
+fn content_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
+    text.lines()
+        .enumerate()
+        .map(|(k, raw)| (k + 1, raw.trim().trim_start_matches('\u{feff}')))
+        .filter(|(_, t)| !t.is_empty())
+}
+
+/// One landmark written as `x y z` (whitespace-separated).
+fn parse_xyz(line: &str) -> Result<[f64; 3], String> {
+    let fields: Vec<&str> = line.split_whitespace().collect();
+    if fields.len() != 3 {
+        return Err(format!("{} values; a 3D landmark has 3", fields.len()));
+    }
+    let mut q = [0.0; 3];
+    for (d, f) in fields.iter().enumerate() {
+        q[d] = parse_coordinate(f)?;
+    }
+    Ok(q)
+}
+
+/// The `x y z` line of one landmark, each value in the shortest form that
+/// reads back exactly.
+fn xyz_line(p: &[f64; 3]) -> String {
+    format!("{:?} {:?} {:?}\n", p[0], p[1], p[2])
 }
 
 /// Parse one coordinate; non-finite values are rejected.

@@ -14,16 +14,15 @@
 //! starting with `'` are comments.
 
 use super::tps::{one_line, NamedLandmarks};
-use super::{parse_coordinate, LandmarkError, Landmarks};
+use super::{content_lines, parse_xyz, xyz_line, LandmarkError, Landmarks};
 use std::path::Path;
 
 /// Whether `text` looks like a morphologika file (its first non-blank line
 /// is a bracketed section).
 pub fn is_morphologika(text: &str) -> bool {
-    text.lines()
-        .map(|l| l.trim().trim_start_matches('\u{feff}'))
-        .find(|l| !l.is_empty())
-        .is_some_and(|l| l.starts_with('['))
+    content_lines(text)
+        .next()
+        .is_some_and(|(_, l)| l.starts_with('['))
 }
 
 /// Parse a morphologika file; `path` only names the source in errors.
@@ -42,10 +41,8 @@ pub fn parse_morphologika(text: &str, path: &Path) -> Result<Vec<NamedLandmarks>
         v.parse::<usize>()
             .map_err(|_| err(line, format!("[{what}] `{v}` is not a count")))
     };
-    for (k, raw) in text.lines().enumerate() {
-        let line = k + 1;
-        let t = raw.trim().trim_start_matches('\u{feff}');
-        if t.is_empty() || (t.starts_with('\'') && section != "names") {
+    for (line, t) in content_lines(text) {
+        if t.starts_with('\'') && section != "names" {
             continue;
         }
         if let Some(rest) = t.strip_prefix('[') {
@@ -71,20 +68,7 @@ pub fn parse_morphologika(text: &str, path: &Path) -> Result<Vec<NamedLandmarks>
             "landmarks" => landmarks = Some(count(t, line, "landmarks")?),
             "dimensions" => dimensions = Some(count(t, line, "dimensions")?),
             "names" => names.push(t.trim_start_matches('\'').to_string()),
-            "rawpoints" => {
-                let fields: Vec<&str> = t.split_whitespace().collect();
-                if fields.len() != 3 {
-                    return Err(err(
-                        line,
-                        format!("{} values; a 3D landmark has 3", fields.len()),
-                    ));
-                }
-                let mut q = [0.0; 3];
-                for (d, f) in fields.iter().enumerate() {
-                    q[d] = parse_coordinate(f).map_err(|m| err(line, m))?;
-                }
-                points.push((q, line));
-            }
+            "rawpoints" => points.push((parse_xyz(t).map_err(|m| err(line, m))?, line)),
             "" => return Err(err(line, "content before any [section]".into())),
             _ => {}
         }
@@ -150,7 +134,7 @@ pub fn format_morphologika(specimens: &[NamedLandmarks]) -> String {
     for sp in specimens {
         s.push_str(&format!("'{}\n", one_line(&sp.name)));
         for p in &sp.landmarks.points {
-            s.push_str(&format!("{:?} {:?} {:?}\n", p[0], p[1], p[2]));
+            s.push_str(&xyz_line(p));
         }
     }
     s

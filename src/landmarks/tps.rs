@@ -15,7 +15,7 @@
 //! a specimen without `ID=`, a count that does not match its lines and 2D
 //! (`LM=`) data. Written files hold `LM3=`, the coordinates and `ID=`.
 
-use super::{parse_coordinate, LandmarkError, Landmarks};
+use super::{content_lines, parse_coordinate, parse_xyz, xyz_line, LandmarkError, Landmarks};
 use std::path::Path;
 
 /// The landmarks of one specimen of a collection file.
@@ -77,12 +77,7 @@ pub fn parse_tps(text: &str, path: &Path) -> Result<Vec<NamedLandmarks>, Landmar
         });
         Ok(())
     };
-    for (k, raw) in text.lines().enumerate() {
-        let line = k + 1;
-        let t = raw.trim().trim_start_matches('\u{feff}');
-        if t.is_empty() {
-            continue;
-        }
+    for (line, t) in content_lines(text) {
         if let Some((key, value)) = t.split_once('=') {
             let key = key.trim().to_ascii_uppercase();
             let value = value.trim();
@@ -135,17 +130,7 @@ pub fn parse_tps(text: &str, path: &Path) -> Result<Vec<NamedLandmarks>, Landmar
         let Some(p) = current.as_mut() else {
             return Err(err(line, "coordinates before any LM3=".into()));
         };
-        let fields: Vec<&str> = t.split_whitespace().collect();
-        if fields.len() != 3 {
-            return Err(err(
-                line,
-                format!("{} values; a 3D landmark has 3", fields.len()),
-            ));
-        }
-        let mut q = [0.0; 3];
-        for (d, f) in fields.iter().enumerate() {
-            q[d] = parse_coordinate(f).map_err(|m| err(line, m))?;
-        }
+        let q = parse_xyz(t).map_err(|m| err(line, m))?;
         if q.iter().any(|&v| is_missing_sentinel(v)) {
             return Err(err(
                 line,
@@ -183,7 +168,7 @@ pub fn format_tps(specimens: &[NamedLandmarks]) -> String {
     for sp in specimens {
         s.push_str(&format!("LM3={}\n", sp.landmarks.len()));
         for p in &sp.landmarks.points {
-            s.push_str(&format!("{:?} {:?} {:?}\n", p[0], p[1], p[2]));
+            s.push_str(&xyz_line(p));
         }
         s.push_str(&format!("ID={}\n", one_line(&sp.name)));
     }

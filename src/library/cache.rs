@@ -71,13 +71,56 @@ pub enum CacheError {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct CachedReference {
     /// Reference name.
-    pub name: String,
+    name: String,
     /// Content hash of the surface file it was prepared from.
-    pub content_hash: String,
+    content_hash: String,
     /// The prepared form.
-    pub prepared: Prepared,
+    prepared: Prepared,
     /// What cleaning changed.
-    pub cleaning: CleanReport,
+    cleaning: CleanReport,
+}
+
+impl CachedReference {
+    /// The reference `name`, prepared from the surface file with content
+    /// hash `content_hash`.
+    pub fn new(
+        name: String,
+        content_hash: String,
+        prepared: Prepared,
+        cleaning: CleanReport,
+    ) -> Self {
+        Self {
+            name,
+            content_hash,
+            prepared,
+            cleaning,
+        }
+    }
+
+    /// Reference name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Content hash of the surface file it was prepared from.
+    pub fn content_hash(&self) -> &str {
+        &self.content_hash
+    }
+
+    /// The prepared form.
+    pub fn prepared(&self) -> &Prepared {
+        &self.prepared
+    }
+
+    /// What cleaning changed.
+    pub fn cleaning(&self) -> &CleanReport {
+        &self.cleaning
+    }
+
+    /// The prepared form and the content hash, dropping the rest.
+    pub fn into_prepared_and_hash(self) -> (Prepared, String) {
+        (self.prepared, self.content_hash)
+    }
 }
 
 #[derive(Serialize, Deserialize)]
@@ -273,12 +316,12 @@ mod tests {
         settings.clean.target_vertices = 800;
         let mesh = synth::crown(&synth::CROWN_GENERA[0], 1, 800);
         let surface = crate::pipeline::prepare_mesh(&mesh, "r", &settings).unwrap();
-        let reference = CachedReference {
-            name: "r".into(),
-            content_hash: crate::hash::content_hash(b"r"),
-            prepared: surface.prepared,
-            cleaning: surface.cleaning,
-        };
+        let reference = CachedReference::new(
+            "r".into(),
+            crate::hash::content_hash(b"r"),
+            surface.prepared,
+            surface.cleaning,
+        );
         let dir = tempfile::tempdir().unwrap();
         let key = Cache::key(&reference.content_hash, &settings);
         std::thread::scope(|s| {

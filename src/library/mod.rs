@@ -32,7 +32,7 @@ pub use matrix::{landscape, SurfaceDistance, SurfaceMatrixError};
 use crate::cp::Prepared;
 use crate::eval::{Labels, TableError};
 use crate::hash::content_hash;
-use crate::landmarks::LibraryLandmarks;
+use crate::landmarks::{Landmarks, LibraryLandmarks};
 use crate::mesh::io::{self, Format, LoadError};
 use crate::pipeline::{self, MeshError, Settings};
 use rayon::prelude::*;
@@ -96,12 +96,30 @@ pub enum LibraryError {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Member {
     /// Name (file stem, as in `labels.csv`).
-    pub name: String,
+    name: String,
     /// The surface file.
-    pub path: PathBuf,
+    path: PathBuf,
     /// Landmark file, when `landmarks/<name>.{csv,fcsv,mrk.json,pp}`
     /// exists (the first found; [`build`] reports a name with several).
-    pub landmarks: Option<PathBuf>,
+    landmarks: Option<PathBuf>,
+}
+
+impl Member {
+    /// Name (file stem, as in `labels.csv`).
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The surface file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Landmark file, when `landmarks/<name>.{csv,fcsv,mrk.json,pp}`
+    /// exists (the first found; [`build`] reports a name with several).
+    pub fn landmarks(&self) -> Option<&Path> {
+        self.landmarks.as_deref()
+    }
 }
 
 /// A reference library folder, checked: every surface has a label row
@@ -177,9 +195,26 @@ pub enum PrepareError {
 #[derive(Debug)]
 pub struct Failure {
     /// The reference.
-    pub name: String,
+    name: String,
     /// Why it could not be prepared.
-    pub error: PrepareError,
+    error: PrepareError,
+}
+
+impl Failure {
+    /// The reference `name` could not be prepared because of `error`.
+    pub fn new(name: String, error: PrepareError) -> Self {
+        Self { name, error }
+    }
+
+    /// The reference.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Why it failed.
+    pub fn error(&self) -> &PrepareError {
+        &self.error
+    }
 }
 
 /// Where a prepared surface came from.
@@ -232,12 +267,12 @@ fn load_or_prepare(
             }
         })?;
     Ok(Loaded {
-        reference: CachedReference {
-            name: member.name.clone(),
-            content_hash: hash,
-            prepared: surface.prepared,
-            cleaning: surface.cleaning,
-        },
+        reference: CachedReference::new(
+            member.name.clone(),
+            hash,
+            surface.prepared,
+            surface.cleaning,
+        ),
         key,
         origin: Origin::Prepared,
     })
@@ -296,7 +331,7 @@ impl<'a> Preparation<'a> {
                 }
             }
         }
-        Ok((loaded.reference.prepared, loaded.reference.content_hash))
+        Ok(loaded.reference.into_prepared_and_hash())
     }
 
     /// The prepared forms of all `members`, in their order, in parallel;
@@ -359,18 +394,63 @@ impl Library {
 #[derive(Debug, Default)]
 pub struct BuildOutcome {
     /// The prepared references, in library order (failed ones left out).
-    pub references: Vec<CachedReference>,
+    references: Vec<CachedReference>,
     /// References that could not be prepared.
-    pub failures: Vec<Failure>,
+    failures: Vec<Failure>,
     /// How many were prepared now.
-    pub prepared: usize,
+    prepared: usize,
     /// How many came from the cache.
-    pub reused: usize,
+    reused: usize,
     /// Cache entries deleted (removed or changed references, old settings).
-    pub removed: usize,
+    removed: usize,
     /// The references' landmarks (read at every build, not cached) and
     /// the landmark files that could not be used, per reference.
-    pub landmarks: LibraryLandmarks,
+    landmarks: LibraryLandmarks,
+}
+
+impl BuildOutcome {
+    /// The prepared references, in library order (failed ones left out;
+    /// empty once a [`Classifier`](crate::classify::Classifier) took them).
+    pub fn references(&self) -> &[CachedReference] {
+        &self.references
+    }
+
+    /// References that could not be prepared.
+    pub fn failures(&self) -> &[Failure] {
+        &self.failures
+    }
+
+    /// How many were prepared now.
+    pub fn prepared(&self) -> usize {
+        self.prepared
+    }
+
+    /// How many came from the cache.
+    pub fn reused(&self) -> usize {
+        self.reused
+    }
+
+    /// Cache entries deleted (removed or changed references, old settings).
+    pub fn removed(&self) -> usize {
+        self.removed
+    }
+
+    /// The references' landmarks and the landmark files that could not be used.
+    pub fn landmarks(&self) -> &LibraryLandmarks {
+        &self.landmarks
+    }
+
+    /// Move out the prepared references and their usable landmarks (by
+    /// name), leaving the counts, failures and landmark problems: the
+    /// classifier keeps one copy of the references, not two.
+    pub(crate) fn take_references(
+        &mut self,
+    ) -> (Vec<CachedReference>, BTreeMap<String, Landmarks>) {
+        (
+            std::mem::take(&mut self.references),
+            self.landmarks.take_by_name(),
+        )
+    }
 }
 
 /// Prepare every reference of `library`, reusing the cache where the file

@@ -93,6 +93,37 @@ pub fn norm(a: [f64; 3]) -> f64 {
     dot(a, a).sqrt()
 }
 
+/// `a` scaled to length one (zero stays zero).
+pub fn unit(a: [f64; 3]) -> [f64; 3] {
+    let l = norm(a);
+    if l > 0.0 {
+        a.map(|x| x / l)
+    } else {
+        a
+    }
+}
+
+/// Unit vertex normals: the sum of the (area-weighted) normals of the
+/// faces around each vertex; zero for a vertex in no face. Faces with an
+/// index out of range are skipped.
+pub fn vertex_normals(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> Vec<[f64; 3]> {
+    let mut n = vec![[0.0; 3]; vertices.len()];
+    for f in faces {
+        let [a, b, c] = f.map(|i| i as usize);
+        let (Some(&pa), Some(&pb), Some(&pc)) = (vertices.get(a), vertices.get(b), vertices.get(c))
+        else {
+            continue;
+        };
+        let face = triangle_normal2(pa, pb, pc);
+        for v in [a, b, c] {
+            for d in 0..3 {
+                n[v][d] += face[d];
+            }
+        }
+    }
+    n.into_iter().map(unit).collect()
+}
+
 /// Area-weighted (unnormalized) normal of a triangle: `(b - a) × (c - a)`,
 /// whose length is twice the triangle's area.
 #[inline]
@@ -136,18 +167,32 @@ pub fn vertex_areas(mesh: &Mesh) -> Vec<f64> {
     areas
 }
 
-/// Axis-aligned bounding box `(min, max)`; `None` for an empty mesh.
-pub fn bounding_box(mesh: &Mesh) -> Option<([f64; 3], [f64; 3])> {
-    let first = *mesh.vertices.first()?;
-    let mut lo = first;
-    let mut hi = first;
-    for v in &mesh.vertices {
+/// Axis-aligned bounding box `(min, max)` of `points`; `None` when there
+/// is no point.
+pub fn points_bounding_box(
+    points: impl IntoIterator<Item = [f64; 3]>,
+) -> Option<([f64; 3], [f64; 3])> {
+    let mut points = points.into_iter();
+    let first = points.next()?;
+    let (mut lo, mut hi) = (first, first);
+    for v in points {
         for k in 0..3 {
             lo[k] = lo[k].min(v[k]);
             hi[k] = hi[k].max(v[k]);
         }
     }
     Some((lo, hi))
+}
+
+/// Axis-aligned bounding box `(min, max)` of the vertices; `None` for an
+/// empty mesh.
+pub fn bounding_box(mesh: &Mesh) -> Option<([f64; 3], [f64; 3])> {
+    points_bounding_box(mesh.vertices.iter().copied())
+}
+
+/// The triangles with their winding reversed: every normal flipped.
+pub fn reversed_winding(faces: &[[u32; 3]]) -> Vec<[u32; 3]> {
+    faces.iter().map(|f| [f[0], f[2], f[1]]).collect()
 }
 
 /// Length of the bounding-box diagonal (0 for an empty mesh).

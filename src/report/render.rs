@@ -3,7 +3,8 @@
 //! image. Pure functions over plain data; the report encodes the image as
 //! PNG.
 
-use crate::mesh::{cross, dot, norm, sub};
+use crate::mesh::{cross, dot, sub};
+pub use crate::mesh::{unit, vertex_normals};
 
 /// An orthographic view: an orthonormal frame and the square of the scene
 /// it shows.
@@ -53,36 +54,6 @@ impl Image {
     /// Number of pixels something was drawn on (alpha not zero).
     pub fn covered_pixels(&self) -> usize {
         self.rgba.chunks_exact(4).filter(|p| p[3] != 0).count()
-    }
-}
-
-/// Unit vertex normals: the sum of the (area-weighted) normals of the
-/// faces around each vertex.
-pub fn vertex_normals(vertices: &[[f64; 3]], faces: &[[u32; 3]]) -> Vec<[f64; 3]> {
-    let mut n = vec![[0.0; 3]; vertices.len()];
-    for f in faces {
-        let [a, b, c] = f.map(|i| i as usize);
-        let (Some(&pa), Some(&pb), Some(&pc)) = (vertices.get(a), vertices.get(b), vertices.get(c))
-        else {
-            continue;
-        };
-        let fn_ = cross(sub(pb, pa), sub(pc, pa));
-        for v in [a, b, c] {
-            for d in 0..3 {
-                n[v][d] += fn_[d];
-            }
-        }
-    }
-    n.into_iter().map(unit).collect()
-}
-
-/// `a` scaled to length one (zero stays zero).
-pub fn unit(a: [f64; 3]) -> [f64; 3] {
-    let l = norm(a);
-    if l > 0.0 {
-        a.map(|x| x / l)
-    } else {
-        a
     }
 }
 

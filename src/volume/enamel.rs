@@ -3,28 +3,8 @@
 //! the density just inside the surface crosses the enamel threshold.
 
 use super::grid::Grid;
-use crate::mesh::{cross, edge_key, face_areas, sub, vertex_adjacency, EdgeKey, Mesh};
+use crate::mesh::{edge_key, face_areas, vertex_adjacency, EdgeKey, Mesh};
 use rustc_hash::FxHashMap;
-
-/// Area-weighted vertex normals of an oriented mesh (unit length; zero
-/// for a vertex in no face).
-pub fn vertex_normals(mesh: &Mesh) -> Vec<[f64; 3]> {
-    let mut n = vec![[0.0; 3]; mesh.vertices.len()];
-    for f in &mesh.faces {
-        let [a, b, c] = f.map(|v| mesh.vertices[v as usize]);
-        let fnormal = cross(sub(b, a), sub(c, a));
-        for &v in f {
-            (0..3).for_each(|k| n[v as usize][k] += fnormal[k]);
-        }
-    }
-    for v in &mut n {
-        let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        if l > 0.0 {
-            *v = v.map(|x| x / l);
-        }
-    }
-    n
-}
 
 /// For every vertex, the mean of `grid` sampled at `depths` (physical
 /// units) inward along the vertex normal, minus `threshold`: positive over

@@ -22,7 +22,7 @@ mod stack;
 pub mod synth;
 mod threshold;
 
-pub use enamel::{cut_at_zero_level, largest_part, vertex_normals};
+pub use enamel::{cut_at_zero_level, largest_part};
 pub use grid::Grid;
 pub use isosurface::isosurface;
 pub use reduce::{reduction_factor, BlockAverage};
@@ -265,7 +265,7 @@ pub fn surface_from_grid(
     let mesh = match th.enamel.filter(|_| opts.enamel) {
         Some(level) => {
             let step = grid.spacing.iter().copied().fold(f64::MAX, f64::min);
-            let normals = vertex_normals(&closed);
+            let normals = crate::mesh::vertex_normals(&closed.vertices, &closed.faces);
             let depths = [1.0, 1.5, 2.0, 2.5, 3.0].map(|d| d * step);
             let values = enamel::density_below_surface(&closed, &normals, grid, &depths, level);
             let values = enamel::smooth_vertex_values(&closed, &values);

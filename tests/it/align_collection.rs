@@ -104,7 +104,8 @@ fn cycle_errors(al: &Alignment, prepared: &[Prepared], triples: &[[usize; 3]]) -
                 )
                 .unwrap()
                 .landmarks
-                .points
+                .points()
+                .to_vec()
             });
             (consistent, pairwise)
         })
@@ -170,7 +171,10 @@ fn consistent_maps_close_cycles_and_carry_known_landmarks() {
     };
     let mst = align(Consistency::SpanningTree);
     let direct = align(Consistency::Direct);
-    assert_eq!(mst.template, collection::medoid(&distances.values).unwrap());
+    assert_eq!(
+        mst.template,
+        collection::medoid(distances.values()).unwrap()
+    );
     assert_eq!(mst.steps.len(), 9);
     assert_eq!(mst.pseudolandmarks.len(), 10);
     assert!(mst.pseudolandmarks.iter().all(|p| p.len() == 64));
@@ -186,7 +190,7 @@ fn consistent_maps_close_cycles_and_carry_known_landmarks() {
     // The half of the specimens farthest from the template.
     let t = mst.template;
     let mut others: Vec<usize> = (0..10).filter(|&i| i != t).collect();
-    others.sort_by(|&a, &b| distances.values[t][b].total_cmp(&distances.values[t][a]));
+    others.sort_by(|&a, &b| distances.values()[t][b].total_cmp(&distances.values()[t][a]));
     let far = &others[..5];
     let (e_mst, e_direct) = (
         carried_error(&mst, &specimens, &prepared, far),
@@ -296,14 +300,14 @@ fn align_command_writes_every_output_the_same_for_any_thread_count() {
         let set = tps.iter().find(|t| t.name == s.name).unwrap();
         let fcsv =
             landmarks::read(&one.join("fcsv").join(format!("{}.fcsv", s.name)), Some(40)).unwrap();
-        for (p, q) in set.landmarks.points.iter().zip(&fcsv.points) {
+        for (p, q) in set.landmarks.points().iter().zip(fcsv.points()) {
             assert!(norm(sub(*p, *q)) < 1e-9);
         }
         let mesh = io::load(&s.path).unwrap().mesh;
         let surface = Surface::new(mesh.clone()).unwrap();
         let worst = set
             .landmarks
-            .points
+            .points()
             .iter()
             .map(|&p| norm(sub(p, surface.closest(p))))
             .fold(0.0, f64::max);
@@ -327,7 +331,7 @@ fn align_command_writes_every_output_the_same_for_any_thread_count() {
         image::load_from_memory(&std::fs::read(one.join("morphospace.png")).unwrap()).unwrap();
     assert!(png.width() > 100);
     let pd = DistanceMatrix::read_csv(&one.join("procrustes_distances.csv")).unwrap();
-    assert_eq!(pd.names.len(), n);
+    assert_eq!(pd.names().len(), n);
 }
 
 #[test]

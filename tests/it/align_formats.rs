@@ -29,7 +29,7 @@ fn tps_and_morphologika_files_round_trip_and_bad_ones_name_file_and_line() {
     let one = dir.path().join("one.tps");
     std::fs::write(&one, "LM3=2\n1 2 3\n4 5 6\nSCALE=2\nID=a\n").unwrap();
     assert_eq!(
-        landmarks::read(&one, Some(2)).unwrap().points,
+        landmarks::read(&one, Some(2)).unwrap().points(),
         vec![[2.0, 4.0, 6.0], [8.0, 10.0, 12.0]]
     );
     let e = landmarks::read(&dir.path().join("c.tps"), None)

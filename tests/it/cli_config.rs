@@ -153,7 +153,7 @@ fn names_with_commas_quotes_and_line_breaks_round_trip() {
     let m = morphoid::eval::DistanceMatrix::read_csv(&full).unwrap();
     let mut sorted = names.map(String::from).to_vec();
     sorted.sort();
-    assert_eq!(m.names, sorted);
+    assert_eq!(m.names(), sorted);
 
     let mut shards = Vec::new();
     for k in 1..=2 {

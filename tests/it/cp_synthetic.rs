@@ -46,11 +46,11 @@ fn matrix_is_symmetric_deterministic_and_separates_genera() {
         .expect("pool")
         .install(|| distance_matrix(&prepared, &params.compare, |_| {}));
     assert_eq!(m, single);
-    for i in 0..m.names.len() {
-        assert_eq!(m.values[i][i], 0.0);
-        for j in 0..m.names.len() {
-            assert_eq!(m.values[i][j], m.values[j][i]);
-            assert!(m.values[i][j].is_finite());
+    for i in 0..m.names().len() {
+        assert_eq!(m.values()[i][i], 0.0);
+        for j in 0..m.names().len() {
+            assert_eq!(m.values()[i][j], m.values()[j][i]);
+            assert!(m.values()[i][j].is_finite());
         }
     }
     let text = m.to_csv();

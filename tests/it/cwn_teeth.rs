@@ -65,9 +65,9 @@ fn leave_one_out_on_teeth(step: usize, floors: impl Fn(usize, usize, usize)) {
             .expect("write matrix");
     }
     for i in 0..n {
-        assert_eq!(m.values[i][i], 0.0);
+        assert_eq!(m.values()[i][i], 0.0);
         for j in 0..n {
-            assert!(m.values[i][j].is_finite() && m.values[i][j] >= 0.0);
+            assert!(m.values()[i][j].is_finite() && m.values()[i][j] >= 0.0);
         }
     }
     let scores = crate::support::cp::leave_one_out_scores(&dir, &m);

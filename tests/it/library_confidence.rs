@@ -163,7 +163,7 @@ fn novelty_and_calibration_on_the_116_teeth() {
     let cache = Cache::for_folder(Some(&root), &data).unwrap();
     let settings = Settings::default();
     let (classifier, built) = Classifier::build(&library, &cache, &settings, |_| {}).unwrap();
-    assert!(built.failures.is_empty());
+    assert!(built.failures().is_empty());
     assert_eq!(classifier.references().len(), 116);
     let table =
         library::reference_distances(classifier.references(), &settings, Some(&cache), |_| {});

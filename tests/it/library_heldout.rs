@@ -41,12 +41,7 @@ fn held_out_teeth_are_identified_to_genus() {
         .map(|n| {
             let path = data.join("meshes").join(format!("{n}.ply"));
             let s = pipeline::prepare_file(&path, &settings).unwrap();
-            CachedReference {
-                name: n.clone(),
-                content_hash: String::new(),
-                prepared: s.prepared,
-                cleaning: s.cleaning,
-            }
+            CachedReference::new(n.clone(), String::new(), s.prepared, s.cleaning)
         })
         .collect();
     assert_eq!(references.len(), 106);

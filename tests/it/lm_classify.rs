@@ -9,7 +9,7 @@
 use crate::support::lm::{
     json_landmarks, moved_copy, relative_errors, true_position, write_library_landmarks,
 };
-use morphoid::landmarks;
+use morphoid::landmarks::{self, Landmarks};
 use morphoid::mesh::io;
 use morphoid::mesh::synth::{self, LibrarySpec, Specimen};
 use rusqlite::Connection;
@@ -98,7 +98,7 @@ fn classify_carries_the_nearest_references_landmarks() {
     io::save(&scan, &copy).unwrap();
     let reference_lm = crate::support::lm::landmarks_of(&source.path);
     let truth: Vec<[f64; 3]> = reference_lm
-        .points
+        .points()
         .iter()
         .map(|&p| true_position(p, &motion))
         .collect();
@@ -137,7 +137,7 @@ fn classify_carries_the_nearest_references_landmarks() {
     let from_file: serde_json::Value = serde_json::from_str(&json_file).unwrap();
     assert_eq!(&from_file, v);
     let fcsv = landmarks::read(&out_dir.join("scan_a.ply.fcsv"), Some(10)).unwrap();
-    assert_eq!(fcsv.points, points);
+    assert_eq!(fcsv.points(), points);
     assert_eq!(fcsv.label(0), Some("L1"));
     let leftovers: Vec<_> = std::fs::read_dir(&out_dir)
         .unwrap()
@@ -284,10 +284,10 @@ fn landmark_matrix_and_mantel_against_cp() {
 
     let read = |p: &Path| morphoid::eval::DistanceMatrix::read_csv(p).unwrap();
     let (mcp, mlm, mrefl) = (read(&cp), read(&lm), read(&lm_refl));
-    assert_eq!(mcp.names, mlm.names);
-    for i in 0..mlm.names.len() {
+    assert_eq!(mcp.names(), mlm.names());
+    for i in 0..mlm.names().len() {
         assert_eq!(mlm.get(i, i), 0.0);
-        for j in 0..mlm.names.len() {
+        for j in 0..mlm.names().len() {
             assert_eq!(mlm.get(i, j), mlm.get(j, i));
             assert!(mrefl.get(i, j) <= mlm.get(i, j) + 1e-12);
             if i != j {
@@ -313,7 +313,7 @@ fn landmark_matrix_and_mantel_against_cp() {
 
     // A specimen without landmarks, and one with another count: errors
     // that name them.
-    let names = &mlm.names;
+    let names = mlm.names();
     let victim = landmarks::library_files(&s.lib, &names[4]);
     std::fs::rename(&victim[0], s.root.join("aside")).unwrap();
     let o = morphoid(
@@ -328,9 +328,10 @@ fn landmark_matrix_and_mantel_against_cp() {
     );
     std::fs::rename(s.root.join("aside"), &victim[0]).unwrap();
     let short = &landmarks::library_files(&s.lib, &names[6])[0];
-    let mut lm6 = landmarks::read(short, None).unwrap();
-    lm6.points.pop();
-    lm6.labels.pop();
+    let lm6 = landmarks::read(short, None).unwrap();
+    let n6 = lm6.len() - 1;
+    let lm6 =
+        Landmarks::with_labels(lm6.points()[..n6].to_vec(), lm6.labels()[..n6].to_vec()).unwrap();
     landmarks::write(short, &lm6).unwrap();
     let o = morphoid(
         &["matrix", "--method", "landmarks", "--library"],

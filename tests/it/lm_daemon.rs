@@ -52,11 +52,11 @@ fn the_daemon_writes_the_carried_landmarks_next_to_the_json() {
     assert_eq!(v["landmarks_reference"], names[5].as_str());
     let got = landmarks::read(&fcsv, Some(10)).unwrap();
     let truth: Vec<[f64; 3]> = crate::support::lm::landmarks_of(&source)
-        .points
+        .points()
         .iter()
         .map(|&p| true_position(p, &motion))
         .collect();
-    let (mean, max) = relative_errors(&got.points, &truth, &copy);
+    let (mean, max) = relative_errors(got.points(), &truth, &copy);
     println!("daemon: error / diagonal mean {mean:.5}, max {max:.5}");
     assert!(mean < 0.01, "mean error {mean}");
     let r = rows(&env.db);

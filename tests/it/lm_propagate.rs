@@ -59,7 +59,7 @@ fn true_position(p: [f64; 3], motion: &RigidMotion, mirrored: bool) -> [f64; 3] 
 /// on the target surface.
 fn errors(got: &Landmarks, truth: &[[f64; 3]], target: &Mesh) -> (f64, f64) {
     let diag = bbox_diagonal(target);
-    let on = morphoid::clean::point_to_surface_distances(&got.points, target);
+    let on = morphoid::clean::point_to_surface_distances(got.points(), target);
     for d in on {
         assert!(
             d <= 1e-9 * diag,
@@ -67,7 +67,7 @@ fn errors(got: &Landmarks, truth: &[[f64; 3]], target: &Mesh) -> (f64, f64) {
         );
     }
     let e: Vec<f64> = got
-        .points
+        .points()
         .iter()
         .zip(truth)
         .map(|(a, b)| norm(sub(*a, *b)) / diag)
@@ -92,13 +92,13 @@ fn self_propagation(mesh: &Mesh, seed: u64, mirrored: bool) -> (f64, f64) {
         Surface::from_prepared(&target).unwrap(),
     );
     let out = landmarks::propagate(&lm, &s, &t, &map.correspondence).unwrap();
-    assert_eq!(out.landmarks.labels, lm.labels);
+    assert_eq!(out.landmarks.labels(), lm.labels());
     assert!(out
         .source_offsets
         .iter()
         .all(|&d| d < 1e-9 * bbox_diagonal(&source.cleaned)));
     let truth: Vec<[f64; 3]> = lm
-        .points
+        .points()
         .iter()
         .map(|&p| true_position(p, &motion, mirrored))
         .collect();
@@ -143,7 +143,7 @@ fn synthetic_crown_through_an_intermediate() {
     )
     .unwrap();
     let truth: Vec<[f64; 3]> = lm
-        .points
+        .points()
         .iter()
         .map(|&p| true_position(true_position(p, &m1, false), &m2, false))
         .collect();
@@ -206,9 +206,9 @@ fn command_line_propagates_to_a_moved_copy() {
         .unwrap();
     assert!(status.success());
     let got = landmarks::read(&out_path, Some(lm.len())).unwrap();
-    assert_eq!(got.labels, lm.labels);
+    assert_eq!(got.labels(), lm.labels());
     let truth: Vec<[f64; 3]> = lm
-        .points
+        .points()
         .iter()
         .map(|&p| true_position(p, &motion, false))
         .collect();
@@ -311,9 +311,9 @@ fn command_line_follows_the_spanning_tree_of_a_given_matrix() {
         Path::new("stdout"),
     )
     .unwrap();
-    assert_eq!(got.labels, lm.labels);
+    assert_eq!(got.labels(), lm.labels());
     let truth: Vec<[f64; 3]> = lm
-        .points
+        .points()
         .iter()
         .map(|&p| true_position(p, &motion, false))
         .collect();
@@ -394,14 +394,14 @@ fn real_teeth_of_one_genus_cusps_and_round_trips() {
             landmarks::propagate(&there.landmarks, &tb, &ta, &c.backward.correspondence).unwrap();
         let (da, db) = (bbox_diagonal(&sa.cleaned), bbox_diagonal(&sb.cleaned));
         let trip: Vec<f64> = lm
-            .points
+            .points()
             .iter()
-            .zip(&back.landmarks.points)
+            .zip(back.landmarks.points())
             .map(|(p, q)| norm(sub(*p, *q)) / da)
             .collect();
         // The first landmarks are A's cusp tips (features).
         let cusps = sa.prepared.features().len().min(5);
-        let cusp: Vec<f64> = there.landmarks.points[..cusps]
+        let cusp: Vec<f64> = there.landmarks.points()[..cusps]
             .iter()
             .map(|p| {
                 sb.prepared

@@ -49,9 +49,9 @@ fn key(references: &[CachedReference], settings: &Settings) -> String {
     let mut h = Sha256::new();
     h.update(FORMAT.to_le_bytes());
     for r in references {
-        h.update(r.name.as_bytes());
+        h.update(r.name().as_bytes());
         h.update([0]);
-        h.update(r.content_hash.as_bytes());
+        h.update(r.content_hash().as_bytes());
         h.update([0]);
     }
     let params = serde_json::to_string(&(&settings.clean, &settings.cp)).unwrap_or_default();
@@ -65,8 +65,8 @@ fn held_out(references: &[CachedReference]) -> Vec<usize> {
     let mut order: Vec<usize> = (0..references.len()).collect();
     if order.len() > CALIBRATION_SAMPLE {
         order.sort_by(|&a, &b| {
-            (&references[a].content_hash, &references[a].name)
-                .cmp(&(&references[b].content_hash, &references[b].name))
+            (&references[a].content_hash(), &references[a].name())
+                .cmp(&(&references[b].content_hash(), &references[b].name()))
         });
         order.truncate(CALIBRATION_SAMPLE);
         order.sort_unstable();
@@ -94,8 +94,8 @@ fn compute(
         .par_iter()
         .map(|&(i, j)| {
             let c = compare(
-                &references[i].prepared,
-                &references[j].prepared,
+                references[i].prepared(),
+                references[j].prepared(),
                 &settings.cp.compare,
             );
             progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
@@ -118,7 +118,7 @@ fn compute(
             rows[k][i] = v;
         }
     }
-    let names = references.iter().map(|r| r.name.clone()).collect();
+    let names = references.iter().map(|r| r.name().to_string()).collect();
     // The shape holds by construction; an error here would be a bug.
     ReferenceDistances { names, held, rows }
 }
@@ -198,7 +198,11 @@ impl ReferenceDistances {
     /// Whether the table is of these references, in this order.
     fn fits(&self, references: &[CachedReference]) -> bool {
         self.names.len() == references.len()
-            && self.names.iter().zip(references).all(|(n, r)| *n == r.name)
+            && self
+                .names
+                .iter()
+                .zip(references)
+                .all(|(n, r)| *n == r.name())
             && self.rows.iter().all(|r| r.len() == references.len())
             && self.held.len() == self.rows.len()
             && self.held.iter().all(|&h| h < references.len())

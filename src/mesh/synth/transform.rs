@@ -3,7 +3,7 @@
 //! given seed.
 
 pub use crate::mesh::subdivide_midpoint;
-use crate::mesh::{bbox_diagonal, norm, sub, Mesh};
+use crate::mesh::{bbox_diagonal, norm, reversed_winding, sub, Mesh};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -100,7 +100,7 @@ pub fn scale(mesh: &Mesh, factor: f64) -> Mesh {
 pub fn mirror(mesh: &Mesh) -> Mesh {
     Mesh::new(
         mesh.vertices.iter().map(|p| [-p[0], p[1], p[2]]).collect(),
-        mesh.faces.iter().map(|f| [f[0], f[2], f[1]]).collect(),
+        reversed_winding(&mesh.faces),
     )
 }
 
@@ -145,7 +145,7 @@ pub fn add_debris(mesh: &Mesh, count: usize, seed: u64) -> Mesh {
         return out;
     }
     let diag = bbox_diagonal(mesh).max(f64::MIN_POSITIVE);
-    let normals = vertex_normals(mesh);
+    let normals = crate::mesh::vertex_normals(&mesh.vertices, &mesh.faces);
     let blob = closed_sphere(42);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     for _ in 0..count {
@@ -185,27 +185,6 @@ pub fn add_debris(mesh: &Mesh, count: usize, seed: u64) -> Mesh {
         );
     }
     out
-}
-
-/// Unit area-weighted vertex normals (zero where undefined).
-fn vertex_normals(mesh: &Mesh) -> Vec<[f64; 3]> {
-    let mut normals = vec![[0.0; 3]; mesh.vertices.len()];
-    for f in &mesh.faces {
-        let p = |k: usize| mesh.vertices[f[k] as usize];
-        let n = crate::mesh::triangle_normal2(p(0), p(1), p(2));
-        for &i in f {
-            for k in 0..3 {
-                normals[i as usize][k] += n[k];
-            }
-        }
-    }
-    for n in &mut normals {
-        let len = norm(*n);
-        if len > 0.0 {
-            *n = [n[0] / len, n[1] / len, n[2] / len];
-        }
-    }
-    normals
 }
 
 fn random_unit_vector(rng: &mut ChaCha8Rng) -> [f64; 3] {

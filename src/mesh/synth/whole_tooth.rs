@@ -275,7 +275,7 @@ pub fn whole_tooth(
     let mut faces: Vec<[u32; 3]> = if outward {
         crown.faces.clone()
     } else {
-        crown.faces.iter().map(|f| [f[0], f[2], f[1]]).collect()
+        crate::mesh::reversed_winding(&crown.faces)
     };
     let crown_face_count = faces.len();
     // With inward faces the loop's half-edges run the other way.
@@ -461,10 +461,7 @@ mod tests {
     #[test]
     fn inward_crowns_give_outward_teeth_and_the_seed_varies_the_shape() {
         let c = crown(&CROWN_GENERA[1], 3, 1200);
-        let flipped = Mesh::new(
-            c.vertices.clone(),
-            c.faces.iter().map(|f| [f[0], f[2], f[1]]).collect(),
-        );
+        let flipped = Mesh::new(c.vertices.clone(), crate::mesh::reversed_winding(&c.faces));
         let t = whole_tooth(&flipped, &WholeToothParams::default(), 1).unwrap();
         assert!(signed_volume(&t.mesh) > 0.0);
         assert!(t.occlusal[2] > 0.95);
