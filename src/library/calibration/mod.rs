@@ -509,7 +509,7 @@ mod tests {
         let genus = &cal.ranks()[0];
         assert_eq!((genus.held, genus.right), (20, 20));
         assert!(genus.threshold.is_some());
-        // Among G2's members: near, crowded like a member.
+        // Among G2's members: near, and ranking among them like a member.
         let inside = assess_at(&cal, &names, &xs, &labels, 20.45);
         assert_eq!(inside.no_close_match, Some(false), "{inside:?}");
         assert!(inside.probability > 0.9, "{inside:?}");

@@ -91,19 +91,19 @@ pub fn logistic_regression(features: &[Vec<f64>], targets: &[f64]) -> Option<Vec
         // as one augmented system [H | g].
         let mut m = vec![vec![0.0f64; k + 1]; k];
         for (x, &y) in features.iter().zip(targets) {
-            let z = |a: usize| if a == 0 { 1.0 } else { x[a - 1] };
-            let p = logistic((0..k).map(|a| w[a] * z(a)).sum());
+            let z: Vec<f64> = std::iter::once(1.0).chain(x.iter().copied()).collect();
+            let p = logistic(w.iter().zip(&z).map(|(a, b)| a * b).sum());
             let q = p * (1.0 - p);
-            for a in 0..k {
-                m[a][k] += (p - y) * z(a);
-                for b in 0..k {
-                    m[a][b] += q * z(a) * z(b);
+            for (row, &za) in m.iter_mut().zip(&z) {
+                row[k] += (p - y) * za;
+                for (h, &zb) in row.iter_mut().zip(&z) {
+                    *h += q * za * zb;
                 }
             }
         }
-        for a in 1..k {
-            m[a][k] += RIDGE * w[a];
-            m[a][a] += RIDGE;
+        for (a, row) in m.iter_mut().enumerate().skip(1) {
+            row[k] += RIDGE * w[a];
+            row[a] += RIDGE;
         }
         let step = solve(m)?;
         for (wa, da) in w.iter_mut().zip(&step) {
@@ -132,11 +132,12 @@ fn solve(mut m: Vec<Vec<f64>>) -> Option<Vec<f64>> {
         if !(p.is_finite() && p.abs() > 1e-300) {
             return None;
         }
-        for r in 0..k {
+        let pivot_row = m[c].clone();
+        for (r, row) in m.iter_mut().enumerate() {
             if r != c {
-                let f = m[r][c] / p;
-                for col in c..=k {
-                    m[r][col] -= f * m[c][col];
+                let f = row[c] / p;
+                for (x, &v) in row.iter_mut().zip(&pivot_row).skip(c) {
+                    *x -= f * v;
                 }
             }
         }
