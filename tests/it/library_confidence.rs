@@ -144,9 +144,11 @@ fn a_scan_of_a_missing_taxon_is_flagged_and_one_of_a_held_taxon_is_not() {
 /// (`Calibration::fit`) and its confidence (`Calibration::assess`), once
 /// against all other teeth (genus present) and once against the teeth
 /// of other genera (genus absent). Asserts ROC AUC ≥ 0.93 of the novelty
-/// score, and the genus probability's expected calibration error < 0.05;
-/// prints the share flagged at ≤ 5 % false flags and the reliability
-/// table. Set `MORPHOID_CALIBRATION_CACHE` to a folder to keep the
+/// score, that it beats the raw nearest distance in AUC and in the share
+/// flagged at ≤ 5 % false flags, that the product's own threshold flags at
+/// most 10 % of present-genus teeth, and the genus probability's expected
+/// calibration error < 0.05; prints the shares flagged, the fitted weights
+/// of the rank term and the reliability table. Set `MORPHOID_CALIBRATION_CACHE` to a folder to keep the
 /// prepared teeth and their distances between runs.
 #[test]
 #[ignore = "full 116-tooth measurement (minutes); run by name"]
@@ -189,6 +191,15 @@ fn novelty_and_calibration_on_the_116_teeth() {
         m.flagged_absent, m.flagged_present
     );
     let ece = expected_calibration_error(&m.probability, &m.correct, 10).unwrap();
+    let mut w = m.weights.clone();
+    w.sort_by(f64::total_cmp);
+    eprintln!(
+        "genus weight of the rank term over the {} calibrations: min {:.3}, median {:.3}, max {:.3}",
+        w.len(),
+        w[0],
+        w[w.len() / 2],
+        w[w.len() - 1]
+    );
     eprintln!("genus probability (leave-one-out): ECE {ece:.4}");
     eprintln!("| probability | teeth | mean probability | share right |");
     eprintln!("|---|---|---|---|");
@@ -201,6 +212,12 @@ fn novelty_and_calibration_on_the_116_teeth() {
     assert_eq!(m.right, [114, 101, 96], "identification changed");
     assert!(auc >= 0.93, "novelty AUC {auc:.3} < 0.93");
     assert!(auc > raw_auc, "no better than the raw distance");
+    assert!(caught > raw_caught, "catches no more than the raw distance");
+    assert!(
+        m.flagged_present <= 0.10,
+        "the product flags {:.3} of present-genus teeth",
+        m.flagged_present
+    );
     assert!(ece < 0.05, "genus ECE {ece:.4} ≥ 0.05");
 }
 
@@ -220,6 +237,8 @@ struct Measured {
     /// Genus probability and whether the genus was right (present case).
     probability: Vec<f64>,
     correct: Vec<bool>,
+    /// The genus weight of the rank term of every calibration fitted.
+    weights: Vec<f64>,
 }
 
 /// The distances of tooth `i` to the teeth `keep`, as a scan's rows.
@@ -259,6 +278,7 @@ fn measure(table: &ReferenceDistances, labels: &Labels) -> Measured {
         flagged_absent: 0.0,
         probability: vec![],
         correct: vec![],
+        weights: vec![],
     };
     let (mut fp, mut fa) = (0usize, 0usize);
     for i in 0..n {
@@ -279,6 +299,12 @@ fn measure(table: &ReferenceDistances, labels: &Labels) -> Measured {
         let absent_keep: Vec<usize> = (0..n).filter(|&j| genus[j] != Some(g)).collect();
         for (keep, present) in [(&others, true), (&absent_keep, false)] {
             let cal = Calibration::fit(table.subset(keep).unwrap(), labels);
+            m.weights.extend(
+                cal.ranks()
+                    .iter()
+                    .filter(|r| r.rank == "genus")
+                    .map(|r| r.weight),
+            );
             let rows = rows_of(table, &full, i, keep);
             let mut id = library::identify(&rows, labels, 1);
             cal.assess(&rows, &mut id.ranks);

@@ -5,7 +5,11 @@
 //! (leave-one-out over the distances among the references,
 //! [`ReferenceDistances`]). At each rank that gives, per held-out
 //! reference, a novelty score ([`novelty_score`]) and whether its nearest
-//! taxon was right. [`Calibration::fit`] turns these into
+//! taxon was right; and, with its whole taxon held out too, the score of
+//! a scan of a taxon the library lacks. [`Calibration::fit`] turns these
+//! into
+//! - the weight of the score's rank term ([`fit_rank_weight`]: what best
+//!   tells the two apart),
 //! - a logistic map from the score to the probability that the nearest
 //!   taxon is right ([`Logistic`]), and
 //! - the "no close match" threshold: the score that 95 % of the held-out
@@ -21,8 +25,9 @@ mod statistic;
 
 pub use cached::{calibration_pairs, reference_distances, CALIBRATION_SAMPLE};
 pub use statistic::{
-    expected_calibration_error, fit_logistic, novelty_score, reliability, roc_auc, share_caught_at,
-    upper_median, upper_quantile, Logistic, ReliabilityBin, CROWDING_WEIGHT,
+    expected_calibration_error, fit_logistic, fit_rank_weight, mean_within_taxon_rank,
+    novelty_score, rank_term, relative_distance, reliability, roc_auc, share_caught_at,
+    upper_median, upper_quantile, Logistic, ReliabilityBin,
 };
 
 use super::identify::{Confidence, DistanceRow, RankResult};
@@ -158,6 +163,9 @@ impl ReferenceDistances {
 pub struct RankCalibration {
     /// The rank.
     pub rank: String,
+    /// Weight of the rank term of the novelty score ([`fit_rank_weight`];
+    /// 0 when it cannot be fitted or the library is sampled).
+    pub weight: f64,
     /// Score → probability that the nearest taxon is right.
     pub logistic: Logistic,
     /// Scores above this are "no close match" (`None`: too few held-out
@@ -174,7 +182,9 @@ pub struct RankCalibration {
 pub struct Calibration {
     index: HashMap<String, usize>,
     distances: ReferenceDistances,
-    weight: f64,
+    /// Per calibrated rank (same order as `ranks`), the taxon of each
+    /// reference.
+    taxa: Vec<Vec<Option<String>>>,
     ranks: Vec<RankCalibration>,
 }
 
@@ -182,19 +192,43 @@ pub struct Calibration {
 /// compared), in the library's order.
 type ScanDistances<'a> = &'a [Option<f64>];
 
+/// What the novelty score of a scan at one rank is made of.
+#[derive(Debug, Clone, Copy)]
+struct Evidence {
+    /// The nearest reference known at the rank.
+    nearest: usize,
+    /// Its distance to the scan.
+    distance: f64,
+    /// The scan's median distance to the library.
+    median: f64,
+    /// The scan's mean rank among the members of the nearest reference's
+    /// taxon (0 when the library is sampled).
+    rank: f64,
+}
+
+impl Evidence {
+    /// The two terms of the score, for fitting the weight.
+    fn terms(&self) -> Option<[f64; 2]> {
+        Some([
+            relative_distance(self.distance, self.median)?,
+            rank_term(self.rank),
+        ])
+    }
+
+    /// The novelty score with the rank term weighted by `weight`.
+    fn score(&self, weight: f64) -> Option<f64> {
+        novelty_score(self.distance, self.median, self.rank, weight)
+    }
+}
+
 impl Calibration {
     /// Fit the calibration of a library from the distances among its
     /// references and their `labels`: leave-one-out over the held-out
     /// references, at every rank of `labels` with at least [`MIN_HELD`]
-    /// held-out references known there. The crowding term of the score is
-    /// used only when every reference has its row (no sampling), so that
-    /// calibration and scans are scored alike.
+    /// held-out references known there. The rank term of the score is used
+    /// only when every reference has its row (no sampling): it needs the
+    /// distances among a taxon's members.
     pub fn fit(distances: ReferenceDistances, labels: &Labels) -> Self {
-        let weight = if distances.is_complete() {
-            CROWDING_WEIGHT
-        } else {
-            0.0
-        };
         let index = distances
             .names
             .iter()
@@ -204,24 +238,34 @@ impl Calibration {
         let mut out = Calibration {
             index,
             distances,
-            weight,
+            taxa: Vec::new(),
             ranks: Vec::new(),
         };
-        out.ranks = labels
-            .ranks()
-            .iter()
-            .filter_map(|rank| out.fit_rank(rank, labels))
-            .collect();
+        for rank in labels.ranks() {
+            let taxa: Vec<Option<&str>> = out
+                .distances
+                .names
+                .iter()
+                .map(|n| labels.get(n, rank))
+                .collect();
+            if let Some(cal) = out.fit_rank(rank, &taxa) {
+                out.ranks.push(cal);
+                out.taxa
+                    .push(taxa.iter().map(|t| t.map(str::to_string)).collect());
+            }
+        }
         out
     }
 
-    /// The calibration at `rank`, if there are enough held-out references.
-    fn fit_rank(&self, rank: &str, labels: &Labels) -> Option<RankCalibration> {
+    /// The calibration at `rank` (`taxa`: each reference's taxon there),
+    /// if there are enough held-out references.
+    fn fit_rank(&self, rank: &str, taxa: &[Option<&str>]) -> Option<RankCalibration> {
         let d = &self.distances;
-        let taxa: Vec<Option<&str>> = d.names.iter().map(|n| labels.get(n, rank)).collect();
-        let mut scores = Vec::new();
-        let mut right = Vec::new();
-        let mut present = Vec::new();
+        // Per held-out reference: its evidence, whether its nearest taxon
+        // was right, and whether the rest of the library holds its taxon.
+        let mut held = Vec::new();
+        // The terms of held-out references scored without their taxon.
+        let mut absent = Vec::new();
         for (&h, row) in d.held.iter().zip(&d.rows) {
             let Some(truth) = taxa[h] else { continue };
             let scan: Vec<Option<f64>> = row
@@ -229,16 +273,42 @@ impl Calibration {
                 .enumerate()
                 .map(|(j, &v)| (j != h).then_some(v))
                 .collect();
-            let Some((nearest, score)) = self.evidence(&scan, &taxa, Some(h)) else {
+            let Some(e) = self.evidence(&scan, taxa) else {
+                continue;
+            };
+            let present = taxa
+                .iter()
+                .enumerate()
+                .any(|(j, t)| j != h && *t == Some(truth));
+            held.push((e, taxa[e.nearest] == Some(truth), present));
+            if d.is_complete() {
+                let without: Vec<Option<f64>> = scan
+                    .iter()
+                    .zip(taxa)
+                    .map(|(v, t)| v.filter(|_| *t != Some(truth)))
+                    .collect();
+                absent.extend(self.evidence(&without, taxa).and_then(|e| e.terms()));
+            }
+        }
+        if held.len() < MIN_HELD {
+            return None;
+        }
+        let present_terms: Vec<[f64; 2]> = held
+            .iter()
+            .filter(|x| x.2)
+            .filter_map(|x| x.0.terms())
+            .collect();
+        let weight = fit_rank_weight(&present_terms, &absent).unwrap_or(0.0);
+        let mut scores = Vec::new();
+        let mut right = Vec::new();
+        let mut present = Vec::new();
+        for (e, r, p) in &held {
+            let Some(score) = e.score(weight) else {
                 continue;
             };
             scores.push(score);
-            right.push(taxa[nearest] == Some(truth));
-            if taxa
-                .iter()
-                .enumerate()
-                .any(|(j, t)| j != h && *t == Some(truth))
-            {
+            right.push(*r);
+            if *p {
                 present.push(score);
             }
         }
@@ -251,6 +321,7 @@ impl Calibration {
             .flatten();
         Some(RankCalibration {
             rank: rank.to_string(),
+            weight,
             logistic,
             threshold,
             held: scores.len(),
@@ -258,17 +329,12 @@ impl Calibration {
         })
     }
 
-    /// The nearest reference known at the rank (`taxa`; ties to the name
-    /// that sorts first, as in [`identify`](super::identify)) and the
-    /// novelty score of `scan`; `skip` is the held-out reference itself.
-    fn evidence(
-        &self,
-        scan: ScanDistances<'_>,
-        taxa: &[Option<&str>],
-        skip: Option<usize>,
-    ) -> Option<(usize, f64)> {
+    /// The evidence of `scan` at the rank (`taxa`) from its nearest
+    /// reference known there (ties to the name that sorts first, as in
+    /// [`identify`](super::identify)).
+    fn evidence(&self, scan: ScanDistances<'_>, taxa: &[Option<&str>]) -> Option<Evidence> {
         let names = &self.distances.names;
-        let nearest = scan
+        let (nearest, distance) = scan
             .iter()
             .enumerate()
             .filter_map(|(j, v)| Some((j, (*v)?)))
@@ -277,30 +343,49 @@ impl Calibration {
                 a.1.total_cmp(&b.1)
                     .then_with(|| names[a.0].cmp(&names[b.0]))
             })?;
-        let score = self.score(scan, nearest.0, nearest.1, skip)?;
-        Some((nearest.0, score))
+        self.evidence_at(scan, taxa, nearest, distance)
     }
 
-    /// The novelty score of a scan whose nearest reference at the rank is
-    /// `nearest` at distance `distance`.
-    fn score(
+    /// The evidence of `scan` whose nearest reference at the rank is
+    /// `nearest` at `distance`. The members of its taxon are the
+    /// references of that taxon the scan was compared with.
+    fn evidence_at(
         &self,
         scan: ScanDistances<'_>,
+        taxa: &[Option<&str>],
         nearest: usize,
         distance: f64,
-        skip: Option<usize>,
-    ) -> Option<f64> {
+    ) -> Option<Evidence> {
         let all: Vec<f64> = scan.iter().flatten().copied().collect();
         let median = upper_median(&all)?;
-        let crowding = match (self.weight > 0.0, self.distances.row(nearest)) {
-            (true, Some(row)) => row
+        let rank = if self.distances.is_complete() {
+            let taxon = taxa.get(nearest).copied().flatten()?;
+            let members: Vec<(usize, f64)> = scan
                 .iter()
                 .enumerate()
-                .filter(|&(j, &v)| j != nearest && Some(j) != skip && v < distance)
-                .count(),
-            _ => 0,
+                .filter(|&(j, _)| taxa[j] == Some(taxon))
+                .filter_map(|(j, v)| Some((j, (*v)?)))
+                .collect();
+            let among = members
+                .iter()
+                .map(|&(t, _)| {
+                    members
+                        .iter()
+                        .map(|&(u, _)| self.distances.distance(t, u))
+                        .collect::<Option<Vec<f64>>>()
+                })
+                .collect::<Option<Vec<_>>>()?;
+            let to_members: Vec<f64> = members.iter().map(|&(_, v)| v).collect();
+            mean_within_taxon_rank(&to_members, &among)?
+        } else {
+            0.0
         };
-        novelty_score(distance, median, crowding, self.weight)
+        Some(Evidence {
+            nearest,
+            distance,
+            median,
+            rank,
+        })
     }
 
     /// The calibration per rank, in rank order (ranks with too few
@@ -334,9 +419,13 @@ impl Calibration {
 
     /// The confidence at one rank.
     fn confidence(&self, scan: ScanDistances<'_>, r: &RankResult) -> Option<Confidence> {
-        let cal = self.ranks.iter().find(|c| c.rank == r.rank)?;
+        let k = self.ranks.iter().position(|c| c.rank == r.rank)?;
+        let cal = &self.ranks[k];
+        let taxa: Vec<Option<&str>> = self.taxa.get(k)?.iter().map(|t| t.as_deref()).collect();
         let &nearest = self.index.get(&r.reference)?;
-        let novelty = self.score(scan, nearest, r.distance, None)?;
+        let novelty = self
+            .evidence_at(scan, &taxa, nearest, r.distance)?
+            .score(cal.weight)?;
         Some(Confidence {
             probability: cal.logistic.probability(novelty),
             novelty,
@@ -420,7 +509,7 @@ mod tests {
         let genus = &cal.ranks()[0];
         assert_eq!((genus.held, genus.right), (20, 20));
         assert!(genus.threshold.is_some());
-        // Among G2's members: near, crowded like a member.
+        // Among G2's members: near, and ranking among them like a member.
         let inside = assess_at(&cal, &names, &xs, &labels, 20.45);
         assert_eq!(inside.no_close_match, Some(false), "{inside:?}");
         assert!(inside.probability > 0.9, "{inside:?}");

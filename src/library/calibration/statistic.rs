@@ -1,13 +1,10 @@
-//! The numbers behind calibrated confidence: the novelty score of one
-//! scan at one rank, the logistic map from that score to the probability
-//! that the nearest taxon is right, and the quantile that sets the "no
-//! close match" threshold. Pure functions over plain numbers.
+//! The numbers behind calibrated confidence: the two terms of the novelty
+//! score of one scan at one rank and the weight that combines them, the
+//! logistic map from that score to the probability that the nearest taxon
+//! is right, and the quantile that sets the "no close match" threshold.
+//! Pure functions over plain numbers.
 
 use serde::{Deserialize, Serialize};
-
-/// Weight of the crowding term of [`novelty_score`]; chosen on the
-/// 116-tooth data (see `docs/design.md`, *Calibrated confidence*).
-pub const CROWDING_WEIGHT: f64 = 0.1;
 
 /// The median of the finite `values`: the upper one of the two middle
 /// values for an even count (so it is always one of the values); `None`
@@ -22,22 +19,153 @@ pub fn upper_median(values: &[f64]) -> Option<f64> {
     Some(*m)
 }
 
-/// How far a scan is from the library at one rank, in units that do not
-/// depend on the scan's own scale of distances:
-/// `ln(nearest / median) + weight · ln(1 + crowding)`, where `nearest` is
-/// the distance to the nearest reference known at the rank, `median` the
-/// scan's median distance to the library, and `crowding` the number of
-/// references nearer to that nearest reference than the scan is. A scan
-/// of a taxon the library holds sits well inside the bulk of its
-/// distances and among its nearest reference's own neighbours; a scan of
-/// a taxon it does not hold does neither. `None` when a distance is not
-/// positive and finite.
-pub fn novelty_score(nearest: f64, median: f64, crowding: usize, weight: f64) -> Option<f64> {
+/// `ln(nearest / median)`: the distance to the nearest reference relative
+/// to the scan's median distance to the library, so that the scale of the
+/// scan's own distances (a worn or noisy scan is far from everything)
+/// drops out. `None` when either is not positive and finite.
+pub fn relative_distance(nearest: f64, median: f64) -> Option<f64> {
     let ok = |x: f64| x.is_finite() && x > 0.0;
-    if !ok(nearest) || !ok(median) {
+    (ok(nearest) && ok(median)).then(|| (nearest / median).ln())
+}
+
+/// The scan's mean rank among the members of one taxon: for each member
+/// `t`, the number of other members nearer to `t` than the scan is
+/// (`scan[t]`; `among[t][u]` between members `t` and `u`), averaged over
+/// the members. A member of the taxon ranks among its mates; a scan from
+/// outside ranks behind them. `None` without members or when the shapes
+/// differ.
+pub fn mean_within_taxon_rank(scan: &[f64], among: &[Vec<f64>]) -> Option<f64> {
+    if scan.is_empty() || among.len() != scan.len() || among.iter().any(|r| r.len() != scan.len()) {
         return None;
     }
-    Some((nearest / median).ln() + weight * (1.0 + crowding as f64).ln())
+    let nearer: usize = among
+        .iter()
+        .zip(scan)
+        .enumerate()
+        .map(|(t, (row, &s))| {
+            row.iter()
+                .enumerate()
+                .filter(|&(u, &v)| u != t && v < s)
+                .count()
+        })
+        .sum();
+    Some(nearer as f64 / scan.len() as f64)
+}
+
+/// `ln(1 + rank)` of a [`mean_within_taxon_rank`]: the second term of the
+/// novelty score, on the same logarithmic footing as the first.
+pub fn rank_term(rank: f64) -> f64 {
+    rank.max(0.0).ln_1p()
+}
+
+/// How far a scan is from the library at one rank:
+/// `relative_distance(nearest, median) + weight · rank_term(rank)`, where
+/// `nearest` is the distance to the nearest reference known at the rank,
+/// `median` the scan's median distance to the library and `rank` its
+/// [`mean_within_taxon_rank`] among the members of that reference's
+/// taxon. A scan of a taxon the library holds sits well inside the bulk
+/// of its distances and among its taxon's members; a scan of a taxon it
+/// does not hold does neither. `None` when a distance is not positive and
+/// finite.
+pub fn novelty_score(nearest: f64, median: f64, rank: f64, weight: f64) -> Option<f64> {
+    Some(relative_distance(nearest, median)? + weight * rank_term(rank))
+}
+
+/// Ridge penalty on the slopes of [`logistic_regression`]: keeps the fit
+/// finite when the outcomes are separable.
+const RIDGE: f64 = 1e-2;
+
+/// Logistic regression of `targets` (in [0, 1]) on `features` (one row of
+/// equal length per case) by maximum likelihood with a small ridge on the
+/// slopes (Newton's method): the intercept followed by one slope per
+/// feature. `None` when there is no case, the lengths differ, or the fit
+/// is not finite.
+pub fn logistic_regression(features: &[Vec<f64>], targets: &[f64]) -> Option<Vec<f64>> {
+    let k = features.first()?.len() + 1;
+    if features.len() != targets.len() || features.iter().any(|x| x.len() + 1 != k) {
+        return None;
+    }
+    let mut w = vec![0.0f64; k];
+    for _ in 0..100 {
+        // Gradient and Hessian of the penalized negative log-likelihood,
+        // as one augmented system [H | g].
+        let mut m = vec![vec![0.0f64; k + 1]; k];
+        for (x, &y) in features.iter().zip(targets) {
+            let z: Vec<f64> = std::iter::once(1.0).chain(x.iter().copied()).collect();
+            let p = logistic(w.iter().zip(&z).map(|(a, b)| a * b).sum());
+            let q = p * (1.0 - p);
+            for (row, &za) in m.iter_mut().zip(&z) {
+                row[k] += (p - y) * za;
+                for (h, &zb) in row.iter_mut().zip(&z) {
+                    *h += q * za * zb;
+                }
+            }
+        }
+        for (a, row) in m.iter_mut().enumerate().skip(1) {
+            row[k] += RIDGE * w[a];
+            row[a] += RIDGE;
+        }
+        let step = solve(m)?;
+        for (wa, da) in w.iter_mut().zip(&step) {
+            *wa -= da;
+        }
+        if step.iter().all(|d| d.abs() < 1e-10) {
+            break;
+        }
+    }
+    w.iter().all(|x| x.is_finite()).then_some(w)
+}
+
+/// `1 / (1 + exp(-z))`.
+fn logistic(z: f64) -> f64 {
+    1.0 / (1.0 + (-z).exp())
+}
+
+/// The solution of the augmented system `[A | b]` (Gaussian elimination
+/// with partial pivoting); `None` when `A` is singular.
+fn solve(mut m: Vec<Vec<f64>>) -> Option<Vec<f64>> {
+    let k = m.len();
+    for c in 0..k {
+        let pivot = (c..k).max_by(|&a, &b| m[a][c].abs().total_cmp(&m[b][c].abs()))?;
+        m.swap(c, pivot);
+        let p = m[c][c];
+        if !(p.is_finite() && p.abs() > 1e-300) {
+            return None;
+        }
+        let pivot_row = m[c].clone();
+        for (r, row) in m.iter_mut().enumerate() {
+            if r != c {
+                let f = row[c] / p;
+                for (x, &v) in row.iter_mut().zip(&pivot_row).skip(c) {
+                    *x -= f * v;
+                }
+            }
+        }
+    }
+    Some((0..k).map(|a| m[a][k] / m[a][a]).collect())
+}
+
+/// The weight of the rank term in [`novelty_score`] learnt from the
+/// library: the logistic regression of "taxon absent" on the two terms
+/// (`[relative_distance, rank_term]`) of held-out references scored with
+/// their taxon still in the library (`present`) and with it removed
+/// (`absent`), as the ratio of the rank term's slope to the distance
+/// term's. Negative ratios are 0 (ranking behind a taxon's members is
+/// never evidence of belonging to it). `None` when either set is empty or
+/// the distance term does not separate at all (its slope is not
+/// positive).
+pub fn fit_rank_weight(present: &[[f64; 2]], absent: &[[f64; 2]]) -> Option<f64> {
+    if present.is_empty() || absent.is_empty() {
+        return None;
+    }
+    let features: Vec<Vec<f64>> = present.iter().chain(absent).map(|x| x.to_vec()).collect();
+    let targets: Vec<f64> = present
+        .iter()
+        .map(|_| 0.0)
+        .chain(absent.iter().map(|_| 1.0))
+        .collect();
+    let w = logistic_regression(&features, &targets)?;
+    (w[1] > 0.0).then(|| (w[2] / w[1]).max(0.0))
 }
 
 /// The `q`-quantile (0 ≤ q ≤ 1) of `values` as the smallest value with at
@@ -64,62 +192,33 @@ pub struct Logistic {
 impl Logistic {
     /// The probability at `score`.
     pub fn probability(&self, score: f64) -> f64 {
-        let z = self.intercept + self.slope * score;
-        1.0 / (1.0 + (-z).exp())
+        logistic(self.intercept + self.slope * score)
     }
 }
 
-/// Ridge penalty on the slope: keeps the fit finite when the outcomes are
-/// separable (a library where every held-out reference was right).
-const RIDGE: f64 = 1e-2;
-
-/// The logistic regression of `outcomes` (right or wrong) on `scores` by
-/// maximum likelihood with a small ridge on the slope (Newton's method).
-/// The outcomes enter as Platt's targets, (right + 1)/(right + 2) and
-/// 1/(wrong + 2) instead of 1 and 0, so that a library where every
-/// held-out reference was right gives a probability below 1 that grows
-/// with its size. `None` when there is no pair or the lengths differ.
+/// The logistic regression of `outcomes` (right or wrong) on `scores`
+/// ([`logistic_regression`] with one feature). The outcomes enter as
+/// Platt's targets, (right + 1)/(right + 2) and 1/(wrong + 2) instead of 1
+/// and 0, so that a library where every held-out reference was right
+/// gives a probability below 1 that grows with its size. `None` when there
+/// is no pair or the lengths differ.
 pub fn fit_logistic(scores: &[f64], outcomes: &[bool]) -> Option<Logistic> {
-    if scores.is_empty() || scores.len() != outcomes.len() {
+    if scores.len() != outcomes.len() {
         return None;
     }
     let right = outcomes.iter().filter(|&&y| y).count() as f64;
     let wrong = outcomes.len() as f64 - right;
     let target_right = (right + 1.0) / (right + 2.0);
     let target_wrong = 1.0 / (wrong + 2.0);
-    let (mut a, mut b) = (0.0f64, 0.0f64);
-    for _ in 0..100 {
-        // Gradient and Hessian of the penalized negative log-likelihood.
-        let (mut ga, mut gb, mut haa, mut hab, mut hbb) = (0.0, RIDGE * b, 0.0, 0.0, RIDGE);
-        for (&s, &y) in scores.iter().zip(outcomes) {
-            let p = Logistic {
-                intercept: a,
-                slope: b,
-            }
-            .probability(s);
-            let r = p - if y { target_right } else { target_wrong };
-            let w = p * (1.0 - p);
-            ga += r;
-            gb += r * s;
-            haa += w;
-            hab += w * s;
-            hbb += w * s * s;
-        }
-        let det = haa * hbb - hab * hab;
-        if !(det.is_finite() && det > 0.0) {
-            break;
-        }
-        let da = (hbb * ga - hab * gb) / det;
-        let db = (haa * gb - hab * ga) / det;
-        a -= da;
-        b -= db;
-        if da.abs().max(db.abs()) < 1e-10 {
-            break;
-        }
-    }
-    (a.is_finite() && b.is_finite()).then_some(Logistic {
-        intercept: a,
-        slope: b,
+    let features: Vec<Vec<f64>> = scores.iter().map(|&s| vec![s]).collect();
+    let targets: Vec<f64> = outcomes
+        .iter()
+        .map(|&y| if y { target_right } else { target_wrong })
+        .collect();
+    let w = logistic_regression(&features, &targets)?;
+    Some(Logistic {
+        intercept: w[0],
+        slope: w[1],
     })
 }
 
@@ -244,15 +343,59 @@ mod tests {
     }
 
     #[test]
-    fn novelty_grows_with_the_relative_distance_and_the_crowding() {
-        let s = |d, m, c| novelty_score(d, m, c, CROWDING_WEIGHT).unwrap();
-        assert!((s(0.05, 0.1, 0) - 0.5f64.ln()).abs() < 1e-12);
-        assert!(s(0.08, 0.1, 0) > s(0.05, 0.1, 0));
-        assert!(s(0.05, 0.1, 9) > s(0.05, 0.1, 0));
+    fn novelty_grows_with_the_relative_distance_and_the_rank() {
+        let s = |d, m, r| novelty_score(d, m, r, 0.25).unwrap();
+        assert!((s(0.05, 0.1, 0.0) - 0.5f64.ln()).abs() < 1e-12);
+        assert!(s(0.08, 0.1, 0.0) > s(0.05, 0.1, 0.0));
+        assert!(s(0.05, 0.1, 2.5) > s(0.05, 0.1, 0.0));
+        assert!((s(0.05, 0.1, 3.0) - s(0.05, 0.1, 0.0) - 0.25 * 4f64.ln()).abs() < 1e-12);
         // Scaling every distance of a scan leaves the score alone.
-        assert!((s(0.5, 1.0, 3) - s(0.05, 0.1, 3)).abs() < 1e-12);
-        assert_eq!(novelty_score(0.0, 0.1, 0, 0.1), None);
-        assert_eq!(novelty_score(0.1, f64::NAN, 0, 0.1), None);
+        assert!((s(0.5, 1.0, 3.0) - s(0.05, 0.1, 3.0)).abs() < 1e-12);
+        assert_eq!(novelty_score(0.0, 0.1, 0.0, 0.1), None);
+        assert_eq!(novelty_score(0.1, f64::NAN, 0.0, 0.1), None);
+        assert_eq!(relative_distance(0.1, 0.1), Some(0.0));
+        assert_eq!(rank_term(-1.0), 0.0);
+    }
+
+    #[test]
+    fn the_rank_among_a_taxon_counts_mates_nearer_than_the_scan() {
+        // Three members on a line at 0, 1 and 3.
+        let among = vec![
+            vec![0.0, 1.0, 3.0],
+            vec![1.0, 0.0, 2.0],
+            vec![3.0, 2.0, 0.0],
+        ];
+        // A scan at 1.2 is 1.2, 0.2 and 1.8 away: member 0 has one mate
+        // nearer (1 at 1.0 < 1.2), member 1 none, member 2 none (2.0 ≥ 1.8).
+        assert_eq!(
+            mean_within_taxon_rank(&[1.2, 0.2, 1.8], &among),
+            Some(1.0 / 3.0)
+        );
+        // A scan at 10 is behind every mate of every member.
+        assert_eq!(mean_within_taxon_rank(&[10.0, 9.0, 7.0], &among), Some(2.0));
+        // A lone member has no mates to rank behind.
+        assert_eq!(mean_within_taxon_rank(&[5.0], &[vec![0.0]]), Some(0.0));
+        assert_eq!(mean_within_taxon_rank(&[], &[]), None);
+        assert_eq!(mean_within_taxon_rank(&[1.0, 2.0], &among), None);
+    }
+
+    /// When only the rank term tells absent from present, the weight is
+    /// large; when it points the wrong way, it is 0.
+    #[test]
+    fn the_rank_weight_follows_what_separates_absent_from_present() {
+        let present: Vec<[f64; 2]> = (0..40)
+            .map(|i| [-1.0 + 0.02 * i as f64, 0.1 * (i % 3) as f64])
+            .collect();
+        // Absent: the same distances, one step further behind in rank.
+        let absent: Vec<[f64; 2]> = present.iter().map(|x| [x[0] + 0.1, x[1] + 1.0]).collect();
+        let w = fit_rank_weight(&present, &absent).unwrap();
+        assert!(w > 1.0, "{w}");
+        let backwards: Vec<[f64; 2]> = present.iter().map(|x| [x[0] + 0.3, x[1] - 0.5]).collect();
+        assert_eq!(fit_rank_weight(&present, &backwards), Some(0.0));
+        assert_eq!(fit_rank_weight(&present, &[]), None);
+        // The distance term pointing the wrong way gives no weight at all.
+        let nearer: Vec<[f64; 2]> = present.iter().map(|x| [x[0] - 0.5, x[1]]).collect();
+        assert_eq!(fit_rank_weight(&present, &nearer), None);
     }
 
     /// Outcomes drawn from a known logistic law are fitted back to it.
