@@ -27,7 +27,12 @@ fn children_cpu_seconds() -> f64 {
     // state is field 3, cutime and cstime are fields 16 and 17.
     let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
     let fields: Vec<&str> = rest.split_whitespace().collect();
-    let ticks = |k: usize| fields.get(k - 3).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    let ticks = |k: usize| {
+        fields
+            .get(k - 3)
+            .and_then(|v| v.parse::<f64>().ok())
+            .unwrap_or(0.0)
+    };
     (ticks(16) + ticks(17)) / 100.0
 }
 
@@ -52,8 +57,7 @@ fn library(scratch: &Path) -> (PathBuf, String) {
                         morphoid::pipeline::specimen_name(p)
                     })
                     .collect();
-                let labels =
-                    std::fs::read_to_string(dir.join("labels.csv")).expect("labels.csv");
+                let labels = std::fs::read_to_string(dir.join("labels.csv")).expect("labels.csv");
                 let mut lines = labels.lines();
                 let mut kept: Vec<&str> = lines.next().into_iter().collect();
                 kept.extend(lines.filter(|l| {
@@ -61,8 +65,7 @@ fn library(scratch: &Path) -> (PathBuf, String) {
                         .next()
                         .is_some_and(|n| names.iter().any(|m| m == n))
                 }));
-                std::fs::write(lib.join("labels.csv"), kept.join("\n") + "\n")
-                    .expect("labels.csv");
+                std::fs::write(lib.join("labels.csv"), kept.join("\n") + "\n").expect("labels.csv");
                 (lib, format!("{} real teeth", names.len()))
             }
         },
@@ -85,10 +88,14 @@ fn library(scratch: &Path) -> (PathBuf, String) {
 fn main() {
     let scratch = tempfile::tempdir().expect("temporary folder");
     let (lib, what) = library(scratch.path());
-    let consistent = std::env::var("MORPHOID_BENCH_ALIGN_CONSISTENT")
-        .unwrap_or_else(|_| "mst,sync".to_string());
+    let consistent =
+        std::env::var("MORPHOID_BENCH_ALIGN_CONSISTENT").unwrap_or_else(|_| "mst,sync".to_string());
     let threads = std::env::var("MORPHOID_BENCH_ALIGN_THREADS").ok();
-    for how in consistent.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+    for how in consistent
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+    {
         // A fresh cache each time: from cold, preparation included.
         let cache = scratch.path().join(format!("cache-{how}"));
         let out = scratch.path().join(format!("out-{how}"));

@@ -8,7 +8,14 @@
 //! has, for each template vertex, several estimates of where it lies: its
 //! own current image and, for every neighbour `j`, `j`'s image carried by
 //! the cP map `j → i`. The new image is the geometric median of these
-//! estimates (robust: a minority of wrong maps does not move it), projected
+//! estimates (the minimiser of the summed distances to them, so a
+//! minority of wrong maps does not move it). The own image damps the
+//! update: without it, per-vertex medians of the neighbours alone moved
+//! neighbouring vertices independently, far enough on synthetic crowns
+//! that maps through the template stopped closing cycles (9.6 % of the
+//! diagonal instead of 0.01 %: the template's triangles, located on one
+//! specimen and rebuilt on the next, no longer matched). The median is
+//! projected
 //! back onto `i`'s surface. The template's own image (its vertices) is
 //! never moved, which anchors the solution; a few rounds (Jacobi-style:
 //! every round reads only the previous one, so the result does not depend
@@ -21,6 +28,9 @@ use crate::cp::{self, CompareParams, Prepared};
 use crate::landmarks::{self, Landmarks, PropagateError, Surface};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Each specimen's image of every template vertex.
+pub type VertexImages = Vec<Vec<[f64; 3]>>;
 
 /// Settings of the synchronization.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -115,7 +125,9 @@ pub fn geometric_median(points: &[[f64; 3]]) -> Option<[f64; 3]> {
 /// template's vertices): in each round, every specimen but `anchor` gets,
 /// vertex by vertex, the geometric median of its own image and the images
 /// `carry(e, images[from])` brought by the edges `e = (from, to)` of
-/// `edges` that end at it, projected by `project(to, ·)` onto its surface.
+/// `edges` that end at it (the point that best agrees with them all in
+/// the least-absolute-distance sense), projected by `project(to, ·)` onto
+/// its surface; a specimen no edge reaches keeps its image.
 /// Returns the images and the mean move of a vertex in each round.
 pub fn synchronize<E: Send>(
     images: Vec<Vec<[f64; 3]>>,
@@ -124,7 +136,7 @@ pub fn synchronize<E: Send>(
     rounds: usize,
     carry: impl Fn(usize, &[[f64; 3]]) -> Result<Vec<[f64; 3]>, E> + Sync,
     project: impl Fn(usize, [f64; 3]) -> [f64; 3] + Sync,
-) -> Result<(Vec<Vec<[f64; 3]>>, Vec<f64>), E> {
+) -> Result<(VertexImages, Vec<f64>), E> {
     let n = images.len();
     let mut incoming = vec![Vec::new(); n];
     for (e, &(_, to)) in edges.iter().enumerate() {
@@ -272,7 +284,10 @@ mod tests {
         ];
         let m = geometric_median(&pts).unwrap();
         // The mean would be at (20.4, 20.4); the median stays in the square.
-        assert!(m[0] > 0.4 && m[0] < 1.2 && m[1] > 0.4 && m[1] < 1.2, "{m:?}");
+        assert!(
+            m[0] > 0.4 && m[0] < 1.2 && m[1] > 0.4 && m[1] < 1.2,
+            "{m:?}"
+        );
         assert_eq!(geometric_median(&[]), None);
         assert_eq!(geometric_median(&[[2.0, 3.0, 4.0]]), Some([2.0, 3.0, 4.0]));
         // Symmetric points: the centre.
