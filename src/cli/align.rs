@@ -5,7 +5,7 @@
 
 use super::common::{progress_bar, ConfigFile};
 use anyhow::{bail, Context, Result};
-use morphoid::collection::{self, AlignParams, Consistency, OutputContext};
+use morphoid::collection::{self, AlignParams, Consistency, OutputContext, SyncParams};
 use morphoid::eval::{DistanceMatrix, Labels};
 use morphoid::library::{self, Cache, Preparation};
 use std::path::PathBuf;
@@ -19,6 +19,10 @@ pub enum ConsistentArg {
     Mst,
     /// One cP map from the template to each specimen.
     None,
+    /// Along the minimum spanning tree, then synchronized: each
+    /// specimen's image of the template agrees with those of its nearest
+    /// neighbours carried by the cP maps between them.
+    Sync,
 }
 
 /// Arguments of `morphoid align`.
@@ -42,7 +46,9 @@ pub struct Args {
     /// How correspondences reach the specimens: `mst` composes the maps
     /// along the minimum spanning tree of the cP distances (consistent
     /// over the collection, each map between similar specimens), `none`
-    /// maps the template to each specimen directly.
+    /// maps the template to each specimen directly, `sync` refines the
+    /// `mst` images until each agrees with its 4 nearest neighbours' images
+    /// carried by the direct cP maps (4 more maps per specimen).
     #[arg(long, value_enum, default_value_t = ConsistentArg::Mst)]
     consistent: ConsistentArg,
     /// A cP distance matrix CSV of the library (from `morphoid matrix`):
@@ -124,10 +130,11 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
         consistency: match args.consistent {
             ConsistentArg::Mst => Consistency::SpanningTree,
             ConsistentArg::None => Consistency::Direct,
+            ConsistentArg::Sync => Consistency::Synchronized(SyncParams::default()),
         },
         ..AlignParams::default()
     };
-    let bar = progress_bar(n.saturating_sub(1) as u64, "cP maps");
+    let bar = progress_bar(params.consistency.maps(n) as u64, "cP maps");
     let alignment =
         collection::align(&prepared, &distances, &params, &settings.cp.compare, |_| {
             bar.inc(1)

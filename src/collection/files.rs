@@ -272,6 +272,7 @@ pub fn write_outputs(
         "pseudolandmarks": k,
         "mirror_images": names.iter().zip(&alignment.carried.reflected).filter(|(_, r)| **r).map(|(n, _)| n).collect::<Vec<_>>(),
         "gpa_iterations": alignment.gpa.iterations,
+        "synchronization_moves": alignment.sync_moves,
         "mean_centroid_size": alignment.mean_centroid_size(),
         "left_out": context.left_out.iter().map(|(n, why)| serde_json::json!({"name": n, "reason": why})).collect::<Vec<_>>(),
     });

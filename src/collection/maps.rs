@@ -21,6 +21,21 @@ pub enum Consistency {
     SpanningTree,
     /// One cP map from the template to each specimen.
     Direct,
+    /// Along the minimum spanning tree, then synchronized with the maps
+    /// from each specimen's nearest neighbours (see `sync`).
+    Synchronized(super::SyncParams),
+}
+
+impl Consistency {
+    /// How many directed cP maps carrying the template to `n` specimens
+    /// takes (at most, for the synchronization: neighbours may be fewer).
+    pub fn maps(&self, n: usize) -> usize {
+        let steps = n.saturating_sub(1);
+        match self {
+            Consistency::SpanningTree | Consistency::Direct => steps,
+            Consistency::Synchronized(p) => steps + steps * p.neighbours.min(steps),
+        }
+    }
 }
 
 /// The specimen whose summed distance to all others is smallest (the
@@ -41,13 +56,14 @@ pub fn medoid(d: &[Vec<f64>]) -> Option<usize> {
 /// The steps `(from, to)` that carry the template `root` to every
 /// specimen, in an order where each `from` is reached before it is left:
 /// breadth-first over the minimum spanning tree of `d` (children in index
-/// order), or `(root, i)` for every other `i`. Specimens the tree does not
-/// reach (non-finite distances) get no step.
+/// order; the synchronization starts from it), or `(root, i)` for every
+/// other `i`. Specimens the tree does not reach (non-finite distances) get
+/// no step.
 pub fn carrying_steps(d: &[Vec<f64>], root: usize, how: Consistency) -> Vec<(usize, usize)> {
     let n = d.len();
     match how {
         Consistency::Direct => (0..n).filter(|&i| i != root).map(|i| (root, i)).collect(),
-        Consistency::SpanningTree => {
+        Consistency::SpanningTree | Consistency::Synchronized(_) => {
             let mut adjacency = vec![Vec::new(); n];
             for (a, b) in minimum_spanning_tree(d) {
                 adjacency[a].push(b);

@@ -13,6 +13,7 @@ mod fps;
 mod gpa;
 mod maps;
 mod pca;
+mod sync;
 
 pub use files::{write_outputs, OutputContext, OutputError, Written};
 pub use fps::{area_uniform_points, farthest_point_sampling, pseudolandmarks, MeshPoint};
@@ -22,6 +23,10 @@ pub use maps::{
     Consistency, TemplateImages,
 };
 pub use pca::{principal_components, Pca};
+pub use sync::{
+    geometric_median, nearest_neighbours, synchronization_edges, synchronize, synchronize_template,
+    SyncParams,
+};
 
 use crate::cp::{CompareParams, Handedness, Prepared};
 use crate::eval::{pairwise_matrix, DistanceMatrix};
@@ -109,6 +114,9 @@ pub struct Alignment {
     pub template_images: Vec<Vec<[f64; 3]>>,
     /// The carried images and per-step distances.
     pub carried: TemplateImages,
+    /// The mean move of a template vertex's image (file units) in each
+    /// round of the synchronization (empty without one).
+    pub sync_moves: Vec<f64>,
     /// Pseudolandmarks on the template.
     pub template_points: Vec<MeshPoint>,
     /// The pseudolandmarks on each specimen (file units, on its surface).
@@ -257,7 +265,23 @@ pub fn align(
     }
     let carried = {
         let _span = tracing::info_span!("carry", template = %names[template]).entered();
-        carry_template(prepared, &surfaces, template, &steps, compare, progress)?
+        carry_template(prepared, &surfaces, template, &steps, compare, &progress)?
+    };
+    let (carried, sync_moves) = match params.consistency {
+        Consistency::Synchronized(sync) => {
+            let _span = tracing::info_span!("synchronize", template = %names[template]).entered();
+            synchronize_template(
+                prepared,
+                &surfaces,
+                carried,
+                &distances.values,
+                template,
+                sync,
+                compare,
+                |k| progress(steps.len() + k),
+            )?
+        }
+        Consistency::SpanningTree | Consistency::Direct => (carried, Vec::new()),
     };
     // Every specimen is reached (checked above), so every image is there.
     let template_images: Vec<Vec<[f64; 3]>> = carried
@@ -291,6 +315,7 @@ pub fn align(
         template_faces,
         template_images,
         carried,
+        sync_moves,
         template_points,
         pseudolandmarks,
         gpa,

@@ -61,25 +61,30 @@ fn round_trip(
         / diag
 }
 
-/// Cycle error of the consistent maps (through the template) and of the
-/// pairwise cP maps over `triples`, in % of the diagonal.
-fn cycle_errors(al: &Alignment, prepared: &[Prepared], triples: &[[usize; 3]]) -> (f64, f64) {
-    let surfaces: Vec<Surface> = prepared
-        .iter()
-        .map(|p| Surface::from_normalized(p).unwrap())
-        .collect();
+/// Mean cycle error (% of the diagonal) over `triples` of the consistent
+/// maps of `al` (through the template), starting from every fourth
+/// pseudolandmark of `start`'s alignment.
+fn consistent_cycle_error(
+    al: &Alignment,
+    surfaces: &[Surface],
+    start: &Alignment,
+    triples: &[[usize; 3]],
+) -> f64 {
     let on: Vec<Surface> = al
         .template_images
         .iter()
         .map(|im| collection::template_on(im, &al.template_faces).unwrap())
         .collect();
-    let params = cp::CompareParams::default();
-    let per: Vec<(f64, f64)> = triples
+    let per: Vec<f64> = triples
         .par_iter()
         .map(|&[a, b, c]| {
             let cycle = [a, b, c, a];
-            let start: Vec<[f64; 3]> = al.pseudolandmarks[a].iter().step_by(4).copied().collect();
-            let consistent = round_trip(&start, &surfaces[a], |k, p| {
+            let points: Vec<[f64; 3]> = start.pseudolandmarks[a]
+                .iter()
+                .step_by(4)
+                .copied()
+                .collect();
+            round_trip(&points, &surfaces[a], |k, p| {
                 let (x, y) = (cycle[k], cycle[k + 1]);
                 p.iter()
                     .map(|&q| {
@@ -92,8 +97,31 @@ fn cycle_errors(al: &Alignment, prepared: &[Prepared], triples: &[[usize; 3]]) -
                         .unwrap()
                     })
                     .collect()
-            });
-            let pairwise = round_trip(&start, &surfaces[a], |k, p| {
+            })
+        })
+        .collect();
+    per.iter().sum::<f64>() / per.len() as f64
+}
+
+/// Mean cycle error (% of the diagonal) over `triples` of the pairwise cP
+/// maps, from the same points as [`consistent_cycle_error`].
+fn pairwise_cycle_error(
+    prepared: &[Prepared],
+    surfaces: &[Surface],
+    start: &Alignment,
+    triples: &[[usize; 3]],
+) -> f64 {
+    let params = cp::CompareParams::default();
+    let per: Vec<f64> = triples
+        .par_iter()
+        .map(|&[a, b, c]| {
+            let cycle = [a, b, c, a];
+            let points: Vec<[f64; 3]> = start.pseudolandmarks[a]
+                .iter()
+                .step_by(4)
+                .copied()
+                .collect();
+            round_trip(&points, &surfaces[a], |k, p| {
                 let (x, y) = (cycle[k], cycle[k + 1]);
                 let map = cp::compare_directed(&prepared[x], &prepared[y], &params);
                 landmarks::propagate(
@@ -106,15 +134,17 @@ fn cycle_errors(al: &Alignment, prepared: &[Prepared], triples: &[[usize; 3]]) -
                 .landmarks
                 .points()
                 .to_vec()
-            });
-            (consistent, pairwise)
+            })
         })
         .collect();
-    let n = per.len() as f64;
-    (
-        per.iter().map(|p| p.0).sum::<f64>() / n,
-        per.iter().map(|p| p.1).sum::<f64>() / n,
-    )
+    per.iter().sum::<f64>() / per.len() as f64
+}
+
+fn surfaces_of(prepared: &[Prepared]) -> Vec<Surface> {
+    prepared
+        .iter()
+        .map(|p| Surface::from_normalized(p).unwrap())
+        .collect()
 }
 
 /// Mean error (% of the target's diagonal) of the known landmarks of the
@@ -171,6 +201,21 @@ fn consistent_maps_close_cycles_and_carry_known_landmarks() {
     };
     let mst = align(Consistency::SpanningTree);
     let direct = align(Consistency::Direct);
+    let sync = align(Consistency::Synchronized(collection::SyncParams::default()));
+    println!(
+        "synchronization, mean move per round: {:?}",
+        sync.sync_moves
+    );
+    assert_eq!(sync.template, mst.template);
+    assert_eq!(
+        sync.sync_moves.len(),
+        collection::SyncParams::default().rounds
+    );
+    assert!(
+        sync.sync_moves.iter().all(|m| m.is_finite()),
+        "{:?}",
+        sync.sync_moves
+    );
     assert_eq!(
         mst.template,
         collection::medoid(distances.values()).unwrap()
@@ -180,28 +225,36 @@ fn consistent_maps_close_cycles_and_carry_known_landmarks() {
     assert!(mst.pseudolandmarks.iter().all(|p| p.len() == 64));
 
     let triples = [[0, 3, 7], [1, 5, 9], [2, 4, 8], [6, 0, 9]];
-    let (consistent, pairwise) = cycle_errors(&mst, &prepared, &triples);
-    println!(
-        "cycle A→B→C→A, % of the diagonal: consistent {consistent:.3}, pairwise {pairwise:.3}"
-    );
-    assert!(consistent < 0.5, "{consistent}");
-    assert!(consistent < pairwise, "{consistent} vs {pairwise}");
+    let surfaces = surfaces_of(&prepared);
+    let pairwise = pairwise_cycle_error(&prepared, &surfaces, &mst, &triples);
+    for (what, al) in [("spanning tree", &mst), ("synchronized", &sync)] {
+        let consistent = consistent_cycle_error(al, &surfaces, &mst, &triples);
+        println!(
+            "cycle A→B→C→A, % of the diagonal: {what} {consistent:.3}, pairwise {pairwise:.3}"
+        );
+        assert!(consistent < 0.5, "{what}: {consistent}");
+        assert!(consistent < pairwise, "{what}: {consistent} vs {pairwise}");
+    }
 
     // The half of the specimens farthest from the template.
     let t = mst.template;
     let mut others: Vec<usize> = (0..10).filter(|&i| i != t).collect();
     others.sort_by(|&a, &b| distances.values()[t][b].total_cmp(&distances.values()[t][a]));
     let far = &others[..5];
-    let (e_mst, e_direct) = (
+    let (e_mst, e_direct, e_sync) = (
         carried_error(&mst, &specimens, &prepared, far),
         carried_error(&direct, &specimens, &prepared, far),
+        carried_error(&sync, &specimens, &prepared, far),
     );
-    println!("known landmarks carried to the 5 farthest, mean % of the diagonal: spanning tree {e_mst:.2}, direct {e_direct:.2}");
+    println!("known landmarks carried to the 5 farthest, mean % of the diagonal: spanning tree {e_mst:.2}, direct {e_direct:.2}, synchronized {e_sync:.2}");
     // Measured (seed 11): spanning tree 22.7 %, direct 11.4 % — across
     // genera the vertex-index "known" landmarks are only roughly
     // homologous; a map that lost the crown's orientation would be off by
     // about half the diagonal.
-    assert!(e_mst < 30.0 && e_direct < 30.0, "{e_mst} {e_direct}");
+    assert!(
+        e_mst < 30.0 && e_direct < 30.0 && e_sync < 30.0,
+        "{e_mst} {e_direct} {e_sync}"
+    );
 
     // The pseudolandmarks' Procrustes distances keep the genera apart.
     let pd = mst.procrustes_distances();
@@ -360,11 +413,13 @@ fn align_rejects_a_template_that_is_not_there() {
 }
 
 /// The 116 real teeth (`--ignored`): `align` with 1024 pseudolandmarks
-/// along the spanning tree; cycle consistency over 500 random triples
-/// (consistent maps against the pairwise cP maps) and leave-one-out
-/// classification on the Procrustes distances of the pseudolandmarks.
-/// `MORPHOID_CP_MATRIX` may name the teeth's cP matrix (from `morphoid
-/// matrix`) so that only missing pairs are computed, as `align --matrix`.
+/// along the spanning tree and synchronized; cycle consistency over 500
+/// random triples (each's consistent maps against the pairwise cP maps)
+/// and leave-one-out classification on the Procrustes distances of the
+/// pseudolandmarks. `MORPHOID_CP_MATRIX` may name the teeth's cP matrix
+/// (from `morphoid matrix`) so that only missing pairs are computed, as
+/// `align --matrix`; `MORPHOID_ALIGN_CACHE` a cache folder of prepared
+/// surfaces (as `align --cache`), else the teeth are prepared here.
 #[test]
 #[ignore]
 fn teeth_cycle_consistency_and_classification() {
@@ -372,21 +427,47 @@ fn teeth_cycle_consistency_and_classification() {
     let Some(dir) = crate::support::cp::data_dir() else {
         return;
     };
-    let names = crate::support::cp::tooth_names(&dir);
-    let prepared = crate::support::cp::prepare_teeth(&dir, &names, &cp::CpParams::default());
+    let prepared = match std::env::var_os("MORPHOID_ALIGN_CACHE") {
+        Some(root) => {
+            let cache = morphoid::library::Cache::for_folder(Some(Path::new(&root)), &dir).unwrap();
+            let settings = Settings::default();
+            let preparation = morphoid::library::Preparation::new(Some(&cache), &settings);
+            let members = morphoid::library::members(&dir).unwrap();
+            let (prepared, failed) = collection::prepare_collection(&members, &preparation, |_| {});
+            assert!(failed.is_empty(), "{failed:?}");
+            println!(
+                "{} of {} from the cache",
+                preparation.reused(),
+                prepared.len()
+            );
+            prepared
+        }
+        None => {
+            let names = crate::support::cp::tooth_names(&dir);
+            crate::support::cp::prepare_teeth(&dir, &names, &cp::CpParams::default())
+        }
+    };
     let known = std::env::var_os("MORPHOID_CP_MATRIX")
         .map(|p| DistanceMatrix::read_csv(Path::new(&p)).unwrap());
     let compare = cp::CompareParams::default();
     let (distances, computed) =
         collection::collection_distances(&prepared, known.as_ref(), &compare, |_| {});
     println!("{computed} cP distances computed");
-    let params = AlignParams {
-        pseudolandmarks: 1024,
-        ..AlignParams::default()
+    let align = |consistency| {
+        let params = AlignParams {
+            pseudolandmarks: 1024,
+            consistency,
+            ..AlignParams::default()
+        };
+        collection::align(&prepared, &distances, &params, &compare, |_| {}).unwrap()
     };
-    let al = collection::align(&prepared, &distances, &params, &compare, |_| {}).unwrap();
-    println!("template {}", al.names[al.template]);
-    let scores = crate::support::cp::leave_one_out_scores(&dir, &al.procrustes_distances());
+    let mst = align(Consistency::SpanningTree);
+    let sync = align(Consistency::Synchronized(collection::SyncParams::default()));
+    println!("template {}", mst.names[mst.template]);
+    println!(
+        "synchronization, mean move per round (file units): {:?}",
+        sync.sync_moves
+    );
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(500);
     let n = prepared.len();
     let triples: Vec<[usize; 3]> = (0..500)
@@ -397,11 +478,22 @@ fn teeth_cycle_consistency_and_classification() {
             }
         })
         .collect();
-    let (consistent, pairwise) = cycle_errors(&al, &prepared, &triples);
-    println!("500 triples A→B→C→A, mean round trip in % of the diagonal: consistent {consistent:.4}, pairwise {pairwise:.4}");
-    assert!(consistent < 0.5, "{consistent}");
-    assert!(consistent < pairwise);
-    // Far below cP's 96/101 at genus: pseudolandmark Procrustes distances
-    // lose the cusp detail, but still classify most teeth.
-    assert!(scores[2].correct * 2 > scores[2].total, "{:?}", scores[2]);
+    let surfaces = surfaces_of(&prepared);
+    let pairwise = pairwise_cycle_error(&prepared, &surfaces, &mst, &triples);
+    println!("500 triples A→B→C→A, mean round trip in % of the diagonal: pairwise {pairwise:.4}");
+    for (what, al) in [("spanning tree", &mst), ("synchronized", &sync)] {
+        println!("{what}:");
+        let scores = crate::support::cp::leave_one_out_scores(&dir, &al.procrustes_distances());
+        let consistent = consistent_cycle_error(al, &surfaces, &mst, &triples);
+        println!("  round trip {consistent:.4} % of the diagonal");
+        assert!(consistent < 0.5, "{what}: {consistent}");
+        assert!(consistent < pairwise, "{what}");
+        // Below cP's 96/101 at genus: pseudolandmark Procrustes distances
+        // lose the cusp detail, but still classify most teeth.
+        assert!(
+            scores[2].correct * 2 > scores[2].total,
+            "{what}: {:?}",
+            scores[2]
+        );
+    }
 }
