@@ -942,4 +942,58 @@ mod tests {
         assert!(outcome.landmarks.by_name.is_empty());
         assert!(outcome.failures.is_empty());
     }
+
+    /// An uncalibrated classifier of 10 synthetic crowns (2 per genus).
+    fn small_classifier(tmp: &Path) -> (Classifier, Cache) {
+        let dir = tmp.join("library");
+        let spec = LibrarySpec {
+            per_genus: 2,
+            target_vertices: 600,
+            seed: 7,
+            random_pose: false,
+        };
+        synth::write_synthetic_library(&dir, &spec).unwrap();
+        let library = Library::open(&dir, None).unwrap();
+        let cache = Cache::open(&tmp.join("cache")).unwrap();
+        let mut settings = Settings::default();
+        settings.clean.target_vertices = 600;
+        let (classifier, _) =
+            Classifier::build_uncalibrated(&library, &cache, &settings, |_| {}).unwrap();
+        (classifier, cache)
+    }
+
+    #[test]
+    fn a_calibration_fitted_later_shares_the_library_and_equals_one_fitted_now() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (classifier, cache) = small_classifier(tmp.path());
+        assert_eq!(classifier.calibration_state(), CalibrationState::Off);
+        let (later, pending) = classifier.clone().calibrate_later(Some(cache.clone()));
+        let pending = pending.unwrap();
+        // The references are shared with the calibration, not copied.
+        assert!(Arc::ptr_eq(&later.references, &pending.references));
+        assert!(Arc::ptr_eq(&later.references, &classifier.references));
+        let probe = later.calibration_probe();
+        assert_eq!(probe.state(), CalibrationState::Calibrating);
+        assert!(later.calibration().is_none());
+        let worker = later.clone();
+        pending.run().unwrap();
+        assert_eq!(probe.state(), CalibrationState::Ready);
+        assert_eq!(worker.calibration_state(), CalibrationState::Ready);
+        // The same model as the synchronous path (which reads the
+        // distances the background run stored in the cache).
+        let now = classifier.calibrated(Some(&cache));
+        assert!(now.calibration().is_some());
+        assert_eq!(worker.calibration(), now.calibration());
+    }
+
+    #[test]
+    fn a_calibration_that_never_runs_counts_as_failed() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (classifier, _) = small_classifier(tmp.path());
+        let (later, pending) = classifier.calibrate_later(None);
+        assert_eq!(later.calibration_state(), CalibrationState::Calibrating);
+        drop(pending);
+        assert_eq!(later.calibration_state(), CalibrationState::Failed);
+        assert!(later.calibration().is_none());
+    }
 }
