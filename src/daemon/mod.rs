@@ -670,8 +670,9 @@ fn calibrate_in_background(pending: PendingCalibration) {
             };
             let secs = started.elapsed().as_secs_f64();
             match fitted {
-                Ok(()) => tracing::info!(
-                    "calibration done in {secs:.1} s: scans identified from now on carry their confidence"
+                Ok(summary) => tracing::info!(
+                    "calibration done in {secs:.1} s ({summary}): scans identified from now on \
+                     carry their confidence"
                 ),
                 Err(e) => tracing::error!(
                     "{} after {secs:.1} s; going on without confidence",

@@ -374,7 +374,7 @@ impl WorkerState {
             }
             // The page written now is the attempt that succeeds: an
             // earlier failure does not belong on it.
-            let before = record.files_error.take();
+            record.files_error = None;
             // The JSON first: it is cheap, and when the folder cannot be
             // written no scene is drawn again for nothing.
             let written = files.write(&record).and_then(|_| {
@@ -403,10 +403,10 @@ impl WorkerState {
                     wrote = true;
                 }
                 Err(e) => {
-                    let message = super::chain(&e);
-                    if before.as_deref() != Some(message.as_str()) {
-                        tracing::warn!(scan = %record.path, "result files not written: {message}");
-                    }
+                    // Logged once per fault by the health, kept per scan
+                    // in its row.
+                    let message = classify::error_chain(&e);
+                    tracing::debug!(scan = %record.path, "result files not written: {message}");
                     store.files_failed(id, &message)?;
                     self.health.fault(Part::Results, &message);
                     failed = true;

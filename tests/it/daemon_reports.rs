@@ -432,7 +432,11 @@ fn scans_are_identified_while_the_calibration_runs_and_get_confidence_after() {
         .filter(|l| l.contains("calibration done"))
         .collect();
     assert_eq!(done.len(), 1, "{log}");
-    assert!(done[0].contains(" s:"), "{}", done[0]);
+    assert!(
+        done[0].contains(" s (held out: ") && done[0].contains("genus "),
+        "{}",
+        done[0]
+    );
     assert!(
         wait_until(Duration::from_secs(10), || status
             .lock()
