@@ -24,6 +24,7 @@ use crate::store::{self, Job, ScanRecord, ScanStatus, Store, StoreError};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, OnceLock};
 use std::time::Instant;
 
 /// How many nearest references a result lists.
@@ -51,11 +52,13 @@ pub enum SceneError {
     Classify(#[from] ClassifyError),
 }
 
-/// A prepared library, ready to identify scans.
+/// A prepared library, ready to identify scans. Cloning it is cheap: the
+/// prepared references are shared, never copied.
 #[derive(Debug, Clone)]
 pub struct Classifier {
-    /// The prepared references, in library order.
-    references: Vec<CachedReference>,
+    /// The prepared references, in library order (shared with a
+    /// calibration running in the background, so the library is held once).
+    references: Arc<Vec<CachedReference>>,
     /// Their labels at the configured ranks.
     labels: Labels,
     /// Preparation and engine settings (the same for scans and references).
@@ -66,8 +69,168 @@ pub struct Classifier {
     /// Where [`run_job`] writes the result files of each scan (`None`:
     /// nowhere).
     results: Option<ResultFiles>,
-    /// The library's confidence model (`None`: not calibrated).
-    calibration: Option<Calibration>,
+    /// The library's confidence model.
+    calibration: Calibrated,
+}
+
+/// The classifier's confidence model: none, fitted, or being fitted by a
+/// [`PendingCalibration`] (set once, when it is done).
+#[derive(Debug, Clone, Default)]
+enum Calibrated {
+    #[default]
+    Off,
+    Ready(Arc<Calibration>),
+    /// `Some` once fitted, `None` once it failed; unset while it runs.
+    Background(Arc<OnceLock<Option<Calibration>>>),
+}
+
+/// Where a classifier's confidence model stands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CalibrationState {
+    /// No calibration: `[library] calibrate = false`, or too few references.
+    Off,
+    /// Being fitted in the background; answers carry no confidence yet.
+    Calibrating,
+    /// Fitted: answers carry their confidence.
+    Ready,
+    /// The calibration failed; answers carry no confidence.
+    Failed,
+}
+
+impl Calibrated {
+    fn get(&self) -> Option<&Calibration> {
+        match self {
+            Calibrated::Off => None,
+            Calibrated::Ready(c) => Some(c),
+            Calibrated::Background(slot) => slot.get()?.as_ref(),
+        }
+    }
+
+    fn state(&self) -> CalibrationState {
+        match self {
+            Calibrated::Off => CalibrationState::Off,
+            Calibrated::Ready(_) => CalibrationState::Ready,
+            Calibrated::Background(slot) => match slot.get() {
+                None => CalibrationState::Calibrating,
+                Some(Some(_)) => CalibrationState::Ready,
+                Some(None) => CalibrationState::Failed,
+            },
+        }
+    }
+}
+
+/// A cheap handle on a classifier's [`CalibrationState`], for whoever
+/// reports on it (the daemon's status line) while the classifier works
+/// elsewhere.
+#[derive(Debug, Clone)]
+pub struct CalibrationProbe(Calibrated);
+
+impl CalibrationProbe {
+    /// Where the calibration stands now.
+    pub fn state(&self) -> CalibrationState {
+        self.0.state()
+    }
+}
+
+/// Why a [`PendingCalibration`] failed.
+#[derive(Debug, thiserror::Error)]
+#[error("the calibration of the library failed: {0}")]
+pub struct CalibrationFailed(String);
+
+/// The calibration of a classifier, to fit elsewhere (the daemon runs it
+/// on a thread of its own so that scans are identified meanwhile). It
+/// shares the classifier's prepared references. Until [`run`](Self::run)
+/// is done the classifier's answers carry no confidence and are marked
+/// as identified while calibrating; dropped without running, the
+/// calibration counts as failed.
+#[derive(Debug)]
+pub struct PendingCalibration {
+    references: Arc<Vec<CachedReference>>,
+    labels: Labels,
+    settings: Settings,
+    cache: Option<Cache>,
+    slot: Arc<OnceLock<Option<Calibration>>>,
+}
+
+impl PendingCalibration {
+    /// How many references the calibration compares with each other.
+    pub fn references(&self) -> usize {
+        self.references.len()
+    }
+
+    /// Fit the calibration (the distances among the references from the
+    /// cache, or computed on the current rayon pool and stored there) and
+    /// hand it to the classifier. A panic while fitting is caught and
+    /// returned: the classifier then goes on without confidence.
+    /// Returns what the calibration says per rank, for one log line
+    /// ("genus 110/116 right, …").
+    pub fn run(self) -> Result<String, CalibrationFailed> {
+        let fitted = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            fit_calibration(
+                &self.references,
+                &self.labels,
+                &self.settings,
+                self.cache.as_ref(),
+                false,
+            )
+        }));
+        match fitted {
+            Ok(calibration) => {
+                let ranks: Vec<String> = calibration
+                    .ranks()
+                    .iter()
+                    .map(|r| format!("{} {}/{} right", r.rank, r.right, r.held))
+                    .collect();
+                let _ = self.slot.set(Some(calibration));
+                Ok(if ranks.is_empty() {
+                    "no rank has enough references to calibrate".into()
+                } else {
+                    format!("held out: {}", ranks.join(", "))
+                })
+            }
+            Err(panic) => {
+                let _ = self.slot.set(None);
+                let why = panic
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| panic.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "a panic without a message".into());
+                Err(CalibrationFailed(why))
+            }
+        }
+    }
+}
+
+impl Drop for PendingCalibration {
+    fn drop(&mut self) {
+        // Never run (e.g. its thread could not start): failed, not pending
+        // for ever. A no-op after `run`.
+        let _ = self.slot.set(None);
+    }
+}
+
+/// The calibration of `references` (leave-one-out among them), their
+/// distances from `cache` or computed; with `log_ranks`, one info line per
+/// rank.
+fn fit_calibration(
+    references: &[CachedReference],
+    labels: &Labels,
+    settings: &Settings,
+    cache: Option<&Cache>,
+    log_ranks: bool,
+) -> Calibration {
+    let distances = library::reference_distances(references, settings, cache, |_| {});
+    let calibration = library::Calibration::fit(distances, labels);
+    for r in calibration.ranks().iter().filter(|_| log_ranks) {
+        tracing::info!(
+            rank = %r.rank,
+            held = r.held,
+            right = r.right,
+            threshold = ?r.threshold,
+            "calibrated"
+        );
+    }
+    calibration
 }
 
 /// Why a scan could not be identified; the message names the file.
@@ -94,12 +257,12 @@ impl Classifier {
     /// `labels`, without landmarks or result files.
     pub fn new(references: Vec<CachedReference>, labels: Labels, settings: Settings) -> Self {
         Classifier {
-            references,
+            references: Arc::new(references),
             labels,
             settings,
             landmarks: BTreeMap::new(),
             results: None,
-            calibration: None,
+            calibration: Calibrated::Off,
         }
     }
 
@@ -150,14 +313,55 @@ impl Classifier {
         let mut outcome = library::build(library, cache, settings, progress)?;
         let (references, landmarks) = outcome.take_references();
         let classifier = Classifier {
-            references,
+            references: Arc::new(references),
             labels: library.labels().clone(),
             settings: settings.clone(),
             landmarks,
             results: None,
-            calibration: None,
+            calibration: Calibrated::Off,
         };
         Ok((classifier, outcome))
+    }
+
+    /// [`Classifier::build_with`], but the calibration is not fitted here:
+    /// it comes back as a [`PendingCalibration`] (unless `[library]
+    /// calibrate = false` or the library is too small) for the caller to
+    /// run where it does not hold up identification — the daemon's path.
+    pub fn build_deferred(
+        library: &Library,
+        cache: &Cache,
+        config: &crate::config::Config,
+        progress: impl Fn(&str) + Sync,
+    ) -> Result<(Self, BuildOutcome, Option<PendingCalibration>), CacheError> {
+        let (classifier, outcome) =
+            Self::build_uncalibrated(library, cache, &config.settings(), progress)?;
+        if !config.library.calibrate {
+            return Ok((classifier, outcome, None));
+        }
+        let (classifier, pending) = classifier.calibrate_later(Some(cache.clone()));
+        Ok((classifier, outcome, pending))
+    }
+
+    /// The same classifier, its calibration to be fitted by the returned
+    /// [`PendingCalibration`] (which shares the prepared references); until
+    /// then answers carry no confidence and are marked `calibrating`. A
+    /// library of fewer than [`library::MIN_HELD`] references is left
+    /// without calibration (`None`).
+    pub fn calibrate_later(mut self, cache: Option<Cache>) -> (Self, Option<PendingCalibration>) {
+        if self.references.len() < library::MIN_HELD {
+            self.calibration = Calibrated::Off;
+            return (self, None);
+        }
+        let slot = Arc::new(OnceLock::new());
+        self.calibration = Calibrated::Background(Arc::clone(&slot));
+        let pending = PendingCalibration {
+            references: Arc::clone(&self.references),
+            labels: self.labels.clone(),
+            settings: self.settings.clone(),
+            cache,
+            slot,
+        };
+        (self, Some(pending))
     }
 
     /// The same classifier with its confidence calibrated on its own
@@ -166,28 +370,30 @@ impl Classifier {
     /// [`library::MIN_HELD`] references is left without calibration.
     pub fn calibrated(mut self, cache: Option<&Cache>) -> Self {
         if self.references.len() < library::MIN_HELD {
-            self.calibration = None;
+            self.calibration = Calibrated::Off;
             return self;
         }
-        let distances =
-            library::reference_distances(&self.references, &self.settings, cache, |_| {});
-        let calibration = library::Calibration::fit(distances, &self.labels);
-        for r in calibration.ranks() {
-            tracing::info!(
-                rank = %r.rank,
-                held = r.held,
-                right = r.right,
-                threshold = ?r.threshold,
-                "calibrated"
-            );
-        }
-        self.calibration = Some(calibration);
+        let calibration =
+            fit_calibration(&self.references, &self.labels, &self.settings, cache, true);
+        self.calibration = Calibrated::Ready(Arc::new(calibration));
         self
     }
 
-    /// The library's confidence model, if calibrated.
+    /// The library's confidence model, if calibrated (and, when it is
+    /// fitted in the background, once it is ready).
     pub fn calibration(&self) -> Option<&Calibration> {
-        self.calibration.as_ref()
+        self.calibration.get()
+    }
+
+    /// Where the confidence model stands.
+    pub fn calibration_state(&self) -> CalibrationState {
+        self.calibration.state()
+    }
+
+    /// A handle that follows [`calibration_state`](Self::calibration_state)
+    /// from elsewhere.
+    pub fn calibration_probe(&self) -> CalibrationProbe {
+        CalibrationProbe(self.calibration.clone())
     }
 
     /// The same classifier writing result files (`None`: none).
@@ -232,7 +438,7 @@ impl Classifier {
     /// and mark the others removed: what a new or replaced database needs
     /// before results can point at them. Registering again changes nothing.
     pub fn register_references(&self, store: &mut Store) -> Result<(), StoreError> {
-        for r in &self.references {
+        for r in self.references.iter() {
             let labels: store::Labels = self
                 .labels
                 .ranks()
@@ -433,9 +639,12 @@ impl Classifier {
         };
         let compare_ms = t.elapsed().as_secs_f64() * 1e3;
         let mut id = library::identify(&distances, &self.labels, NEAREST);
-        if let Some(c) = &self.calibration {
+        let calibration = self.calibration.get();
+        if let Some(c) = calibration {
             c.assess(&distances, &mut id.ranks);
         }
+        let calibrating =
+            calibration.is_none() && self.calibration.state() == CalibrationState::Calibrating;
         let mut timings_ms = BTreeMap::from([
             ("load".to_string(), load_ms),
             ("clean".to_string(), surface.timings.clean),
@@ -453,6 +662,7 @@ impl Classifier {
             cleaning: serde_json::to_value(&surface.cleaning).unwrap_or_default(),
             timings_ms,
             landmarks,
+            calibrating,
         }
     }
 
@@ -600,16 +810,50 @@ pub fn run_job(
     let status = record_finding(store, job.scan_id, &finding)?;
     if let Some(files) = &classifier.results {
         match store.scan(job.scan_id, NEAREST) {
-            Ok(Some(record)) => {
-                if let Err(e) = write_result_files(store, files, &record, scene.as_ref(), None) {
+            Ok(Some(mut record)) => {
+                // Written now, so no earlier failure belongs on the page.
+                record.files_error = None;
+                let written = write_result_files(store, files, &record, scene.as_ref(), None);
+                if let Err(e) = &written {
                     tracing::error!(scan = %job.path, "result files not written: {e}");
                 }
+                record_files_attempt(store, job.scan_id, &written)?;
             }
             Ok(None) => tracing::error!(scan = %job.path, "the scan vanished from the database"),
             Err(e) => tracing::error!(scan = %job.path, "result files not written: {e}"),
         }
     }
     Ok(status)
+}
+
+/// Record in the scan's row how writing its result files went: the error
+/// (naming the file and the cause) when it failed, nothing left of an
+/// earlier failure when it worked. Whether they are due is not changed.
+pub fn record_files_attempt(
+    store: &mut Store,
+    scan_id: i64,
+    written: &Result<(), ResultsError>,
+) -> Result<(), StoreError> {
+    match written {
+        Ok(()) => store.clear_files_error(scan_id),
+        Err(e) => store.files_failed(scan_id, &error_chain(e)),
+    }
+}
+
+/// `e` and its causes, `: `-separated, a cause whose text the line holds
+/// already not repeated.
+pub(crate) fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut out = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        let text = c.to_string();
+        if !out.contains(&text) {
+            out.push_str(": ");
+            out.push_str(&text);
+        }
+        cause = c.source();
+    }
+    out
 }
 
 /// All result files of a recorded scan: the JSON (and landmarks), the
@@ -713,5 +957,59 @@ mod tests {
         assert!(outcome.references().is_empty());
         assert!(outcome.landmarks().by_name().is_empty());
         assert!(outcome.failures().is_empty());
+    }
+
+    /// An uncalibrated classifier of 10 synthetic crowns (2 per genus).
+    fn small_classifier(tmp: &Path) -> (Classifier, Cache) {
+        let dir = tmp.join("library");
+        let spec = LibrarySpec {
+            per_genus: 2,
+            target_vertices: 600,
+            seed: 7,
+            random_pose: false,
+        };
+        synth::write_synthetic_library(&dir, &spec).unwrap();
+        let library = Library::open(&dir, None).unwrap();
+        let cache = Cache::open(&tmp.join("cache")).unwrap();
+        let mut settings = Settings::default();
+        settings.clean.target_vertices = 600;
+        let (classifier, _) =
+            Classifier::build_uncalibrated(&library, &cache, &settings, |_| {}).unwrap();
+        (classifier, cache)
+    }
+
+    #[test]
+    fn a_calibration_fitted_later_shares_the_library_and_equals_one_fitted_now() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (classifier, cache) = small_classifier(tmp.path());
+        assert_eq!(classifier.calibration_state(), CalibrationState::Off);
+        let (later, pending) = classifier.clone().calibrate_later(Some(cache.clone()));
+        let pending = pending.unwrap();
+        // The references are shared with the calibration, not copied.
+        assert!(Arc::ptr_eq(&later.references, &pending.references));
+        assert!(Arc::ptr_eq(&later.references, &classifier.references));
+        let probe = later.calibration_probe();
+        assert_eq!(probe.state(), CalibrationState::Calibrating);
+        assert!(later.calibration().is_none());
+        let worker = later.clone();
+        pending.run().unwrap();
+        assert_eq!(probe.state(), CalibrationState::Ready);
+        assert_eq!(worker.calibration_state(), CalibrationState::Ready);
+        // The same model as the synchronous path (which reads the
+        // distances the background run stored in the cache).
+        let now = classifier.calibrated(Some(&cache));
+        assert!(now.calibration().is_some());
+        assert_eq!(worker.calibration(), now.calibration());
+    }
+
+    #[test]
+    fn a_calibration_that_never_runs_counts_as_failed() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (classifier, _) = small_classifier(tmp.path());
+        let (later, pending) = classifier.calibrate_later(None);
+        assert_eq!(later.calibration_state(), CalibrationState::Calibrating);
+        drop(pending);
+        assert_eq!(later.calibration_state(), CalibrationState::Failed);
+        assert!(later.calibration().is_none());
     }
 }

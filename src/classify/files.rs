@@ -352,6 +352,8 @@ mod tests {
             nearest: Vec::new(),
             landmarks: None,
             duplicate_of: None,
+            files_error: None,
+            calibrating: false,
         }
     }
 

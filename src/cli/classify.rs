@@ -80,10 +80,14 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
             println!("{}", summary(&record));
         }
         if let Some(files) = &results {
-            if let Err(e) = write_known(&mut store, &classifier, files, &record) {
+            let written = write_known(&mut store, &classifier, files, &record);
+            if let Err(e) = &written {
                 all_ok = false;
                 eprintln!("morphoid: error: {}: result files: {e}", scan.display());
             }
+            classify::record_files_attempt(&mut store, record.id, &written).with_context(|| {
+                format!("recording in {} how the result files went", db.display())
+            })?;
         }
     }
     Ok(if all_ok {
@@ -102,6 +106,11 @@ fn write_known(
     files: &ResultFiles,
     record: &ScanRecord,
 ) -> Result<(), classify::ResultsError> {
+    // Written now, so no earlier failure belongs on the page.
+    let record = &ScanRecord {
+        files_error: None,
+        ..record.clone()
+    };
     files.write(record)?;
     if files.report_paths(record).0.exists() {
         return Ok(());
@@ -118,8 +127,20 @@ fn write_known(
 
 /// One line per scan for people: the taxon at each rank with its
 /// probability and the "NO CLOSE MATCH" flag when the library is
-/// calibrated (and how many landmarks were carried onto the scan).
+/// calibrated, "confidence: calibrating" when it was identified before the
+/// calibration was ready (and how many landmarks were carried onto the
+/// scan); then why its result files could not be written, if they could
+/// not.
 pub fn summary(r: &ScanRecord) -> String {
+    let line = status_summary(r);
+    match &r.files_error {
+        Some(e) => format!("{line}; result files not written: {e}"),
+        None => line,
+    }
+}
+
+/// [`summary`] without the result files.
+fn status_summary(r: &ScanRecord) -> String {
     match r.status {
         ScanStatus::Ok => {
             let ranks: Vec<String> = r
@@ -152,7 +173,12 @@ pub fn summary(r: &ScanRecord) -> String {
                 Some(lm) => format!("; {} landmarks from {}", lm.points.len(), lm.reference),
                 None => String::new(),
             };
-            format!("{}: {}{landmarks}", r.path, ranks.join(", "))
+            let calibrating = if r.calibrating {
+                "; confidence: calibrating"
+            } else {
+                ""
+            };
+            format!("{}: {}{calibrating}{landmarks}", r.path, ranks.join(", "))
         }
         ScanStatus::Error => format!(
             "{}: error: {}",

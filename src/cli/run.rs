@@ -4,8 +4,7 @@ use super::common::{ConfigArgs, ConfigFile};
 use anyhow::Result;
 use morphoid::classify::Classifier;
 use morphoid::config::Config;
-use morphoid::daemon::{self, LoadError, Loader};
-use morphoid::library::BuildOutcome;
+use morphoid::daemon::{self, LoadError, LoadedLibrary, Loader};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -39,14 +38,21 @@ impl Loader for Daemon<'_> {
         Ok(config)
     }
 
-    fn library(&self, config: &Config) -> Result<(Classifier, BuildOutcome), LoadError> {
+    fn library(&self, config: &Config) -> Result<LoadedLibrary, LoadError> {
         let failed = |source: anyhow::Error| LoadError::Library {
             dir: config.library.dir.clone(),
             source: source.into(),
         };
         let lib = config.open_library().map_err(|e| failed(e.into()))?;
         let cache = config.open_cache().map_err(|e| failed(e.into()))?;
-        Classifier::build_with(&lib, &cache, config, |_| {}).map_err(|e| failed(e.into()))
+        let (classifier, outcome, calibration) =
+            Classifier::build_deferred(&lib, &cache, config, |_| {})
+                .map_err(|e| failed(e.into()))?;
+        Ok(LoadedLibrary {
+            classifier,
+            outcome,
+            calibration,
+        })
     }
 }
 

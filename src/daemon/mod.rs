@@ -31,7 +31,9 @@ pub use health::BACKOFF_MAX as STORAGE_RETRY_MAX;
 pub use serial::BACKOFF_MAX;
 pub use worker::MAX_ATTEMPTS;
 
-use crate::classify::{Classifier, ResultFiles};
+use crate::classify::{
+    CalibrationProbe, CalibrationState, Classifier, PendingCalibration, ResultFiles,
+};
 use crate::config::Config;
 use crate::library::BuildOutcome;
 use crate::store::{now_ms, utc_day_start_ms, Enqueued, Store, StoreError};
@@ -114,14 +116,27 @@ pub enum DaemonError {
     },
 }
 
+/// A loaded library: the classifier, the report of its build, and its
+/// calibration when that is still to be fitted (the daemon fits it on a
+/// thread of its own, so identification starts at once).
+pub struct LoadedLibrary {
+    /// The classifier of the configured library.
+    pub classifier: Classifier,
+    /// What the build reports (failures, landmark problems).
+    pub outcome: BuildOutcome,
+    /// The calibration to fit in the background (`None`: none, or fitted).
+    pub calibration: Option<PendingCalibration>,
+}
+
 /// What the daemon needs from its caller: the configuration (re-read on
 /// SIGHUP) and the prepared library for a configuration.
 pub trait Loader {
     /// The current configuration, with any command-line overrides.
     fn config(&self) -> Result<Config, LoadError>;
-    /// The classifier of the configured library (cached references) and
-    /// the report of its build.
-    fn library(&self, config: &Config) -> Result<(Classifier, BuildOutcome), LoadError>;
+    /// The classifier of the configured library (cached references), the
+    /// report of its build and its pending calibration
+    /// ([`Classifier::build_deferred`]).
+    fn library(&self, config: &Config) -> Result<LoadedLibrary, LoadError>;
 }
 
 /// `e` and its causes, `: `-separated, for one log line.
@@ -263,6 +278,8 @@ struct Daemon<'a> {
     serial_tx: UnboundedSender<String>,
     serial_rx: UnboundedReceiver<String>,
     references: usize,
+    /// Where the current library's calibration stands (status line).
+    calibration: CalibrationProbe,
     /// Half of systemd's watchdog period, when it has one.
     watchdog: Option<Duration>,
     last_ping: Instant,
@@ -292,6 +309,7 @@ impl<'a> Daemon<'a> {
         };
         db.set_result_files(files.is_some());
         let references = classifier.references().len();
+        let calibration = classifier.calibration_probe();
         tracing::info!(
             "library {} loaded: {references} references; watching {}",
             config.library.dir.display(),
@@ -325,6 +343,7 @@ impl<'a> Daemon<'a> {
             serial_tx,
             serial_rx,
             references,
+            calibration,
             watchdog: sd_notify::watchdog_enabled().map(|d| d / 2),
             last_ping: Instant::now(),
             hang_logged: false,
@@ -437,6 +456,7 @@ impl<'a> Daemon<'a> {
         match reloaded {
             Ok((config, classifier, files, trigger)) => {
                 self.references = classifier.references().len();
+                self.calibration = classifier.calibration_probe();
                 self.worker.reload(Setup {
                     classifier,
                     files,
@@ -544,8 +564,11 @@ impl<'a> Daemon<'a> {
                 // The worker is using the connection: keep the last line.
                 Err(_) => self.last_status.clone(),
             };
-            if let Some(p) = status.find("; degraded:") {
+            if let Some(p) = status.find("; ") {
                 status.truncate(p);
+            }
+            if let Some(calibration) = calibration_status(self.calibration.state()) {
+                status = format!("{status}; {calibration}");
             }
             if let Some(degraded) = self.health.summary() {
                 status = format!("{status}; {degraded}");
@@ -585,21 +608,91 @@ impl<'a> Daemon<'a> {
 }
 
 /// The classifier of `config`'s library with its references recorded in
-/// the store, and the result files it configures. The build report is
+/// the store, and the result files it configures; its calibration, if
+/// still to be fitted, is started in the background. The build report is
 /// logged and dropped here: the daemon keeps only the classifier.
 fn load_library(
     loader: &dyn Loader,
     config: &Config,
     store: &mut Store,
 ) -> Result<(Classifier, Option<ResultFiles>), DaemonError> {
-    let (classifier, outcome) = loader.library(config)?;
+    let LoadedLibrary {
+        classifier,
+        outcome,
+        calibration,
+    } = loader.library(config)?;
     classifier.register(store, &outcome)?;
+    if let Some(pending) = calibration {
+        calibrate_in_background(pending);
+    }
     let results = config
         .results
         .dir
         .clone()
         .map(|dir| ResultFiles::new(dir, Some(config.watch.dir.clone())));
     Ok((classifier, results))
+}
+
+/// Threads of the calibration's own rayon pool: half the machine, so that
+/// identification (on the global pool) keeps most of it meanwhile.
+fn calibration_threads() -> usize {
+    std::thread::available_parallelism()
+        .map(|n| n.get() / 2)
+        .unwrap_or(1)
+        .max(1)
+}
+
+/// Fit `pending` on a thread of its own (with its own, smaller rayon pool),
+/// logging its start and its end with the time it took. A failure is one
+/// error line: the daemon goes on without confidence.
+fn calibrate_in_background(pending: PendingCalibration) {
+    let n = pending.references();
+    let spawned = std::thread::Builder::new()
+        .name("morphoid-calibration".into())
+        .spawn(move || {
+            let threads = calibration_threads();
+            tracing::info!(
+                "calibration started: {n} references compared with each other \
+                 ({threads} thread(s)); scans are identified meanwhile, without confidence"
+            );
+            let started = std::time::Instant::now();
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .thread_name(|i| format!("morphoid-calibration-{i}"))
+                .build();
+            let fitted = match pool {
+                Ok(pool) => pool.install(|| pending.run()),
+                // Its own pool only keeps it from crowding identification.
+                Err(e) => {
+                    tracing::warn!("calibration on the shared thread pool: {e}");
+                    pending.run()
+                }
+            };
+            let secs = started.elapsed().as_secs_f64();
+            match fitted {
+                Ok(summary) => tracing::info!(
+                    "calibration done in {secs:.1} s ({summary}): scans identified from now on \
+                     carry their confidence"
+                ),
+                Err(e) => tracing::error!(
+                    "{} after {secs:.1} s; going on without confidence",
+                    chain(&e)
+                ),
+            }
+        });
+    if let Err(e) = spawned {
+        // The pending calibration was dropped with the closure: failed.
+        tracing::error!("cannot start the calibration thread: {e}; going on without confidence");
+    }
+}
+
+/// What the status line says of the calibration (`None`: nothing).
+fn calibration_status(state: CalibrationState) -> Option<&'static str> {
+    match state {
+        CalibrationState::Calibrating => Some("calibrating the confidence"),
+        CalibrationState::Failed => Some("no confidence (the calibration failed)"),
+        CalibrationState::Off | CalibrationState::Ready => None,
+    }
 }
 
 /// What a reload gives: the configuration, its classifier, result files

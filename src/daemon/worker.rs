@@ -354,46 +354,70 @@ impl WorkerState {
     }
 
     /// Write the due result files (a few per pass); `true` when some were
-    /// written. A folder that cannot be written is reported once and tried
-    /// again later; jobs go on meanwhile.
+    /// written. A scan whose files cannot be written gets the error in its
+    /// row (cleared when a later attempt writes them); the folder's fault
+    /// is reported once and tried again later; jobs go on meanwhile.
     fn write_due_files(&mut self, store: &mut Store) -> Result<bool, StoreError> {
         let Some(files) = &self.setup.files else {
             return Ok(false);
         };
         let due = store.files_due(FILES_PER_PASS)?;
         let mut wrote = false;
+        let mut failed = false;
         for id in due {
-            let Some(record) = store.scan(id, NEAREST)? else {
+            let Some(mut record) = store.scan(id, NEAREST)? else {
                 continue;
             };
-            // The scene kept from identification, else drawn again from
-            // the file (after a restart); why not, on the page.
-            let (scene, note) = match self.scenes.remove(&id) {
-                Some(scene) => (Some(scene), None),
-                None if !record.nearest.is_empty() => {
-                    match self.setup.classifier.scene_of_record(&record) {
-                        Ok(scene) => (Some(scene), None),
-                        Err(e) => (None, Some(e.to_string())),
+            if failed && record.files_error.is_some() {
+                // Failed before and the folder still fails: not again now.
+                continue;
+            }
+            // The page written now is the attempt that succeeds: an
+            // earlier failure does not belong on it.
+            record.files_error = None;
+            // The JSON first: it is cheap, and when the folder cannot be
+            // written no scene is drawn again for nothing.
+            let written = files.write(&record).and_then(|_| {
+                // The scene kept from identification, else drawn again
+                // from the file (after a restart); why not, on the page.
+                let (scene, note) = match self.scenes.remove(&id) {
+                    Some(scene) => (Some(scene), None),
+                    None if !record.nearest.is_empty() => {
+                        match self.setup.classifier.scene_of_record(&record) {
+                            Ok(scene) => (Some(scene), None),
+                            Err(e) => (None, Some(e.to_string())),
+                        }
                     }
+                    None => (None, None),
+                };
+                let out = files.write_report(&record, scene.as_ref(), note.as_deref());
+                if let (Err(_), Some(scene)) = (&out, scene) {
+                    // Kept for the next attempt.
+                    self.scenes.insert(id, scene);
                 }
-                None => (None, None),
-            };
-            let written = files
-                .write(&record)
-                .and_then(|_| files.write_report(&record, scene.as_ref(), note.as_deref()));
+                out
+            });
             match written {
                 Ok(_) => {
                     store.files_written(id)?;
-                    self.health.clear(Part::Results);
-                    self.files_backoff.succeeded();
                     wrote = true;
                 }
                 Err(e) => {
-                    self.health.fault(Part::Results, &super::chain(&e));
-                    self.files_backoff.failed();
-                    return Ok(false);
+                    // Logged once per fault by the health, kept per scan
+                    // in its row.
+                    let message = classify::error_chain(&e);
+                    tracing::debug!(scan = %record.path, "result files not written: {message}");
+                    store.files_failed(id, &message)?;
+                    self.health.fault(Part::Results, &message);
+                    failed = true;
                 }
             }
+        }
+        if failed {
+            self.files_backoff.failed();
+        } else if wrote {
+            self.health.clear(Part::Results);
+            self.files_backoff.succeeded();
         }
         if wrote {
             if let Err(e) = files.write_index(store) {

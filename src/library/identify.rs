@@ -104,6 +104,9 @@ pub struct ScanOutcome {
     /// The nearest reference's landmarks carried onto the scan, when that
     /// reference has landmarks.
     pub landmarks: Option<ScanLandmarks>,
+    /// Identified while the library's calibration was still running, so
+    /// the ranks carry no confidence yet.
+    pub calibrating: bool,
 }
 
 /// The identification of one scan.

@@ -114,22 +114,32 @@ pub fn utc_time(ms: i64) -> String {
     )
 }
 
-/// The text of a calibrated probability, or "not calibrated".
-pub(super) fn confidence_text(p: Option<f64>) -> String {
-    match p {
-        Some(p) => format!("{:.0} %", p * 100.0),
-        None => "not calibrated".into(),
+/// What a result without confidence says: identified while the library's
+/// calibration was running, or the library is not calibrated.
+pub(super) fn uncalibrated_text(calibrating: bool) -> &'static str {
+    if calibrating {
+        "confidence: calibrating"
+    } else {
+        "not calibrated"
     }
 }
 
-/// The text of the "no close match" flag, or "not calibrated".
-pub(super) fn novelty_text(flag: Option<bool>) -> &'static str {
+/// The text of a calibrated probability, or why there is none.
+pub(super) fn confidence_text(p: Option<f64>, calibrating: bool) -> String {
+    match p {
+        Some(p) => format!("{:.0} %", p * 100.0),
+        None => uncalibrated_text(calibrating).into(),
+    }
+}
+
+/// The text of the "no close match" flag, or why there is none.
+pub(super) fn novelty_text(flag: Option<bool>, calibrating: bool) -> &'static str {
     match flag {
         Some(true) => {
             "NO CLOSE MATCH: farther from the library than a known taxon's member would be"
         }
         Some(false) => "close match",
-        None => "not calibrated",
+        None => uncalibrated_text(calibrating),
     }
 }
 
@@ -186,6 +196,14 @@ pub fn report_html(record: &ScanRecord, scene: Option<&Scene>, note: Option<&str
         );
     }
     h.push_str("</table>\n");
+    if let Some(e) = &record.files_error {
+        let _ = writeln!(
+            h,
+            "<div class=\"error\" id=\"files-error\">The result files of this scan could not \
+             be written: {} (the identification is recorded)</div>",
+            escape(e)
+        );
+    }
     if let Some(note) = note {
         let _ = writeln!(h, "<p class=\"note\" id=\"note\">{}</p>", escape(note));
     }
@@ -245,7 +263,7 @@ fn identification(h: &mut String, record: &ScanRecord) {
              <td>{:.4}</td><td>{}</td><td>{}</td></tr>",
             escape(&r.rank),
             escape(&r.taxon),
-            confidence_text(rank_confidence(record, &r.rank)),
+            confidence_text(rank_confidence(record, &r.rank), record.calibrating),
             escape(&r.reference),
             r.distance,
             escape(r.runner_up.as_deref().unwrap_or("—")),
@@ -257,7 +275,7 @@ fn identification(h: &mut String, record: &ScanRecord) {
     let _ = writeln!(
         h,
         "</table>\n<p id=\"novelty\">Novelty: {}</p>",
-        novelty_text(no_close_match(record))
+        novelty_text(no_close_match(record), record.calibrating)
     );
     h.push_str(
         "<h3>Nearest references</h3>\n<table id=\"nearest\"><tr><th>#</th><th>Reference</th>\

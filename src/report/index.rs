@@ -120,7 +120,7 @@ fn index_row(h: &mut String, row: &IndexRow<'_>) {
         let conf: Vec<String> = r
             .ranks
             .iter()
-            .map(|k| confidence_text(rank_confidence(r, &k.rank)))
+            .map(|k| confidence_text(rank_confidence(r, &k.rank), r.calibrating))
             .collect();
         (taxa.join("<br>"), conf.join("<br>"))
     } else if result_status == ScanStatus::Error {
@@ -143,6 +143,12 @@ fn index_row(h: &mut String, row: &IndexRow<'_>) {
     }
     if r.landmarks.is_some() {
         flags.push("landmarks".to_string());
+    }
+    if let Some(e) = &r.files_error {
+        flags.push(format!(
+            "<span class=\"bad files-error\">result files not written: {}</span>",
+            escape(e)
+        ));
     }
     let _ = writeln!(
         h,

@@ -146,9 +146,16 @@ impl Store {
         insert_outcome(&tx, scan_id, outcome)?;
         tx.execute(
             "UPDATE scan SET status = 'ok', error = NULL, finished_at = ?2,
-                    timings = ?3, cleaning = ?4, files_due = ?5
+                    timings = ?3, cleaning = ?4, files_due = ?5, calibrating = ?6
              WHERE id = ?1",
-            params![scan_id, now_ms(), timings, cleaning, self.result_files],
+            params![
+                scan_id,
+                now_ms(),
+                timings,
+                cleaning,
+                self.result_files,
+                outcome.calibrating
+            ],
         )?;
         tx.commit()?;
         Ok(())
@@ -232,7 +239,7 @@ impl Store {
         tx.execute("DELETE FROM landmark WHERE scan_id = ?1", [scan_id])?;
         tx.execute(
             "UPDATE scan SET status = 'pending', error = NULL, started_at = NULL,
-                    finished_at = NULL, timings = NULL, cleaning = NULL
+                    finished_at = NULL, timings = NULL, cleaning = NULL, calibrating = 0
              WHERE id = ?1",
             [scan_id],
         )?;
@@ -243,24 +250,52 @@ impl Store {
 
 impl Store {
     /// Up to `limit` scans whose result files are due and can be written
-    /// now, oldest first: finished scans, and duplicates whose earlier scan
-    /// has finished (a duplicate's result is the earlier scan's).
+    /// now: finished scans, and duplicates whose earlier scan has finished
+    /// (a duplicate's result is the earlier scan's). Those not tried yet
+    /// come first, then those whose last attempt failed, each oldest
+    /// first: a backlog of failures never keeps a new scan from being
+    /// tried (and from getting its own error when the folder still fails).
     pub fn files_due(&self, limit: usize) -> Result<Vec<i64>, StoreError> {
         let limit = i64::try_from(limit).unwrap_or(i64::MAX);
         let mut stmt = self.conn.prepare_cached(
             "SELECT s.id AS id FROM scan s LEFT JOIN scan o ON o.id = s.duplicate_of
              WHERE s.files_due = 1
                AND (s.status IN ('ok', 'error') OR o.status IN ('ok', 'error'))
-             ORDER BY s.id LIMIT ?1",
+             ORDER BY s.files_error IS NOT NULL, s.id LIMIT ?1",
         )?;
         let ids = stmt.query_map([limit], |r| r.get("id"))?;
         Ok(ids.collect::<Result<_, _>>()?)
     }
 
-    /// Record that the result files of scan `scan_id` are written.
+    /// Record that the result files of scan `scan_id` are written (an
+    /// earlier failure to write them is cleared).
     pub fn files_written(&mut self, scan_id: i64) -> Result<(), StoreError> {
-        self.conn
-            .execute("UPDATE scan SET files_due = 0 WHERE id = ?1", [scan_id])?;
+        self.conn.execute(
+            "UPDATE scan SET files_due = 0, files_error = NULL WHERE id = ?1",
+            [scan_id],
+        )?;
+        Ok(())
+    }
+
+    /// Forget an earlier failure to write the result files of scan
+    /// `scan_id` (they were written, elsewhere or by hand); whether they
+    /// are due is not changed.
+    pub fn clear_files_error(&mut self, scan_id: i64) -> Result<(), StoreError> {
+        self.conn.execute(
+            "UPDATE scan SET files_error = NULL WHERE id = ?1 AND files_error IS NOT NULL",
+            [scan_id],
+        )?;
+        Ok(())
+    }
+
+    /// Record why the result files of scan `scan_id` could not be written
+    /// (`message`, naming the file and the cause); they stay due when they
+    /// were, and the identification is untouched.
+    pub fn files_failed(&mut self, scan_id: i64, message: &str) -> Result<(), StoreError> {
+        self.conn.execute(
+            "UPDATE scan SET files_error = ?2 WHERE id = ?1 AND files_error IS NOT ?2",
+            params![scan_id, message],
+        )?;
         Ok(())
     }
 }

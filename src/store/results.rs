@@ -12,7 +12,8 @@ use std::collections::BTreeMap;
 
 /// The `scan` columns [`scan_from_row`] reads.
 const SCAN_COLUMNS: &str = "id, path, content_hash, size, status, error, attempts, \
-     created_at, started_at, finished_at, timings, cleaning, duplicate_of";
+     created_at, started_at, finished_at, timings, cleaning, duplicate_of, files_error, \
+     calibrating";
 
 impl Store {
     /// The scan with this id, with its result and `nearest_count` nearest
@@ -150,6 +151,8 @@ fn scan_from_row(r: &Row<'_>) -> Result<ScanRecord, StoreError> {
             path: String::new(),
             status: ScanStatus::Pending,
         }),
+        files_error: r.get("files_error")?,
+        calibrating: r.get("calibrating")?,
     })
 }
 
@@ -163,14 +166,20 @@ fn load_result(
 ) -> Result<(), StoreError> {
     let mut of = record.id;
     if let Some(original) = &mut record.duplicate_of {
-        let (path, status, error): (String, String, Option<String>) = conn
-            .prepare_cached("SELECT path, status, error FROM scan WHERE id = ?1")?
+        let (path, status, error, calibrating): (String, String, Option<String>, bool) = conn
+            .prepare_cached("SELECT path, status, error, calibrating FROM scan WHERE id = ?1")?
             .query_row([original.id], |r| {
-                Ok((r.get("path")?, r.get("status")?, r.get("error")?))
+                Ok((
+                    r.get("path")?,
+                    r.get("status")?,
+                    r.get("error")?,
+                    r.get("calibrating")?,
+                ))
             })?;
         original.path = path;
         original.status = parse_status(&status)?;
         record.error = error;
+        record.calibrating = calibrating;
         of = original.id;
     }
     record.ranks = ranks_of(conn, of)?;

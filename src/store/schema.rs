@@ -14,7 +14,13 @@ use std::path::Path;
 pub const APPLICATION_ID: i32 = 0x4d52_5048;
 
 /// The migrations, in order; migration k (1-based) is `MIGRATIONS[k - 1]`.
-pub const MIGRATIONS: &[&str] = &[MIGRATION_1, MIGRATION_2, MIGRATION_3, MIGRATION_4];
+pub const MIGRATIONS: &[&str] = &[
+    MIGRATION_1,
+    MIGRATION_2,
+    MIGRATION_3,
+    MIGRATION_4,
+    MIGRATION_5,
+];
 
 /// The schema version this build writes and understands.
 pub const SCHEMA_VERSION: u32 = MIGRATIONS.len() as u32;
@@ -157,6 +163,17 @@ ALTER TABLE result ADD COLUMN novelty REAL;
 ALTER TABLE result ADD COLUMN novelty_threshold REAL;
 ALTER TABLE result ADD COLUMN no_close_match INTEGER
     CHECK (no_close_match IS NULL OR no_close_match IN (0, 1));
+"#;
+
+/// Migration 5: why a finished scan's result files could not be written
+/// (`files_error`, set by the attempt that failed, cleared by the one that
+/// writes them), and whether the scan was identified while the library's
+/// calibration was still running (`calibrating`: its confidence columns are
+/// null for that reason, not because the library is uncalibrated).
+const MIGRATION_5: &str = r#"
+ALTER TABLE scan ADD COLUMN files_error TEXT;
+ALTER TABLE scan ADD COLUMN calibrating INTEGER NOT NULL DEFAULT 0
+    CHECK (calibrating IN (0, 1));
 "#;
 
 /// Bring the database on `conn` to [`SCHEMA_VERSION`]: refuse a file of

@@ -210,6 +210,13 @@ pub struct ScanRecord {
     /// For a `duplicate`: the earlier scan of the same content, whose
     /// result (ranks, nearest, landmarks, error) this record carries.
     pub duplicate_of: Option<Original>,
+    /// Why this scan's result files could not be written by the last
+    /// attempt (`None`: written, not due, or not tried yet). The
+    /// identification stands either way.
+    pub files_error: Option<String>,
+    /// The scan was identified while the library's calibration was still
+    /// running: its ranks carry no confidence for that reason.
+    pub calibrating: bool,
 }
 
 impl ScanRecord {
@@ -284,7 +291,9 @@ impl Serialize for RanksJson<'_> {
 /// "y", "z"}, …]` and `"landmarks_reference"` when landmarks were carried
 /// onto the scan), `{"scan", "status": "error",
 /// "error"}` for an error, `{"scan", "status"}` while pending or running;
-/// each with the scan's `id` too. A `duplicate` adds `"duplicate_of":
+/// each with the scan's `id` too; `"files_error"` when its result files
+/// could not be written, and `"calibrating": true` for an `ok` scan
+/// identified before the library's calibration was ready. A `duplicate` adds `"duplicate_of":
 /// {"id", "scan", "status"}` and the earlier scan's result in the same
 /// fields (or its `"error"`).
 impl Serialize for ScanRecord {
@@ -304,6 +313,9 @@ impl Serialize for ScanRecord {
             ScanStatus::Ok => {
                 map.serialize_entry("ranks", &RanksJson(&self.ranks))?;
                 map.serialize_entry("no_close_match", &self.no_close_match())?;
+                if self.calibrating {
+                    map.serialize_entry("calibrating", &true)?;
+                }
                 map.serialize_entry("nearest", &self.nearest)?;
                 map.serialize_entry("cleaning", &self.cleaning)?;
                 map.serialize_entry("timings_ms", &self.timings_ms)?;
@@ -316,6 +328,9 @@ impl Serialize for ScanRecord {
                 map.serialize_entry("error", self.error.as_deref().unwrap_or(""))?;
             }
             ScanStatus::Pending | ScanStatus::Running | ScanStatus::Duplicate => {}
+        }
+        if let Some(e) = &self.files_error {
+            map.serialize_entry("files_error", e)?;
         }
         map.end()
     }

@@ -31,6 +31,7 @@ mod daemon_faults;
 mod daemon_files;
 mod daemon_load;
 mod daemon_notify;
+mod daemon_reports;
 mod daemon_serial;
 mod daemon_signals;
 mod daemon_unit;

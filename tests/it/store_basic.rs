@@ -756,3 +756,99 @@ fn a_file_that_is_not_a_database_is_a_clear_error() {
     assert!(text.contains("morphoid.sqlite"), "{text}");
     assert!(text.contains("not a database"), "{text}");
 }
+
+#[test]
+fn a_failure_to_write_result_files_is_kept_in_the_row_until_they_are_written() {
+    let (_dir, path) = temp_db();
+    let mut store = Store::open(&path).expect("create");
+    store.set_result_files(true);
+    register_references(&mut store, 3);
+    let mut ids = Vec::new();
+    for (k, name) in ["a.ply", "b.ply", "c.ply"].iter().enumerate() {
+        let id = store
+            .enqueue(name, &format!("h-{name}"), 10)
+            .expect("enqueue")
+            .scan_id();
+        let job = store.claim(id).expect("claim").expect("pending");
+        let mut out = outcome(k as u64, 3);
+        out.calibrating = k == 1;
+        store.complete(job.scan_id, &out).expect("complete");
+        ids.push(id);
+    }
+    assert_eq!(store.files_due(10).expect("due"), ids);
+    let message = "/results/a.ply.json: cannot write: Read-only file system";
+    store.files_failed(ids[0], message).expect("failed");
+    // A scan whose files failed goes behind the ones not tried yet.
+    assert_eq!(
+        store.files_due(10).expect("due"),
+        vec![ids[1], ids[2], ids[0]]
+    );
+    let rec = store.scan(ids[0], 5).expect("read").expect("row");
+    assert_eq!(rec.status, ScanStatus::Ok);
+    assert_eq!(rec.ranks.len(), RANKS.len());
+    assert_eq!(rec.files_error.as_deref(), Some(message));
+    let json = serde_json::to_value(&rec).expect("json");
+    assert_eq!(json["files_error"], message);
+    assert!(json.get("calibrating").is_none(), "{json}");
+    // The flag of a scan identified while the calibration ran.
+    let rec = store.scan(ids[1], 5).expect("read").expect("row");
+    assert!(rec.calibrating);
+    assert_eq!(
+        serde_json::to_value(&rec).expect("json")["calibrating"],
+        true
+    );
+    // Written at the next attempt: the error is gone with the due mark.
+    store.files_written(ids[0]).expect("written");
+    let rec = store.scan(ids[0], 5).expect("read").expect("row");
+    assert_eq!(rec.files_error, None);
+    assert!(serde_json::to_value(&rec)
+        .expect("json")
+        .get("files_error")
+        .is_none());
+    assert_eq!(store.files_due(10).expect("due"), vec![ids[1], ids[2]]);
+    // A retried scan is identified afresh: no stale calibration flag.
+    store.retry(ids[1]).expect("retry");
+    let job = store.claim(ids[1]).expect("claim").expect("pending");
+    store
+        .complete(job.scan_id, &outcome(9, 3))
+        .expect("complete");
+    assert!(
+        !store
+            .scan(ids[1], 5)
+            .expect("read")
+            .expect("row")
+            .calibrating
+    );
+}
+
+#[test]
+fn a_version_4_database_opens_and_gains_the_new_columns() {
+    let (_dir, path) = temp_db();
+    {
+        let conn = Connection::open(&path).expect("raw open");
+        for sql in &morphoid::store::MIGRATIONS[..4] {
+            conn.execute_batch(sql).expect("schema");
+        }
+        conn.pragma_update(None, "user_version", 4).expect("v4");
+        conn.pragma_update(None, "application_id", morphoid::store::APPLICATION_ID)
+            .expect("app id");
+        conn.execute(
+            "INSERT INTO scan (id, path, content_hash, size, status, error, attempts,
+                               created_at, started_at, finished_at, files_due)
+             VALUES (1, 'old.ply', 'h-old', 10, 'error', 'broken', 1, 1, 2, 3, 1)",
+            [],
+        )
+        .expect("scan");
+    }
+    let mut store = Store::open(&path).expect("open upgrades");
+    assert_eq!(store.schema_version().expect("version"), SCHEMA_VERSION);
+    store.check_integrity().expect("integrity");
+    let old = store.scan(1, 5).expect("read").expect("kept");
+    assert_eq!((old.files_error, old.calibrating), (None, false));
+    assert_eq!(old.error.as_deref(), Some("broken"));
+    store.files_failed(1, "cannot write").expect("failed");
+    assert_eq!(
+        store.recent(1).expect("recent")[0].files_error.as_deref(),
+        Some("cannot write")
+    );
+}

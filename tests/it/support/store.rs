@@ -76,5 +76,6 @@ pub fn outcome(seed: u64, n_refs: usize) -> ScanOutcome {
         cleaning: serde_json::json!({"vertices_before": 5100 + seed, "vertices_after": 5000}),
         timings_ms,
         landmarks: None,
+        calibrating: false,
     }
 }
