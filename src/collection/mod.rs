@@ -274,7 +274,7 @@ pub fn align(
                 prepared,
                 &surfaces,
                 carried,
-                &distances.values,
+                distances.values(),
                 template,
                 sync,
                 compare,
