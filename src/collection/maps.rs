@@ -123,6 +123,28 @@ pub enum CarryError {
     },
 }
 
+/// The directed cP map of each `(from, to)` pair, computed in parallel, in
+/// the order given; `progress` gets the count of maps done so far.
+pub(crate) fn directed_maps(
+    prepared: &[Prepared],
+    pairs: &[(usize, usize)],
+    params: &CompareParams,
+    progress: impl Fn(usize) + Sync,
+) -> Vec<cp::Directed> {
+    let done = AtomicUsize::new(0);
+    pairs
+        .par_iter()
+        .map(|&(a, b)| {
+            let _span =
+                tracing::info_span!("map", from = %prepared[a].name(), to = %prepared[b].name())
+                    .entered();
+            let m = cp::compare_directed(&prepared[a], &prepared[b], params);
+            progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+            m
+        })
+        .collect()
+}
+
 /// Carry the vertices of `surfaces[root]` along `steps` (each `from`
 /// reached before it is left; see [`carrying_steps`]): the directed cP map
 /// of every step (in parallel; `progress` receives the number done), then
@@ -136,18 +158,7 @@ pub fn carry_template(
     params: &CompareParams,
     progress: impl Fn(usize) + Sync,
 ) -> Result<TemplateImages, CarryError> {
-    let done = AtomicUsize::new(0);
-    let maps: Vec<cp::Directed> = steps
-        .par_iter()
-        .map(|&(a, b)| {
-            let _span =
-                tracing::info_span!("map", from = %prepared[a].name(), to = %prepared[b].name())
-                    .entered();
-            let m = cp::compare_directed(&prepared[a], &prepared[b], params);
-            progress(done.fetch_add(1, Ordering::Relaxed) + 1);
-            m
-        })
-        .collect();
+    let maps = directed_maps(prepared, steps, params, progress);
     let n = surfaces.len();
     let mut images: Vec<Option<Vec<[f64; 3]>>> = vec![None; n];
     let mut reflected = vec![false; n];

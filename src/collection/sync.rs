@@ -23,11 +23,10 @@
 //! between specimens still go through the template, so they stay
 //! consistent around any cycle by construction.
 
-use super::maps::{CarryError, TemplateImages};
+use super::maps::{directed_maps, CarryError, TemplateImages};
 use crate::cp::{self, CompareParams, Prepared};
 use crate::landmarks::{self, Landmarks, PropagateError, Surface};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Each specimen's image of every template vertex.
 pub type VertexImages = Vec<Vec<[f64; 3]>>;
@@ -207,18 +206,7 @@ pub fn synchronize_template(
     progress: impl Fn(usize) + Sync,
 ) -> Result<(TemplateImages, Vec<f64>), CarryError> {
     let edges = synchronization_edges(d, anchor, params.neighbours);
-    let done = AtomicUsize::new(0);
-    let maps: Vec<cp::Directed> = edges
-        .par_iter()
-        .map(|&(a, b)| {
-            let _span =
-                tracing::info_span!("map", from = %prepared[a].name(), to = %prepared[b].name())
-                    .entered();
-            let m = cp::compare_directed(&prepared[a], &prepared[b], compare);
-            progress(done.fetch_add(1, Ordering::Relaxed) + 1);
-            m
-        })
-        .collect();
+    let maps = directed_maps(prepared, &edges, compare, progress);
     let reflected = &carried.reflected;
     // A map of the other handedness than the composed ones would pull
     // the image towards the mirror image.
