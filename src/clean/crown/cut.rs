@@ -1,50 +1,20 @@
-//! The cut along the margin: the crown's faces are grown from the top of
-//! the tooth across edges, stopped by the crease edges near the margin
-//! line (so the cut follows the actual enamel edge of the mesh, not the
-//! line's discretisation) and, where the crease has gaps, by a floor a
-//! little below the line. Pockets left out inside the crown are taken back.
+//! The cut along the margin loop: the faces on one side of it, grown from
+//! a face across every edge that is not on the loop. Pockets left out
+//! inside the crown are taken back.
 
-use super::geometry::{Cylinder, SurfaceGeometry};
-use super::margin::MarginLine;
+use super::geometry::SurfaceGeometry;
 use crate::mesh::{triangle_adjacency, Mesh, NO_TRIANGLE};
 
-/// Where the growth stops.
-pub(super) struct CutRule<'a> {
-    pub margin: &'a MarginLine,
-    pub cylinder: &'a Cylinder,
-    /// Half-width of the band around the line in which crease edges stop
-    /// the growth; also how far below the line the floor lies.
-    pub tolerance: f64,
-    /// Smallest convex turn (radians) of an edge that stops the growth.
-    pub min_turn: f64,
-}
-
-/// Faces of the crown: grown from `seed` (a face at the top), see the
-/// module documentation.
-pub(super) fn crown_faces(
+/// Faces of the part of the surface that holds `seed`, bounded by the
+/// `cut` edges (vertex pairs in either order). Pockets left out inside it
+/// are taken back.
+pub(super) fn faces_bounded_by(
     mesh: &Mesh,
     geo: &SurfaceGeometry,
-    rule: &CutRule<'_>,
+    cut: &std::collections::HashSet<(u32, u32)>,
     seed: usize,
 ) -> Vec<bool> {
     let adjacency = triangle_adjacency(&mesh.faces);
-    let below_floor = |f: usize| {
-        let p = geo.centroids[f];
-        let (angle, _) = rule.cylinder.polar(p);
-        rule.cylinder.height(p) < rule.margin.height_at(angle) - rule.tolerance
-    };
-    let stops = |a: u32, b: u32| {
-        let Some(e) = geo.edges.find(a, b) else {
-            return true;
-        };
-        if geo.turn[e] < rule.min_turn {
-            return false;
-        }
-        let (pa, pb) = (mesh.vertices[a as usize], mesh.vertices[b as usize]);
-        let mid = [0, 1, 2].map(|d| 0.5 * (pa[d] + pb[d]));
-        let (angle, _) = rule.cylinder.polar(mid);
-        (rule.cylinder.height(mid) - rule.margin.height_at(angle)).abs() <= rule.tolerance
-    };
     let mut inside = vec![false; mesh.faces.len()];
     let mut stack = vec![seed];
     inside[seed] = true;
@@ -55,14 +25,13 @@ pub(super) fn crown_faces(
             if g == NO_TRIANGLE || inside[g as usize] {
                 continue;
             }
-            let g = g as usize;
             // adjacency[f][k] lies across the edge opposite corner k.
             let (a, b) = (face[(k + 1) % 3], face[(k + 2) % 3]);
-            if below_floor(g) || stops(a, b) {
+            if cut.contains(&(a.min(b), a.max(b))) {
                 continue;
             }
-            inside[g] = true;
-            stack.push(g);
+            inside[g as usize] = true;
+            stack.push(g as usize);
         }
     }
     take_back_pockets(&adjacency, &mut inside, geo);

@@ -138,15 +138,4 @@ impl Cylinder {
         let (x, y) = (dot(d, self.u), dot(d, self.v));
         (y.atan2(x), x.hypot(y))
     }
-
-    /// The unit direction of increasing angle at `p` (zero on the axis).
-    pub fn around(&self, p: [f64; 3]) -> [f64; 3] {
-        let t = cross(self.axis, sub(p, self.centre));
-        let n = norm(t);
-        if n > 0.0 {
-            t.map(|x| x / n)
-        } else {
-            [0.0; 3]
-        }
-    }
 }

@@ -4,26 +4,25 @@
 //! morphologist crops it.
 //!
 //! Anatomy used, from the geometry alone (no pose, no scale):
-//! - a whole tooth is elongated along its crown–root axis: the candidate
-//!   axes are the surface's area-weighted principal axes, both ways; of
-//!   the two ends, the crown is the more folded one (cusps, crests and
-//!   fissures against a smooth neck and roots);
 //! - the enamel ends at the cervical margin with an edge: the crown's
 //!   enamel bulges over the neck and the surface turns inward below it, a
-//!   ridge of convex edges running once around the tooth (not in a plane:
-//!   its height varies around the tooth);
-//! - so the margin is the closed line around the axis that collects the
-//!   most convex turn of edges running around the axis
-//!   ([`margin::trace_margin`], dynamic programming over angle sectors in
-//!   a band of heights), and the crown is grown from the top of the tooth
-//!   up to the crease edges along that line ([`cut::crown_faces`]): the
-//!   cut follows the mesh's own enamel edge around the tooth;
-//! - a surface is accepted as a tooth only when the cut is a real crease
-//!   (mean turn at least [`MIN_CREASE_DEGREES`]), leaves a crown that is
-//!   runs along crease edges for most of its length
-//!   ([`MIN_CREASE_COVERAGE`]), leaves a crown that is not flat and a root
-//!   part that tapers, and the crown is a disk: a sphere, an ellipsoid or
-//!   a box is refused.
+//!   convex crease running once around the tooth (not in a plane: its
+//!   height varies around the tooth);
+//! - so the margin is the cheapest closed edge path winding once around
+//!   the tooth's axis, where an edge costs its length times a weight that
+//!   is small on convex creases, plus its climb along the axis
+//!   ([`cycle::cheapest_winding_cycle`]); it is searched about each of the
+//!   surface's area-weighted principal axes, then again about the normal of
+//!   the loop found (the principal axes are only near the tooth's axis);
+//! - the loop cuts the surface in two ([`cut::faces_bounded_by`]); the
+//!   crown is the side that lies farther from the axis next to the cut
+//!   (the crown bulges over the neck, [`near_cut_radius`]);
+//! - of the axes, the loop with the lowest mean weight (the most crease)
+//!   wins; it is accepted as a tooth's margin only when the cut is a real
+//!   crease (mean turn at least [`MIN_CREASE_DEGREES`], along crease edges
+//!   for most of its length, [`MIN_CREASE_COVERAGE`]), leaves a crown that
+//!   is not flat and a root part that tapers, and the crown is a disk: a
+//!   sphere, an ellipsoid or a box is refused.
 //!
 //! Handles or tunnels below the margin go with the roots and are
 //! reported; handles in the crown are an error.
@@ -32,12 +31,11 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 mod cut;
+mod cycle;
 mod geometry;
-mod margin;
 
 use crate::mesh::{bbox_diagonal, boundary_loops, euler_characteristic, norm, sub, Mesh};
 use geometry::{area_weighted_axes, signed_volume6, Cylinder, SurfaceGeometry};
-use margin::{Band, CreaseSample};
 
 /// Whether a closed surface is cut to its crown.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -59,9 +57,6 @@ pub const MIN_CREASE_DEGREES: f64 = 15.0;
 /// The smallest share of the cut's length that must run along crease
 /// edges (turn ≥ 10°): the enamel edge runs all around the tooth.
 pub const MIN_CREASE_COVERAGE: f64 = 0.5;
-
-/// Number of angle sectors of the margin search.
-const SECTORS: usize = 96;
 
 /// What the crown extraction did.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -133,21 +128,6 @@ struct Candidate {
     report: CrownReport,
 }
 
-/// Median edge length.
-fn median_edge(mesh: &Mesh, geo: &SurfaceGeometry) -> f64 {
-    let mut lens: Vec<f64> = geo
-        .edges
-        .edges()
-        .iter()
-        .map(|&(a, b)| norm(sub(mesh.vertices[a as usize], mesh.vertices[b as usize])))
-        .collect();
-    if lens.is_empty() {
-        return 0.0;
-    }
-    let mid = lens.len() / 2;
-    *lens.select_nth_unstable_by(mid, f64::total_cmp).1
-}
-
 /// Mean absolute turn per area (summed over edges: |turn| × length, over
 /// the faces' area) of the faces with `inside[f] == side`: how folded that
 /// part of the surface is. A crown (cusps, crests, fissures) is more folded
@@ -196,116 +176,255 @@ fn cross_radius(cyl: &Cylinder, points: &[[f64; 3]]) -> f64 {
         / n
 }
 
-/// The crown along one candidate axis, or why there is none.
-fn cut_along(
-    mesh: &Mesh,
-    geo: &SurfaceGeometry,
-    centre: [f64; 3],
-    axis: [f64; 3],
-) -> Result<Candidate, (f64, String)> {
-    cut_along_line(mesh, geo, centre, axis)
+/// Weight of an edge's length in the margin search: small along a convex
+/// crease (the enamel edge turns the surface inward by 35° or more), 1 on
+/// smooth or concave surface.
+fn crease_weight(turn: f64) -> f64 {
+    (-turn.max(0.0) / CREASE_SCALE.to_radians()).exp().max(0.01)
 }
 
-/// [`cut_along`]'s work; a refusal carries the margin line's score (0
-/// before there is one), so the most promising candidate's reason is the
-/// one reported.
-fn cut_along_line(
+/// Cost of the margin's climb along the axis per unit of height, on top
+/// of its length: a loop that dives down a root ridge to the apex and back
+/// pays for the way down and up, while the margin's own rise and fall
+/// round the tooth (about a quarter of the crown's height) costs little.
+const CLIMB_COST: f64 = 0.3;
+
+/// Turn (degrees) over which an edge's weight falls by e.
+const CREASE_SCALE: f64 = 12.0;
+
+/// Vertices the margin may pass through along `cyl`: not at the very ends
+/// of the tooth, and away from the axis (at least half the widest radius at
+/// their height), so that no small loop round the axis where it pierces the
+/// occlusal surface or the apex competes with the margin.
+fn margin_vertices(mesh: &Mesh, cyl: &Cylinder) -> Vec<bool> {
+    const BINS: usize = 50;
+    let polar: Vec<(f64, f64)> = mesh
+        .vertices
+        .iter()
+        .map(|&p| (cyl.height(p), cyl.polar(p).1))
+        .collect();
+    let zmin = polar.iter().map(|p| p.0).fold(f64::MAX, f64::min);
+    let zmax = polar.iter().map(|p| p.0).fold(f64::MIN, f64::max);
+    let length = (zmax - zmin).max(f64::MIN_POSITIVE);
+    let bin_of = |z: f64| (((z - zmin) / length * BINS as f64) as usize).min(BINS - 1);
+    let mut widest = vec![0.0f64; BINS];
+    for &(z, r) in &polar {
+        let b = bin_of(z);
+        widest[b] = widest[b].max(r);
+    }
+    let widest_all = widest.iter().copied().fold(0.0, f64::max);
+    polar
+        .iter()
+        .map(|&(z, r)| {
+            let t = (z - zmin) / length;
+            (0.03..=0.97).contains(&t) && r >= 0.5 * widest[bin_of(z)] && r >= 0.3 * widest_all
+        })
+        .collect()
+}
+
+/// Largest difference from 1 of the ratio of the two sides' distances
+/// from the axis next to the cut for a cut into halves of equal area to
+/// count as the symmetry cut of a solid (a cube cut round its body
+/// diagonal), not a tooth's margin (whose crown bulges over the neck).
+const SYMMETRIC_BULGE: f64 = 0.005;
+
+/// A margin loop found about one axis.
+struct MarginLoop {
+    /// The loop's vertices in order.
+    vertices: Vec<u32>,
+    /// 1 − its mean edge weight: the larger, the more of it runs along
+    /// crease.
+    score: f64,
+    /// Centroid of the loop's vertices.
+    centre: [f64; 3],
+    /// Unit normal of the loop's vector area, on the side of the axis it
+    /// was found about.
+    normal: [f64; 3],
+}
+
+/// The cheapest loop round the axis `axis` through `centre` (see
+/// [`cycle`]).
+fn margin_loop(
     mesh: &Mesh,
     geo: &SurfaceGeometry,
     centre: [f64; 3],
     axis: [f64; 3],
-) -> Result<Candidate, (f64, String)> {
-    let early = |r: &str| (0.0, r.to_string());
+) -> Option<MarginLoop> {
     let cyl = Cylinder::new(centre, axis);
-    let heights: Vec<f64> = mesh.vertices.iter().map(|&p| cyl.height(p)).collect();
-    let zmin = heights.iter().copied().fold(f64::MAX, f64::min);
-    let zmax = heights.iter().copied().fold(f64::MIN, f64::max);
-    let length = zmax - zmin;
-    let edge = median_edge(mesh, geo);
-    if !(length > 0.0 && edge > 0.0) {
-        return Err(early("the surface has no extent"));
-    }
-    let (low, high) = (zmin + 0.15 * length, zmax - 0.05 * length);
-    let bins = ((high - low) / (0.5 * edge)).ceil().clamp(30.0, 300.0) as usize;
-    let bin = (high - low) / bins as f64;
-    let in_band: Vec<f64> = mesh
+    let angles: Vec<f64> = mesh.vertices.iter().map(|&p| cyl.polar(p).0).collect();
+    let allowed = margin_vertices(mesh, &cyl);
+    let mut cheapest = vec![f64::INFINITY; mesh.vertices.len()];
+    let edges: Vec<(u32, u32, f64)> = geo
+        .edges
+        .edges()
+        .iter()
+        .enumerate()
+        .map(|(e, &(a, b))| {
+            let w = crease_weight(geo.turn[e]);
+            cheapest[a as usize] = cheapest[a as usize].min(w);
+            cheapest[b as usize] = cheapest[b as usize].min(w);
+            let (pa, pb) = (mesh.vertices[a as usize], mesh.vertices[b as usize]);
+            let len = norm(sub(pa, pb));
+            (
+                a,
+                b,
+                len * w + CLIMB_COST * (cyl.height(pa) - cyl.height(pb)).abs(),
+            )
+        })
+        .collect();
+    let graph = cycle::WindingGraph::new(&angles, &edges, &allowed);
+    let mut sources = graph.seam_vertices();
+    sources.sort_by(|&a, &b| cheapest[a as usize].total_cmp(&cheapest[b as usize]));
+    let found = cycle::cheapest_winding_cycle(&graph, &sources)?;
+    let points: Vec<[f64; 3]> = found
         .vertices
         .iter()
-        .zip(&heights)
-        .filter(|(_, &z)| z >= low && z <= high)
-        .map(|(&p, _)| cyl.polar(p).1)
+        .map(|&v| mesh.vertices[v as usize])
         .collect();
-    let radius = in_band.iter().sum::<f64>() / in_band.len().max(1) as f64;
-    // Allow a climb of 1.2 times the arc of one sector (50°).
-    let max_step = ((1.2 * std::f64::consts::TAU * radius / SECTORS as f64) / bin)
-        .ceil()
-        .clamp(1.0, (bins / 4) as f64) as usize;
-    let mut samples = Vec::new();
-    let mut edge_info = Vec::new();
-    for (e, &(a, b)) in geo.edges.edges().iter().enumerate() {
-        let t = geo.turn[e];
-        if t <= 0.0 {
-            continue;
-        }
-        let (pa, pb) = (mesh.vertices[a as usize], mesh.vertices[b as usize]);
-        let d = sub(pb, pa);
-        let len = norm(d);
-        let mid = [0, 1, 2].map(|k| 0.5 * (pa[k] + pb[k]));
-        let around = crate::mesh::dot(d, cyl.around(mid)).abs() / len.max(f64::MIN_POSITIVE);
-        let (angle, _) = cyl.polar(mid);
-        let height = cyl.height(mid);
-        samples.push(CreaseSample {
-            angle,
-            height,
-            weight: t * len * around,
-        });
-        edge_info.push((t, angle, height, around));
+    let k = points.len();
+    let length: f64 = (0..k)
+        .map(|i| norm(sub(points[i], points[(i + 1) % k])))
+        .sum();
+    let c = [0, 1, 2].map(|d| points.iter().map(|p| p[d]).sum::<f64>() / k.max(1) as f64);
+    let mut area = [0.0; 3];
+    for i in 0..k {
+        let n = crate::mesh::cross(sub(points[i], c), sub(points[(i + 1) % k], c));
+        area = [area[0] + n[0], area[1] + n[1], area[2] + n[2]];
     }
-    let band = Band {
-        low,
-        high,
-        sectors: SECTORS,
-        bins,
-        max_step,
+    let sign = if crate::mesh::dot(area, axis) < 0.0 {
+        -1.0
+    } else {
+        1.0
     };
-    let line =
-        margin::trace_margin(&samples, &band).ok_or_else(|| early("no convex edges at all"))?;
-    // The crease edges on the line set the turn that stops the growth.
-    let mut on_line: Vec<f64> = edge_info
-        .iter()
-        .filter(|(_, angle, height, around)| {
-            *around >= 0.5 && (height - line.height_at(*angle)).abs() <= 1.5 * bin
+    let an = norm(area);
+    let normal = if an > 0.0 {
+        area.map(|x| sign * x / an)
+    } else {
+        axis
+    };
+    Some(MarginLoop {
+        vertices: found.vertices,
+        score: 1.0 - found.cost / length.max(f64::MIN_POSITIVE),
+        centre: c,
+        normal,
+    })
+}
+
+/// The crown that `found` cuts off, the crown's side being the one that
+/// bulges over the other (see [`near_cut_radius`]).
+fn crown_of_loop(
+    mesh: &Mesh,
+    geo: &SurfaceGeometry,
+    found: &MarginLoop,
+) -> Result<Candidate, (f64, String)> {
+    let k = found.vertices.len();
+    let cut: std::collections::HashSet<(u32, u32)> = (0..k)
+        .map(|i| {
+            let (a, b) = (found.vertices[i], found.vertices[(i + 1) % k]);
+            (a.min(b), a.max(b))
         })
-        .map(|e| e.0)
         .collect();
-    on_line.sort_by(f64::total_cmp);
-    let p75 = on_line
-        .get(on_line.len() * 3 / 4)
-        .copied()
-        .ok_or_else(|| early("no crease along the margin line"))?;
-    // Low enough that the uppermost of two neighbouring creases (the
-    // enamel edge above the foot of the step) stops the growth.
-    let min_turn = (0.3 * p75).max(10f64.to_radians());
-    let tolerance = (3.0 * bin).max(1.5 * edge);
-    let seed = (0..mesh.faces.len())
-        .max_by(|&f, &g| {
+    let score = found.score;
+    let mut reasons = Vec::new();
+    let mut sides = Vec::new();
+    for sign in [1.0, -1.0] {
+        let cyl = Cylinder::new(found.centre, found.normal.map(|x| sign * x));
+        let heights: Vec<f64> = mesh.vertices.iter().map(|&p| cyl.height(p)).collect();
+        let zmin = heights.iter().copied().fold(f64::MAX, f64::min);
+        let zmax = heights.iter().copied().fold(f64::MIN, f64::max);
+        let Some(seed) = (0..mesh.faces.len()).max_by(|&f, &g| {
             cyl.height(geo.centroids[f])
                 .total_cmp(&cyl.height(geo.centroids[g]))
+        }) else {
+            return Err((0.0, "no faces".into()));
+        };
+        let inside = cut::faces_bounded_by(mesh, geo, &cut, seed);
+        let bulge = near_cut_radius(mesh, geo, &cyl, &inside, true)
+            / near_cut_radius(mesh, geo, &cyl, &inside, false).max(f64::MIN_POSITIVE);
+        let kept: f64 = geo
+            .areas
+            .iter()
+            .zip(&inside)
+            .filter(|(_, &k)| k)
+            .map(|(a, _)| a)
+            .sum::<f64>()
+            / geo.areas.iter().sum::<f64>().max(f64::MIN_POSITIVE);
+        if (2.0 * kept - 1.0).abs() < 0.05 && (bulge - 1.0).abs() < SYMMETRIC_BULGE {
+            reasons.push((
+                score,
+                "the best margin line cuts the surface into two halves alike in area and width: a symmetric solid, not a tooth".into(),
+            ));
+            continue;
+        }
+        match judge(mesh, geo, &cyl, &inside, (zmin, zmax)) {
+            Ok(report) => sides.push((
+                bulge,
+                Candidate {
+                    inside,
+                    score,
+                    report,
+                },
+            )),
+            Err(r) => reasons.push((score, r)),
+        }
+    }
+    sides
+        .into_iter()
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|s| s.1)
+        .ok_or_else(|| {
+            reasons
+                .into_iter()
+                .next()
+                .unwrap_or((score, "no crown on either side of the line".into()))
         })
-        .ok_or_else(|| early("no faces"))?;
-    let rule = cut::CutRule {
-        margin: &line,
-        cylinder: &cyl,
-        tolerance,
-        min_turn,
-    };
-    let inside = cut::crown_faces(mesh, geo, &rule, seed);
-    let report = judge(mesh, geo, &cyl, &inside, (zmin, zmax)).map_err(|r| (line.score, r))?;
-    Ok(Candidate {
-        inside,
-        score: line.score,
-        report,
-    })
+}
+
+/// Rings of faces next to the cut over which [`near_cut_radius`]
+/// averages.
+const BULGE_RINGS: usize = 4;
+
+/// Mean distance from the axis of the faces within [`BULGE_RINGS`] rings
+/// of the cut on the `side` of it: the crown's enamel bulges over the
+/// neck, so right at the cervical margin the crown's side lies farther
+/// out than the neck's.
+fn near_cut_radius(
+    mesh: &Mesh,
+    geo: &SurfaceGeometry,
+    cyl: &Cylinder,
+    inside: &[bool],
+    side: bool,
+) -> f64 {
+    let adjacency = crate::mesh::triangle_adjacency(&mesh.faces);
+    let mut seen = vec![false; mesh.faces.len()];
+    let mut frontier: Vec<usize> = (0..mesh.faces.len())
+        .filter(|&f| {
+            inside[f] == side
+                && adjacency[f]
+                    .iter()
+                    .any(|&g| g != crate::mesh::NO_TRIANGLE && inside[g as usize] != side)
+        })
+        .collect();
+    for &f in &frontier {
+        seen[f] = true;
+    }
+    let (mut sum, mut area) = (0.0, 0.0);
+    for _ in 0..BULGE_RINGS {
+        let mut next = Vec::new();
+        for &f in &frontier {
+            sum += geo.areas[f] * cyl.polar(geo.centroids[f]).1;
+            area += geo.areas[f];
+            for &g in &adjacency[f] {
+                if g != crate::mesh::NO_TRIANGLE && inside[g as usize] == side && !seen[g as usize]
+                {
+                    seen[g as usize] = true;
+                    next.push(g as usize);
+                }
+            }
+        }
+        frontier = next;
+    }
+    sum / area.max(f64::MIN_POSITIVE)
 }
 
 /// Check that the cut found a crown (see the module documentation) and
@@ -326,12 +445,6 @@ fn judge(
         .map(|(a, _)| a)
         .sum();
     let fraction = kept / total;
-    if (2.0 * fraction - 1.0).abs() < 0.05 {
-        return Err(
-            "the best margin line cuts the surface into two halves of equal area: a symmetric solid, not a tooth"
-                .into(),
-        );
-    }
     if !(0.08..=0.92).contains(&fraction) {
         return Err(format!(
             "the best margin line leaves {:.0} % of the surface as crown",
@@ -450,22 +563,23 @@ pub fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
     let mut best: Option<Candidate> = None;
     let mut reasons = Vec::new();
     for axis in axes {
-        // Both ends are tried: the same margin line is found either way,
-        // and the crown is the side that is more folded than the rest.
-        let mut pair = Vec::new();
-        for sign in [1.0, -1.0] {
-            match cut_along(&oriented, &geo, centre, axis.map(|x| sign * x)) {
-                Ok(c) => pair.push(c),
-                Err(reason) => reasons.push(reason),
+        let Some(first) = margin_loop(&oriented, &geo, centre, axis) else {
+            reasons.push((0.0, "no closed line runs round the surface".to_string()));
+            continue;
+        };
+        // The principal axis is only near the tooth's axis: search again
+        // about the normal of the loop found, which follows the margin.
+        let found = match margin_loop(&oriented, &geo, first.centre, first.normal) {
+            Some(again) if again.score > first.score => again,
+            _ => first,
+        };
+        match crown_of_loop(&oriented, &geo, &found) {
+            Ok(c) => {
+                if best.as_ref().is_none_or(|b| c.score > b.score) {
+                    best = Some(c);
+                }
             }
-        }
-        let chosen = pair
-            .into_iter()
-            .max_by(|a, b| a.report.folding_ratio.total_cmp(&b.report.folding_ratio));
-        if let Some(c) = chosen {
-            if best.as_ref().is_none_or(|b| c.score > b.score) {
-                best = Some(c);
-            }
+            Err(reason) => reasons.push(reason),
         }
     }
     let Some(best) = best else {
