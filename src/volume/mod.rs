@@ -1,8 +1,8 @@
-//! Slice stacks and volumes (a folder of TIFF/PNG/BMP slices, NRRD,
-//! NIfTI-1) to a surface the cleaning step takes.
+//! Slice stacks and volumes (a folder of TIFF/PNG/BMP slices, a DICOM
+//! series, NRRD, NIfTI-1) to a surface the cleaning step takes.
 //!
 //! Stages, each its own submodule: a reader yields slices one at a time
-//! (`stack`, `nrrd`, `nifti`), `reduce` averages them into blocks on the
+//! (`stack`, `dicom`, `nrrd`, `nifti`), `reduce` averages them into blocks on the
 //! fly (memory is the working grid plus one slice), `threshold` finds the
 //! specimen and enamel levels (Otsu), `segment` keeps the largest
 //! component and fills internal cavities, `isosurface` extracts the closed
@@ -10,6 +10,7 @@
 //! surface lies over enamel. Without enamel contrast the closed surface is
 //! returned for the cleaning step's own crown extraction.
 
+mod dicom;
 mod enamel;
 mod grid;
 mod isosurface;
@@ -133,6 +134,14 @@ pub enum VolumeError {
         /// The decoder's error.
         source: image::ImageError,
     },
+    /// A DICOM file could not be parsed.
+    #[error("{path}: cannot read the DICOM file: {source}")]
+    Dicom {
+        /// The file.
+        path: PathBuf,
+        /// The parser's error.
+        source: Box<dicom_object::ReadError>,
+    },
     /// The volume is malformed or unusable (the problem says why).
     #[error("{path}: {problem}")]
     Invalid {
@@ -163,7 +172,14 @@ fn open(path: &Path) -> Result<Box<dyn SliceSource>, VolumeError> {
     Ok(match volume_file_format(path) {
         Some(VolumeFormat::Nrrd) => Box::new(nrrd::NrrdFile::open(path)?),
         Some(_) => Box::new(nifti::NiftiFile::open(path)?),
-        None => Box::new(stack::SliceFolder::open(path)?),
+        None => {
+            let (files, format) = stack::slice_files(path)?;
+            if format == VolumeFormat::Dicom {
+                Box::new(dicom::DicomSeries::open(path, files)?)
+            } else {
+                Box::new(stack::SliceFolder::open(files, format)?)
+            }
+        }
     })
 }
 
