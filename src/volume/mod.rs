@@ -30,7 +30,9 @@ pub use reduce::{reduction_factor, BlockAverage};
 pub use segment::{connected_components, specimen_mask, SegmentReport};
 pub use source::{VolumeFormat, VolumeInfo};
 pub use stack::{natural_order, slice_format, slice_paths};
-pub use threshold::{enamel_threshold, foreground_threshold, otsu, Histogram, Thresholds};
+pub use threshold::{
+    contrast, enamel_threshold, foreground_threshold, otsu, Histogram, Thresholds, MIN_CONTRAST,
+};
 
 use crate::mesh::{surface_area, Mesh};
 use source::SliceSource;
@@ -222,6 +224,13 @@ pub enum SegmentError {
     /// Every sample has the same value.
     #[error("the volume is uniform (all background): no specimen to segment")]
     Uniform,
+    /// The values above the threshold stand out from the rest no more
+    /// than noise does ([`contrast`]).
+    #[error(
+        "no specimen: the brightest values stand only {0:.1} standard deviations of the \
+         background above it, as noise alone does (an all-background volume?)"
+    )]
+    NoContrast(f64),
     /// Nothing lies above the threshold.
     #[error("nothing lies above the threshold: no specimen to segment")]
     Empty,
@@ -238,6 +247,10 @@ pub fn surface_from_grid(
 ) -> Result<(Mesh, Thresholds, SegmentReport, GridSurfaceReport), SegmentError> {
     let t = Instant::now();
     let fg = foreground_threshold(&grid.values).ok_or(SegmentError::Uniform)?;
+    let c = contrast(&grid.values, fg);
+    if c < MIN_CONTRAST {
+        return Err(SegmentError::NoContrast(c));
+    }
     let mask: Vec<bool> = grid.values.iter().map(|&v| f64::from(v) > fg).collect();
     let (mask, seg) = specimen_mask(&mask, grid.dims).ok_or(SegmentError::Empty)?;
     if seg.kept_voxels < 8 {
