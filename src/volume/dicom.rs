@@ -69,7 +69,7 @@ struct SliceHeader {
     layout: PixelLayout,
 }
 
-fn element<'a>(obj: &'a InMemDicomObject, tag: Tag) -> Option<&'a dicom_object::mem::InMemElement> {
+fn element(obj: &InMemDicomObject, tag: Tag) -> Option<&dicom_object::mem::InMemElement> {
     obj.element_opt(tag).ok().flatten()
 }
 
@@ -634,7 +634,7 @@ mod tests {
     fn samples_are_masked_sign_extended_and_rescaled() {
         let l = header("a", None, None).layout;
         // 12 stored bits: 0xFFF is -1, high bits ignored.
-        assert_eq!(sample_value(0xFFFF, &l), 2.0 * -1.0 - 10.0);
+        assert_eq!(sample_value(0xFFFF, &l), -2.0 - 10.0);
         assert_eq!(sample_value(0x07FF, &l), 2.0 * 2047.0 - 10.0);
         let u = PixelLayout {
             bits_allocated: 8,

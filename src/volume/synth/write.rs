@@ -206,7 +206,7 @@ pub fn write_volume(
             for z in 0..dims[2] {
                 let s = slice(z, &mut rng);
                 let file = path.join(format!("IM_{}_{z:04}.dcm", spec.seed));
-                write_dicom_slice(&file, &series, z, &s).map_err(|e| other(e.into()))?;
+                write_dicom_slice(&file, &series, z, &s).map_err(other)?;
             }
         }
     }
