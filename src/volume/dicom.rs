@@ -751,4 +751,21 @@ mod tests {
             "{e}"
         );
     }
+
+    #[test]
+    fn a_deflated_series_reads_as_the_plain_one() {
+        let d = tempfile::tempdir().unwrap();
+        write_ramp(d.path(), 16, false, false);
+        let (_, plain) = read_all(d.path()).unwrap();
+        for f in super::super::stack::slice_paths(d.path()).unwrap() {
+            let obj = dicom_object::open_file(&f).unwrap().into_inner();
+            let deflated = "1.2.840.10008.1.2.1.99";
+            obj.with_meta(dicom_object::FileMetaTableBuilder::new().transfer_syntax(deflated))
+                .unwrap()
+                .write_to_file(&f)
+                .unwrap();
+        }
+        let (_, read) = read_all(d.path()).unwrap();
+        assert_eq!(read, plain);
+    }
 }
