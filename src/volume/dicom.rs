@@ -768,4 +768,26 @@ mod tests {
         let (_, read) = read_all(d.path()).unwrap();
         assert_eq!(read, plain);
     }
+
+    #[test]
+    fn dicom_files_are_told_by_extension_or_magic_and_dicomdir_is_not_a_slice() {
+        let d = tempfile::tempdir().unwrap();
+        write_ramp(d.path(), 8, false, false);
+        let files = super::super::stack::slice_paths(d.path()).unwrap();
+        std::fs::copy(&files[0], d.path().join("DICOMDIR")).unwrap();
+        std::fs::copy(&files[0], d.path().join("1.2.826.0.77")).unwrap();
+        std::fs::copy(&files[0], d.path().join("noext")).unwrap();
+        std::fs::write(d.path().join("notes"), b"short").unwrap();
+        std::fs::write(d.path().join("scan.log"), [b'x'; 200]).unwrap();
+        let names: Vec<String> = super::super::stack::slice_paths(d.path())
+            .unwrap()
+            .iter()
+            .map(|p| name(p))
+            .collect();
+        assert_eq!(names.len(), files.len() + 2, "{names:?}");
+        assert!(names.contains(&"1.2.826.0.77".into()) && names.contains(&"noext".into()));
+        assert!(!names
+            .iter()
+            .any(|n| n == "DICOMDIR" || n == "notes" || n == "scan.log"));
+    }
 }
