@@ -14,7 +14,7 @@ use std::time::Instant;
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// The surface file (OBJ, PLY, STL or OFF), or a volume: a folder of
-    /// TIFF/PNG/BMP slices, `.nrrd`, `.nii`, `.nii.gz`.
+    /// TIFF/PNG/BMP slices or a DICOM series, `.nrrd`, `.nii`, `.nii.gz`.
     mesh: PathBuf,
     /// Print the report as JSON on stdout.
     #[arg(long)]

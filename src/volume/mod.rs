@@ -1,8 +1,8 @@
-//! Slice stacks and volumes (a folder of TIFF/PNG/BMP slices, NRRD,
-//! NIfTI-1) to a surface the cleaning step takes.
+//! Slice stacks and volumes (a folder of TIFF/PNG/BMP slices, a DICOM
+//! series, NRRD, NIfTI-1) to a surface the cleaning step takes.
 //!
 //! Stages, each its own submodule: a reader yields slices one at a time
-//! (`stack`, `nrrd`, `nifti`), `reduce` averages them into blocks on the
+//! (`stack`, `dicom`, `nrrd`, `nifti`), `reduce` averages them into blocks on the
 //! fly (memory is the working grid plus one slice), `threshold` finds the
 //! specimen and enamel levels (Otsu), `segment` keeps the largest
 //! component and fills internal cavities, `isosurface` extracts the closed
@@ -10,6 +10,7 @@
 //! surface lies over enamel. Without enamel contrast the closed surface is
 //! returned for the cleaning step's own crown extraction.
 
+mod dicom;
 mod enamel;
 mod grid;
 mod isosurface;
@@ -29,7 +30,9 @@ pub use reduce::{reduction_factor, BlockAverage};
 pub use segment::{connected_components, specimen_mask, SegmentReport};
 pub use source::{VolumeFormat, VolumeInfo};
 pub use stack::{natural_order, slice_format, slice_paths};
-pub use threshold::{enamel_threshold, foreground_threshold, otsu, Histogram, Thresholds};
+pub use threshold::{
+    contrast, enamel_threshold, foreground_threshold, otsu, Histogram, Thresholds, MIN_CONTRAST,
+};
 
 use crate::mesh::{surface_area, Mesh};
 use source::SliceSource;
@@ -133,6 +136,14 @@ pub enum VolumeError {
         /// The decoder's error.
         source: image::ImageError,
     },
+    /// A DICOM file could not be parsed.
+    #[error("{path}: cannot read the DICOM file: {source}")]
+    Dicom {
+        /// The file.
+        path: PathBuf,
+        /// The parser's error.
+        source: Box<dicom_object::ReadError>,
+    },
     /// The volume is malformed or unusable (the problem says why).
     #[error("{path}: {problem}")]
     Invalid {
@@ -163,7 +174,14 @@ fn open(path: &Path) -> Result<Box<dyn SliceSource>, VolumeError> {
     Ok(match volume_file_format(path) {
         Some(VolumeFormat::Nrrd) => Box::new(nrrd::NrrdFile::open(path)?),
         Some(_) => Box::new(nifti::NiftiFile::open(path)?),
-        None => Box::new(stack::SliceFolder::open(path)?),
+        None => {
+            let (files, format) = stack::slice_files(path)?;
+            if format == VolumeFormat::Dicom {
+                Box::new(dicom::DicomSeries::open(path, files)?)
+            } else {
+                Box::new(stack::SliceFolder::open(files, format)?)
+            }
+        }
     })
 }
 
@@ -206,6 +224,13 @@ pub enum SegmentError {
     /// Every sample has the same value.
     #[error("the volume is uniform (all background): no specimen to segment")]
     Uniform,
+    /// The values above the threshold stand out from the rest no more
+    /// than noise does ([`contrast`]).
+    #[error(
+        "no specimen: the brightest values stand only {0:.1} standard deviations of the \
+         background above it, as noise alone does (an all-background volume?)"
+    )]
+    NoContrast(f64),
     /// Nothing lies above the threshold.
     #[error("nothing lies above the threshold: no specimen to segment")]
     Empty,
@@ -222,6 +247,10 @@ pub fn surface_from_grid(
 ) -> Result<(Mesh, Thresholds, SegmentReport, GridSurfaceReport), SegmentError> {
     let t = Instant::now();
     let fg = foreground_threshold(&grid.values).ok_or(SegmentError::Uniform)?;
+    let c = contrast(&grid.values, fg);
+    if c < MIN_CONTRAST {
+        return Err(SegmentError::NoContrast(c));
+    }
     let mask: Vec<bool> = grid.values.iter().map(|&v| f64::from(v) > fg).collect();
     let (mask, seg) = specimen_mask(&mask, grid.dims).ok_or(SegmentError::Empty)?;
     if seg.kept_voxels < 8 {

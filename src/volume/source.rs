@@ -13,6 +13,8 @@ pub enum VolumeFormat {
     Png,
     /// A folder of BMP slices.
     Bmp,
+    /// A folder of DICOM files, one slice each (a series).
+    Dicom,
     /// A single-file NRRD.
     Nrrd,
     /// A NIfTI-1 file (`.nii`, `.nii.gz`).

@@ -1,22 +1,46 @@
 //! A folder of 2D slices (TIFF 8/16-bit greyscale, PNG, BMP), one file
 //! per slice, in natural name order (`s2` before `s10`). Files of other
 //! kinds (logs, reports) are ignored; the slices must be of one kind, one
-//! size, and numbered without gaps.
+//! size, and numbered without gaps. The listing also finds DICOM files,
+//! which `dicom` orders by their own metadata.
 
 use super::source::{SliceSource, VolumeFormat, VolumeInfo};
 use super::VolumeError;
 use std::cmp::Ordering;
 use std::path::{Path, PathBuf};
 
-/// The slice format a file name announces, if any.
+/// The slice format of a file: TIFF, PNG or BMP by extension; DICOM by
+/// the `.dcm`/`.dicom` extension or, for any other name, the `DICM` magic
+/// at byte 128 (DICOM exports often have no extension). A DICOMDIR index
+/// is not a slice.
 pub fn slice_format(path: &Path) -> Option<VolumeFormat> {
-    let ext = path.extension()?.to_str()?.to_ascii_lowercase();
-    match ext.as_str() {
-        "tif" | "tiff" => Some(VolumeFormat::Tiff),
-        "png" => Some(VolumeFormat::Png),
-        "bmp" => Some(VolumeFormat::Bmp),
-        _ => None,
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("tif" | "tiff") => Some(VolumeFormat::Tiff),
+        Some("png") => Some(VolumeFormat::Png),
+        Some("bmp") => Some(VolumeFormat::Bmp),
+        Some("dcm" | "dicom") => Some(VolumeFormat::Dicom),
+        _ if is_dicomdir(path) => None,
+        // Only names that could be a DICOM slice are opened: surface and
+        // volume files, logs and reports are recognised by name.
+        Some(e) if KNOWN_OTHER.contains(&e) => None,
+        _ => super::dicom::has_dicom_magic(path).then_some(VolumeFormat::Dicom),
     }
+}
+
+/// Extensions of files found beside slices that are never DICOM, so their
+/// bytes need not be looked at.
+const KNOWN_OTHER: &[&str] = &[
+    "txt", "log", "csv", "xml", "json", "ini", "cfg", "pdf", "htm", "html", "jpg", "jpeg", "ply",
+    "stl", "obj", "off", "nrrd", "nii", "gz", "raw", "vol", "zip",
+];
+
+fn is_dicomdir(path: &Path) -> bool {
+    path.file_name()
+        .is_some_and(|n| n.eq_ignore_ascii_case("DICOMDIR"))
 }
 
 /// Compare names so that runs of digits compare as numbers.
@@ -102,7 +126,7 @@ pub fn slice_files(dir: &Path) -> Result<(Vec<PathBuf>, VolumeFormat), VolumeErr
     };
     let Some(&(_, format)) = files.first() else {
         return Err(invalid(
-            "no slice files (.tif, .tiff, .png, .bmp) in the folder".into(),
+            "no slice files (.tif, .tiff, .png, .bmp, DICOM) in the folder".into(),
         ));
     };
     if let Some((p, f)) = files.iter().find(|(_, f)| *f != format) {
@@ -118,7 +142,8 @@ pub fn slice_files(dir: &Path) -> Result<(Vec<PathBuf>, VolumeFormat), VolumeErr
         )));
     }
     let numbers: Vec<Option<u64>> = files.iter().map(|(p, _)| slice_number(p)).collect();
-    if numbers.iter().all(Option::is_some) {
+    // A DICOM series is ordered by its own metadata, not by file names.
+    if format != VolumeFormat::Dicom && numbers.iter().all(Option::is_some) {
         for (w, pair) in numbers.windows(2).zip(files.windows(2)) {
             let (a, b) = (w[0].unwrap_or(0), w[1].unwrap_or(0));
             if b != a + 1 {
@@ -262,9 +287,12 @@ pub(crate) struct SliceFolder {
 }
 
 impl SliceFolder {
-    /// Open `dir`: list and check the slices, read the first for the size.
-    pub(crate) fn open(dir: &Path) -> Result<SliceFolder, VolumeError> {
-        let (files, format) = slice_files(dir)?;
+    /// Open the checked slice `files` of a folder (from [`slice_files`]):
+    /// read the first for the size.
+    pub(crate) fn open(
+        files: Vec<PathBuf>,
+        format: VolumeFormat,
+    ) -> Result<SliceFolder, VolumeError> {
         let (w, h, bits, first) = read_image(&files[0], format)?;
         Ok(SliceFolder {
             info: VolumeInfo {
@@ -332,6 +360,11 @@ mod tests {
 mod bad_input_tests {
     use super::*;
 
+    fn open_folder(dir: &Path) -> SliceFolder {
+        let (files, format) = slice_files(dir).unwrap();
+        SliceFolder::open(files, format).unwrap()
+    }
+
     fn write_png(dir: &Path, name: &str, w: u32, h: u32) {
         image::GrayImage::from_pixel(w, h, image::Luma([7u8]))
             .save(dir.join(name))
@@ -348,7 +381,7 @@ mod bad_input_tests {
         let e = slice_files(d.path()).unwrap_err().to_string();
         assert!(e.contains("jumps from 1") && e.contains("s_003.png"), "{e}");
         write_png(d.path(), "s_002.png", 5, 4);
-        let mut folder = SliceFolder::open(d.path()).unwrap();
+        let mut folder = open_folder(d.path());
         let mut s = Vec::new();
         folder.next_slice(&mut s).unwrap();
         let e = folder.next_slice(&mut s).unwrap_err().to_string();
@@ -364,7 +397,7 @@ mod bad_input_tests {
         let p = t.path().join("a1.tif");
         let bytes = std::fs::read(&p).unwrap();
         std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
-        let mut folder = SliceFolder::open(t.path()).unwrap();
+        let mut folder = open_folder(t.path());
         folder.next_slice(&mut s).unwrap();
         let e = folder.next_slice(&mut s).unwrap_err().to_string();
         assert!(e.contains("a1.tif"), "{e}");

@@ -30,6 +30,17 @@ pub enum SynthFormat {
         /// gzip the whole file.
         gzip: bool,
     },
+    /// A folder of DICOM files (CT image storage, uncompressed, with the
+    /// file meta header), one slice each, named `IM_<seed>_<z>.dcm`, with
+    /// positions, pixel spacing and a rescale slope and intercept.
+    Dicom {
+        /// 8 or 16 bits per sample (16 stores 12 bits).
+        bits: u16,
+        /// Signed samples (PixelRepresentation 1).
+        signed: bool,
+        /// Implicit VR little endian rather than explicit.
+        implicit: bool,
+    },
 }
 
 /// Size and noise of a written volume.
@@ -178,9 +189,188 @@ pub fn write_volume(
             }
             sink.flush()?;
         }
+        SynthFormat::Dicom {
+            bits,
+            signed,
+            implicit,
+        } => {
+            let series = DicomSeriesSpec {
+                dims,
+                voxel,
+                origin: grid.origin,
+                bits,
+                signed,
+                implicit,
+                seed: spec.seed,
+            };
+            for z in 0..dims[2] {
+                let s = slice(z, &mut rng);
+                let file = path.join(format!("IM_{}_{z:04}.dcm", spec.seed));
+                write_dicom_slice(&file, &series, z, &s).map_err(other)?;
+            }
+        }
     }
     Ok(voxel)
 }
+
+/// What every file of a written DICOM series shares.
+struct DicomSeriesSpec {
+    dims: [usize; 3],
+    voxel: [f64; 3],
+    origin: [f64; 3],
+    bits: u16,
+    signed: bool,
+    implicit: bool,
+    seed: u64,
+}
+
+/// Write slice `z` (grey values 0..1) of a series as one DICOM file. The
+/// stored values map 0..1 to the sample range (12 bits in 16); the rescale
+/// slope and intercept map them back to a CT-like scale.
+fn write_dicom_slice(
+    path: &Path,
+    series: &DicomSeriesSpec,
+    z: usize,
+    values: &[f32],
+) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+    use dicom_core::value::{PrimitiveValue, C};
+    use dicom_core::{DataElement, VR};
+    use dicom_dictionary_std::tags;
+    use dicom_object::{FileMetaTableBuilder, InMemDicomObject};
+    let ds = |v: f64| format!("{v:.6}");
+    let strs = |v: Vec<String>| PrimitiveValue::Strs(C::from_vec(v));
+    // UIDs under the 2.25 root (a UUID-derived integer), from the seed.
+    let root = 2_000_000_000_000 + series.seed;
+    let study = format!("2.25.{root}1");
+    let series_uid = format!("2.25.{root}2");
+    let instance = format!("2.25.{root}3.{}", z + 1);
+    let full_scale = if series.bits == 8 { 255.0 } else { 4095.0 };
+    // Signed samples centred on zero; the intercept restores the scale.
+    let offset = if series.signed {
+        (full_scale + 1.0) / 2.0
+    } else {
+        0.0
+    };
+    let (slope, intercept) = (0.5, -1024.0 + 0.5 * offset);
+    let stored: Vec<i32> = values
+        .iter()
+        .map(|&v| (f64::from(v) * full_scale - offset).round() as i32)
+        .collect();
+    let pixels = if series.bits == 8 {
+        DataElement::new(
+            tags::PIXEL_DATA,
+            VR::OB,
+            PrimitiveValue::U8(C::from_vec(stored.iter().map(|&s| s as u8).collect())),
+        )
+    } else {
+        DataElement::new(
+            tags::PIXEL_DATA,
+            VR::OW,
+            PrimitiveValue::U16(C::from_vec(stored.iter().map(|&s| s as u16).collect())),
+        )
+    };
+    let position = [
+        series.origin[0],
+        series.origin[1],
+        series.origin[2] + z as f64 * series.voxel[2],
+    ];
+    let [w, h, _] = series.dims;
+    let obj = InMemDicomObject::from_element_iter([
+        DataElement::new(
+            tags::SOP_CLASS_UID,
+            VR::UI,
+            PrimitiveValue::from(CT_IMAGE_STORAGE),
+        ),
+        DataElement::new(
+            tags::SOP_INSTANCE_UID,
+            VR::UI,
+            PrimitiveValue::from(instance.as_str()),
+        ),
+        DataElement::new(tags::MODALITY, VR::CS, PrimitiveValue::from("CT")),
+        DataElement::new(
+            tags::STUDY_INSTANCE_UID,
+            VR::UI,
+            PrimitiveValue::from(study.as_str()),
+        ),
+        DataElement::new(
+            tags::SERIES_INSTANCE_UID,
+            VR::UI,
+            PrimitiveValue::from(series_uid.as_str()),
+        ),
+        DataElement::new(
+            tags::INSTANCE_NUMBER,
+            VR::IS,
+            PrimitiveValue::from((z + 1).to_string()),
+        ),
+        DataElement::new(
+            tags::IMAGE_POSITION_PATIENT,
+            VR::DS,
+            strs(position.iter().map(|&p| ds(p)).collect()),
+        ),
+        DataElement::new(
+            tags::IMAGE_ORIENTATION_PATIENT,
+            VR::DS,
+            strs(["1", "0", "0", "0", "1", "0"].map(String::from).to_vec()),
+        ),
+        DataElement::new(
+            tags::SLICE_THICKNESS,
+            VR::DS,
+            PrimitiveValue::from(ds(series.voxel[2])),
+        ),
+        DataElement::new(tags::SAMPLES_PER_PIXEL, VR::US, PrimitiveValue::from(1u16)),
+        DataElement::new(
+            tags::PHOTOMETRIC_INTERPRETATION,
+            VR::CS,
+            PrimitiveValue::from("MONOCHROME2"),
+        ),
+        DataElement::new(tags::ROWS, VR::US, PrimitiveValue::from(h as u16)),
+        DataElement::new(tags::COLUMNS, VR::US, PrimitiveValue::from(w as u16)),
+        // Row spacing (along y), then column spacing (along x).
+        DataElement::new(
+            tags::PIXEL_SPACING,
+            VR::DS,
+            strs(vec![ds(series.voxel[1]), ds(series.voxel[0])]),
+        ),
+        DataElement::new(
+            tags::BITS_ALLOCATED,
+            VR::US,
+            PrimitiveValue::from(series.bits),
+        ),
+        DataElement::new(
+            tags::BITS_STORED,
+            VR::US,
+            PrimitiveValue::from(if series.bits == 8 { 8u16 } else { 12 }),
+        ),
+        DataElement::new(
+            tags::HIGH_BIT,
+            VR::US,
+            PrimitiveValue::from(if series.bits == 8 { 7u16 } else { 11 }),
+        ),
+        DataElement::new(
+            tags::PIXEL_REPRESENTATION,
+            VR::US,
+            PrimitiveValue::from(u16::from(series.signed)),
+        ),
+        DataElement::new(
+            tags::RESCALE_INTERCEPT,
+            VR::DS,
+            PrimitiveValue::from(ds(intercept)),
+        ),
+        DataElement::new(tags::RESCALE_SLOPE, VR::DS, PrimitiveValue::from(ds(slope))),
+        pixels,
+    ]);
+    let syntax = if series.implicit {
+        "1.2.840.10008.1.2"
+    } else {
+        "1.2.840.10008.1.2.1"
+    };
+    obj.with_meta(FileMetaTableBuilder::new().transfer_syntax(syntax))?
+        .write_to_file(path)?;
+    Ok(())
+}
+
+/// The SOP class of CT images.
+const CT_IMAGE_STORAGE: &str = "1.2.840.10008.5.1.4.1.1.2";
 
 /// A little-endian NIfTI-1 header (348 bytes + 4 bytes of extension flag)
 /// for unsigned 16-bit samples.
