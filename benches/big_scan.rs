@@ -2,8 +2,8 @@
 //! a real tooth (J12) subdivided four times (~2.5 M triangles) written as
 //! binary STL (~128 MB), then `morphoid inspect` and `morphoid classify`
 //! (against the 116-tooth library, prepared once beforehand so the cache
-//! is warm) run as whole processes under `/usr/bin/time`: wall time and
-//! peak RSS of each. Without the real teeth, a synthetic crown and a
+//! is warm) run as whole processes under `/usr/bin/time`: wall time, CPU
+//! time (user + system) and peak RSS of each. Without the real teeth, a synthetic crown and a
 //! synthetic library stand in.
 //!
 //! `cargo build --release && cargo bench --bench big_scan`
@@ -31,10 +31,11 @@ fn morphoid_binary() -> PathBuf {
     p
 }
 
-/// Run `morphoid ARGS` under `/usr/bin/time`; (seconds, peak RSS in MB).
-fn timed(bin: &Path, args: &[&str]) -> (f64, f64) {
+/// Run `morphoid ARGS` under `/usr/bin/time`; (wall seconds, CPU
+/// seconds, peak RSS in MB).
+fn timed(bin: &Path, args: &[&str]) -> (f64, f64, f64) {
     let out = Command::new("/usr/bin/time")
-        .args(["-f", "TIME %e %M"])
+        .args(["-f", "TIME %e %U %S %M"])
         .arg(bin)
         .args(args)
         .output()
@@ -47,9 +48,9 @@ fn timed(bin: &Path, args: &[&str]) -> (f64, f64) {
         .find(|l| l.starts_with("TIME "))
         .expect("time's line");
     let mut it = line.split_whitespace().skip(1);
-    let secs: f64 = it.next().and_then(|s| s.parse().ok()).expect("seconds");
-    let kb: f64 = it.next().and_then(|s| s.parse().ok()).expect("kilobytes");
-    (secs, kb / 1024.0)
+    let mut field = || -> f64 { it.next().and_then(|s| s.parse().ok()).expect("a number") };
+    let (wall, user, system, kb) = (field(), field(), field(), field());
+    (wall, user + system, kb / 1024.0)
 }
 
 fn main() {
@@ -93,8 +94,10 @@ fn main() {
     let config = config.to_string_lossy().into_owned();
     // Prepare the library once, so classify measures the scan, not the build.
     timed(&bin, &["--config", &config, "library", "build"]);
-    let (t, rss) = timed(&bin, &["--config", &config, "inspect", &scan]);
-    println!("inspect  {t:6.2} s  peak RSS {rss:6.0} MB");
-    let (t, rss) = timed(&bin, &["--config", &config, "classify", &scan]);
-    println!("classify {t:6.2} s  peak RSS {rss:6.0} MB  (116 references from the cache)");
+    let (t, cpu, rss) = timed(&bin, &["--config", &config, "inspect", &scan]);
+    println!("inspect  {t:6.2} s  CPU {cpu:6.2} s  peak RSS {rss:6.0} MB");
+    let (t, cpu, rss) = timed(&bin, &["--config", &config, "classify", &scan]);
+    println!(
+        "classify {t:6.2} s  CPU {cpu:6.2} s  peak RSS {rss:6.0} MB  (116 references from the cache)"
+    );
 }

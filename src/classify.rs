@@ -239,14 +239,6 @@ pub enum ClassifyError {
     /// Loading, cleaning or preparing failed.
     #[error(transparent)]
     Pipeline(#[from] PipelineError),
-    /// The file could not be read.
-    #[error("{path}: {source}")]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The I/O error.
-        source: std::io::Error,
-    },
     /// The library has no usable reference.
     #[error("the reference library has no prepared reference")]
     EmptyLibrary,
@@ -466,22 +458,17 @@ impl Classifier {
 
     /// [`classify_file`](Self::classify_file), with the prepared scan.
     fn identify_path(&self, path: &Path) -> Result<(ScanOutcome, PreparedSurface), ClassifyError> {
-        if crate::volume::is_volume_path(path) {
-            if self.references.is_empty() {
-                return Err(ClassifyError::EmptyLibrary);
-            }
-            let name = pipeline::specimen_name(path);
-            let _span = tracing::info_span!("scan", scan = %name).entered();
-            let surface = pipeline::prepare_file(path, &self.settings)?;
-            let load_ms = surface.timings.load;
-            let outcome = self.compare_prepared(&name, &surface, load_ms);
-            return Ok((outcome, surface));
+        if self.references.is_empty() {
+            return Err(ClassifyError::EmptyLibrary);
         }
-        let bytes = std::fs::read(path).map_err(|source| ClassifyError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        self.identify_bytes(path, &bytes)
+        let name = pipeline::specimen_name(path);
+        let _span = tracing::info_span!("scan", scan = %name).entered();
+        // From the file, not its bytes in memory: a binary STL export of
+        // hundreds of megabytes is read record by record.
+        let surface = pipeline::prepare_file(path, &self.settings)?;
+        let load_ms = surface.timings.load;
+        let outcome = self.compare_prepared(&name, &surface, load_ms);
+        Ok((outcome, surface))
     }
 
     /// Identify a surface given as the bytes of the file `path`.
@@ -564,15 +551,7 @@ impl Classifier {
             Ok(_) => return Err(SceneError::Changed(path.to_path_buf())),
             Err(_) => return Err(SceneError::Gone(path.to_path_buf())),
         }
-        let surface = if crate::volume::is_volume_path(path) {
-            pipeline::prepare_file(path, &self.settings).map_err(ClassifyError::from)?
-        } else {
-            let bytes = std::fs::read(path).map_err(|source| ClassifyError::Io {
-                path: path.to_path_buf(),
-                source,
-            })?;
-            self.prepare_bytes(path, &bytes)?.0
-        };
+        let surface = pipeline::prepare_file(path, &self.settings).map_err(ClassifyError::from)?;
         let nearest: Vec<(String, f64)> = record
             .nearest
             .iter()

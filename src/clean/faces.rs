@@ -73,28 +73,34 @@ pub fn remove_duplicate_faces(mesh: &Mesh) -> (Mesh, usize) {
 /// Drop vertices that no face uses, keeping the order of the others.
 /// A point cloud (no faces) is returned unchanged.
 pub fn remove_unreferenced_vertices(mesh: &Mesh) -> Mesh {
-    if mesh.faces.is_empty() {
-        return mesh.clone();
+    referenced_vertices(&mesh.vertices, mesh.faces.clone())
+}
+
+/// The mesh of `faces` over those of `vertices` they use, in their order
+/// ([`remove_unreferenced_vertices`] without first copying every vertex
+/// into a mesh: decimation keeps a few of millions). Without faces, all
+/// vertices (a point cloud).
+pub fn referenced_vertices(vertices: &[[f64; 3]], mut faces: Vec<[u32; 3]>) -> Mesh {
+    if faces.is_empty() {
+        return Mesh::new(vertices.to_vec(), faces);
     }
-    let mut map = vec![u32::MAX; mesh.vertices.len()];
-    for f in &mesh.faces {
+    let mut map = vec![u32::MAX; vertices.len()];
+    for f in &faces {
         for &v in f {
             map[v as usize] = 0;
         }
     }
-    let mut vertices = Vec::new();
+    let mut kept = Vec::new();
     for (i, m) in map.iter_mut().enumerate() {
         if *m == 0 {
-            *m = vertices.len() as u32;
-            vertices.push(mesh.vertices[i]);
+            *m = kept.len() as u32;
+            kept.push(vertices[i]);
         }
     }
-    let faces = mesh
-        .faces
-        .iter()
-        .map(|f| f.map(|v| map[v as usize]))
-        .collect();
-    Mesh::new(vertices, faces)
+    for f in &mut faces {
+        *f = f.map(|v| map[v as usize]);
+    }
+    Mesh::new(kept, faces)
 }
 
 #[cfg(test)]

@@ -2,9 +2,10 @@
 
 use super::closest::TriangleGrid;
 use crate::mesh::{
-    boundary_vertices, cross, dot, edge_face_map, edge_key, norm, sub, subdivide_midpoint,
-    triangle_normal2, EdgeKey, Mesh,
+    boundary_vertices, bounding_box, cross, dot, edge_face_map, edge_key, norm, sub,
+    subdivide_midpoint, triangle_normal2, EdgeKey, Mesh,
 };
+use rayon::prelude::*;
 use rustc_hash::FxHashMap as HashMap;
 
 /// Vertex positions in single precision for the simplifier, with copies of
@@ -68,17 +69,25 @@ fn simplify(
         None,
     );
     let faces: Vec<[u32; 3]> = out.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-    super::faces::remove_unreferenced_vertices(&Mesh::new(mesh.vertices.clone(), faces))
+    super::faces::referenced_vertices(&mesh.vertices, faces)
 }
 
+/// Faces per piece when a surface of millions of faces is decimated piece
+/// by piece ([`decimate_in_pieces`]).
+const PIECE_FACES: usize = 1 << 18;
+
 /// Quadric-error edge-collapse decimation of `mesh` to about `target_faces`
-/// faces in one pass, for surfaces far above the working resolution (see
-/// [`decimate_to_vertex_count`] for the properties kept).
+/// faces, for surfaces far above the working resolution (see
+/// [`decimate_to_vertex_count`] for the properties kept). A surface of
+/// more than twice [`PIECE_FACES`] faces is first decimated piece by piece
+/// to twice the target ([`decimate_in_pieces`]), then as a whole.
 pub fn decimate_to_face_count(mesh: &Mesh, target_faces: usize) -> Mesh {
+    let pieces = (mesh.faces.len() > 2 * PIECE_FACES && target_faces < PIECE_FACES)
+        .then(|| decimate_in_pieces(mesh, 2 * target_faces, PIECE_FACES))
+        .flatten();
+    let mesh = pieces.as_ref().unwrap_or(mesh);
     let positions = separated_positions(mesh);
     let indices: Vec<u32> = mesh.faces.iter().flatten().copied().collect();
-    // Not regularized: the working mesh is decimated from this one with
-    // regularization, and the pass over millions of faces is faster.
     simplify(
         mesh,
         &positions,
@@ -86,6 +95,124 @@ pub fn decimate_to_face_count(mesh: &Mesh, target_faces: usize) -> Mesh {
         target_faces,
         meshopt::SimplifyOptions::Regularize,
     )
+}
+
+/// Decimate `mesh` to about `target_faces` faces in slabs of about
+/// `piece_faces` faces each, in parallel: the simplifier's working
+/// memory (edge adjacency, quadrics, collapse lists: about a hundred bytes
+/// per face) is then that of one slab per thread, not of millions of
+/// faces, and the slabs share the cores. Vertices used by two slabs, and
+/// their neighbours, are locked, so the slabs still fit together; the
+/// caller decimates the result again as a whole, which frees them. `None` when the surface
+/// cannot be cut (no extent).
+fn decimate_in_pieces(mesh: &Mesh, target_faces: usize, piece_faces: usize) -> Option<Mesh> {
+    let n = mesh.faces.len();
+    let count = n.div_ceil(piece_faces).min(usize::from(u16::MAX));
+    let piece = slabs(mesh, count)?;
+    let mut owner = vec![u16::MAX; mesh.vertices.len()];
+    let mut locked = vec![false; mesh.vertices.len()];
+    let mut sizes = vec![0usize; count];
+    for (f, &p) in mesh.faces.iter().zip(&piece) {
+        sizes[usize::from(p)] += 1;
+        for &v in f {
+            let o = &mut owner[v as usize];
+            if *o == u16::MAX {
+                *o = p;
+            } else if *o != p {
+                locked[v as usize] = true;
+            }
+        }
+    }
+    drop(owner);
+    // Their neighbours too: a collapse then never joins two shared
+    // vertices by an edge, which both slabs could make (an edge of four
+    // faces), and the faces along a cut stay as they are on both sides.
+    let mut near_cut = vec![false; mesh.vertices.len()];
+    for f in &mesh.faces {
+        if f.iter().any(|&v| locked[v as usize]) {
+            for &v in f {
+                near_cut[v as usize] = true;
+            }
+        }
+    }
+    drop(locked);
+    let locked = near_cut;
+    let positions = separated_positions(mesh);
+    // Stride 12 divides the length and offset 0 is inside it: cannot fail.
+    let adapter =
+        meshopt::VertexDataAdapter::new(meshopt::typed_to_bytes(&positions), 12, 0).ok()?;
+    let decimated: Vec<Vec<u32>> = (0..count)
+        .into_par_iter()
+        .map(|p| {
+            let indices: Vec<u32> = mesh
+                .faces
+                .iter()
+                .zip(&piece)
+                .filter(|&(_, &q)| usize::from(q) == p)
+                .flat_map(|(f, _)| *f)
+                .collect();
+            let target = (target_faces * sizes[p]).div_ceil(n).max(1);
+            // Sparse: the simplifier sizes its work by the slab's vertices.
+            // Regularized as the whole surface was: without it, the
+            // simplifier leaves slivers and folds on flat, evenly
+            // subdivided parts.
+            meshopt::simplify_with_locks(
+                &indices,
+                &adapter,
+                &locked,
+                3 * target,
+                1.0,
+                meshopt::SimplifyOptions::Sparse | meshopt::SimplifyOptions::Regularize,
+                None,
+            )
+        })
+        .collect();
+    let faces: Vec<[u32; 3]> = decimated
+        .iter()
+        .flat_map(|d| d.chunks_exact(3).map(|c| [c[0], c[1], c[2]]))
+        .collect();
+    Some(super::faces::referenced_vertices(&mesh.vertices, faces))
+}
+
+/// The slab of each face: `count` slabs across the longest side of the
+/// bounding box, holding about as many face centroids each (counted in
+/// 4096 bins, so no sort). `None` without extent.
+fn slabs(mesh: &Mesh, count: usize) -> Option<Vec<u16>> {
+    const BINS: usize = 4096;
+    let (lo, hi) = bounding_box(mesh)?;
+    let axis = (0..3).max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))?;
+    let width = hi[axis] - lo[axis];
+    if !(width > 0.0 && width.is_finite()) {
+        return None;
+    }
+    let v = &mesh.vertices;
+    let mut slab: Vec<u16> = mesh
+        .faces
+        .iter()
+        .map(|f| {
+            let c = f.iter().map(|&i| v[i as usize][axis]).sum::<f64>() / 3.0;
+            // In [0, BINS): BINS fits u16.
+            ((c - lo[axis]) / width * BINS as f64).clamp(0.0, (BINS - 1) as f64) as u16
+        })
+        .collect();
+    let mut histogram = vec![0usize; BINS];
+    for &b in &slab {
+        histogram[usize::from(b)] += 1;
+    }
+    let n = slab.len().max(1);
+    let mut below = 0usize;
+    let slab_of_bin: Vec<u16> = histogram
+        .iter()
+        .map(|&h| {
+            let s = (below * count / n).min(count - 1);
+            below += h;
+            s as u16
+        })
+        .collect();
+    for s in &mut slab {
+        *s = slab_of_bin[usize::from(*s)];
+    }
+    Some(slab)
 }
 
 /// Quadric-error edge-collapse decimation (meshoptimizer's simplifier, with
@@ -555,6 +682,32 @@ mod tests {
         assert_eq!(removed, 1);
         assert_eq!(euler_characteristic(&c), 1);
         assert_eq!(crate::mesh::boundary_loops(&c).len(), 1);
+    }
+
+    #[test]
+    fn slabs_decimated_apart_fit_together_on_the_input_surface() {
+        // A curved sheet of 12,800 faces cut into seven slabs of ~2,000.
+        let flat = subdivide_midpoint(&grid(40), 1);
+        let bend = |p: [f64; 3]| [p[0], p[1], 0.2 * (3.0 * p[0]).sin() * (2.0 * p[1]).cos()];
+        let m = Mesh::new(flat.vertices.iter().map(|&p| bend(p)).collect(), flat.faces);
+        let d = decimate_in_pieces(&m, 1000, 2000).expect("the sheet has extent");
+        let nf = d.faces.len();
+        // The vertices along the cuts stay: more faces than asked, but
+        // far fewer than the input's.
+        assert!((1000..4000).contains(&nf), "{nf} faces");
+        // One sheet without gaps or non-manifold edges along the cuts.
+        assert_eq!(euler_characteristic(&d), 1);
+        assert_eq!(crate::mesh::boundary_loops(&d).len(), 1);
+        let ef = edge_face_map(&d);
+        assert!((0..ef.len()).all(|e| ef.faces_of(e).len() <= 2));
+        assert!(d.vertices.iter().all(|p| m.vertices.contains(p)));
+        // Chords of the curved sheet: a little less area, never more.
+        let (a, a0) = (surface_area(&d), surface_area(&m));
+        assert!(a <= a0 && a > 0.97 * a0, "area {a} of {a0}");
+        // Decimated again as a whole, the cuts are freed.
+        let whole = decimate_to_face_count(&d, 500);
+        assert!(whole.faces.len() < 700, "{}", whole.faces.len());
+        assert!(whole.vertices.iter().all(|p| m.vertices.contains(p)));
     }
 
     #[test]
