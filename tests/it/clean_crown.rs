@@ -407,7 +407,11 @@ struct WholeTeeth {
 impl WholeTeeth {
     fn assert_on_target(&self) {
         assert!(self.refused.is_empty(), "refused: {:?}", self.refused);
-        assert!(self.off_target.is_empty(), "off target: {:?}", self.off_target);
+        assert!(
+            self.off_target.is_empty(),
+            "off target: {:?}",
+            self.off_target
+        );
     }
 }
 
