@@ -12,7 +12,7 @@
 //! every vertex next to that half-plane, each search cut off at the best
 //! loop found so far, so most of them stop after a few steps.
 
-use std::cmp::Reverse;
+use crate::mesh::HeapItem;
 use std::collections::BinaryHeap;
 use std::f64::consts::PI;
 
@@ -102,8 +102,9 @@ pub(super) fn cheapest_winding_cycle(
         dist[start] = 0.0;
         touched.push(start);
         let mut heap = BinaryHeap::new();
-        heap.push((Reverse(Cost(0.0)), start));
-        while let Some((Reverse(Cost(d)), node)) = heap.pop() {
+        heap.push(HeapItem(0.0, start as u32));
+        while let Some(HeapItem(d, node)) = heap.pop() {
+            let node = node as usize;
             if d > dist[node] {
                 continue;
             }
@@ -135,30 +136,12 @@ pub(super) fn cheapest_winding_cycle(
                     }
                     dist[next] = nd;
                     prev[next] = node as u32;
-                    heap.push((Reverse(Cost(nd)), next));
+                    heap.push(HeapItem(nd, next as u32));
                 }
             }
         }
     }
     best
-}
-
-/// A cost ordered for the heap (costs are finite and non-negative).
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Cost(f64);
-
-impl Eq for Cost {}
-
-impl PartialOrd for Cost {
-    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(other))
-    }
-}
-
-impl Ord for Cost {
-    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
-        self.0.total_cmp(&other.0)
-    }
 }
 
 #[cfg(test)]
