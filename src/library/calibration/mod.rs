@@ -8,13 +8,14 @@
 //! taxon was right; and, with its whole taxon held out too, the score of
 //! a scan of a taxon the library lacks. [`Calibration::fit`] turns these
 //! into
-//! - the weight of the score's rank term ([`fit_rank_weight`]: what best
-//!   tells the two apart),
+//! - the weight of the score's rank term ([`fit_rank_weight`]: what
+//!   flags the most of the second kind at the false-flag rate),
 //! - a logistic map from the score to the probability that the nearest
 //!   taxon is right ([`Logistic`]), and
-//! - the "no close match" threshold: the score that 95 % of the held-out
-//!   references whose taxon the rest of the library holds stay at or
-//!   below ([`FALSE_FLAG_RATE`]).
+//! - the "no close match" threshold: the split-conformal quantile of the
+//!   held-out references whose taxon the rest of the library holds
+//!   ([`conformal_quantile`]), so that a scan of a taxon the library holds
+//!   is flagged with probability at most [`FALSE_FLAG_RATE`].
 //!
 //! [`Calibration::assess`] scores a scan the same way and fills the
 //! [`Confidence`] of each rank. Everything here is pure; the distances
@@ -25,9 +26,9 @@ mod statistic;
 
 pub use cached::{calibration_pairs, reference_distances, CALIBRATION_SAMPLE};
 pub use statistic::{
-    expected_calibration_error, fit_logistic, fit_rank_weight, mean_within_taxon_rank,
-    novelty_score, rank_term, relative_distance, reliability, roc_auc, share_caught_at,
-    upper_median, upper_quantile, Logistic, ReliabilityBin,
+    conformal_quantile, expected_calibration_error, fit_logistic, fit_rank_weight,
+    mean_within_taxon_rank, novelty_score, rank_term, relative_distance, reliability, roc_auc,
+    share_caught_at, upper_median, Logistic, ReliabilityBin,
 };
 
 use super::identify::{Confidence, DistanceRow, RankResult};
@@ -36,8 +37,8 @@ use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 
 /// The share of scans of a taxon the library holds that may be flagged
-/// "no close match" (the threshold is the held-out scores' quantile at
-/// one minus this).
+/// "no close match" (the threshold is the held-out scores' conformal
+/// quantile at this miscoverage).
 pub const FALSE_FLAG_RATE: f64 = 0.05;
 
 /// Fewest held-out references known at a rank for a probability there.
@@ -298,7 +299,7 @@ impl Calibration {
             .filter(|x| x.2)
             .filter_map(|x| x.0.terms())
             .collect();
-        let weight = fit_rank_weight(&present_terms, &absent).unwrap_or(0.0);
+        let weight = fit_rank_weight(&present_terms, &absent, FALSE_FLAG_RATE).unwrap_or(0.0);
         let mut scores = Vec::new();
         let mut right = Vec::new();
         let mut present = Vec::new();
@@ -317,7 +318,7 @@ impl Calibration {
         }
         let logistic = fit_logistic(&scores, &right)?;
         let threshold = (present.len() >= MIN_PRESENT)
-            .then(|| upper_quantile(&present, 1.0 - FALSE_FLAG_RATE))
+            .then(|| conformal_quantile(&present, FALSE_FLAG_RATE))
             .flatten();
         Some(RankCalibration {
             rank: rank.to_string(),
