@@ -104,7 +104,8 @@ impl Db {
         let storage = e.is_storage_fault();
         if storage {
             self.store = None;
-            self.health.fault(Part::Database, &super::chain(e));
+            self.health
+                .fault(Part::Database, &crate::classify::error_chain(e));
         }
         storage
     }
@@ -162,7 +163,7 @@ impl Db {
                         "database {} was deleted under the running daemon and cannot \
                          be put back ({}); a new one is started",
                         self.path.display(),
-                        super::chain(&e)
+                        crate::classify::error_chain(&e)
                     );
                 }
             }

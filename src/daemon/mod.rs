@@ -32,7 +32,7 @@ pub use serial::BACKOFF_MAX;
 pub use worker::MAX_ATTEMPTS;
 
 use crate::classify::{
-    CalibrationProbe, CalibrationState, Classifier, PendingCalibration, ResultFiles,
+    error_chain, CalibrationProbe, CalibrationState, Classifier, PendingCalibration, ResultFiles,
 };
 use crate::config::Config;
 use crate::library::BuildOutcome;
@@ -137,18 +137,6 @@ pub trait Loader {
     /// report of its build and its pending calibration
     /// ([`Classifier::build_deferred`]).
     fn library(&self, config: &Config) -> Result<LoadedLibrary, LoadError>;
-}
-
-/// `e` and its causes, `: `-separated, for one log line.
-fn chain(e: &dyn std::error::Error) -> String {
-    let mut out = e.to_string();
-    let mut cause = e.source();
-    while let Some(c) = cause {
-        out.push_str(": ");
-        out.push_str(&c.to_string());
-        cause = c.source();
-    }
-    out
 }
 
 /// Send a state change to the service manager, if there is one (the
@@ -478,7 +466,10 @@ impl<'a> Daemon<'a> {
                 let ready = self.folder.rescan(false);
                 self.queue(ready).await;
             }
-            Err(e) => tracing::error!("reload failed, keeping the previous setup: {}", chain(&e)),
+            Err(e) => tracing::error!(
+                "reload failed, keeping the previous setup: {}",
+                error_chain(&e)
+            ),
         }
         notify(&[NotifyState::Ready]);
         self.last_status_at = None;
@@ -676,7 +667,7 @@ fn calibrate_in_background(pending: PendingCalibration) {
                 ),
                 Err(e) => tracing::error!(
                     "{} after {secs:.1} s; going on without confidence",
-                    chain(&e)
+                    error_chain(&e)
                 ),
             }
         });
@@ -789,6 +780,9 @@ mod tests {
             dir: PathBuf::from("/lib"),
             source: Box::new(inner),
         };
-        assert_eq!(chain(&e), "cannot load the library /lib: permission denied");
+        assert_eq!(
+            error_chain(&e),
+            "cannot load the library /lib: permission denied"
+        );
     }
 }

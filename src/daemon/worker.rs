@@ -265,7 +265,8 @@ impl WorkerState {
                 if !guard.failed(&e) {
                     // Not the storage: the same request would fail again;
                     // reported once, retried with the same backoff.
-                    self.health.fault(Part::Database, &super::chain(&e));
+                    self.health
+                        .fault(Part::Database, &crate::classify::error_chain(&e));
                 }
                 return Step::Fault;
             }
@@ -421,7 +422,8 @@ impl WorkerState {
         }
         if wrote {
             if let Err(e) = files.write_index(store) {
-                self.health.fault(Part::Results, &super::chain(&e));
+                self.health
+                    .fault(Part::Results, &crate::classify::error_chain(&e));
             }
         }
         Ok(wrote)
