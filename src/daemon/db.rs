@@ -12,6 +12,7 @@
 //! after an I/O error).
 
 use super::health::{Health, Part};
+use crate::classify::error_chain;
 use crate::store::{Store, StoreError};
 use std::os::unix::fs::MetadataExt as _;
 use std::path::{Path, PathBuf};
@@ -104,8 +105,7 @@ impl Db {
         let storage = e.is_storage_fault();
         if storage {
             self.store = None;
-            self.health
-                .fault(Part::Database, &crate::classify::error_chain(e));
+            self.health.fault(Part::Database, &error_chain(e));
         }
         storage
     }
@@ -163,7 +163,7 @@ impl Db {
                         "database {} was deleted under the running daemon and cannot \
                          be put back ({}); a new one is started",
                         self.path.display(),
-                        crate::classify::error_chain(&e)
+                        error_chain(&e)
                     );
                 }
             }

@@ -266,7 +266,7 @@ impl WorkerState {
                     // Not the storage: the same request would fail again;
                     // reported once, retried with the same backoff.
                     self.health
-                        .fault(Part::Database, &crate::classify::error_chain(&e));
+                        .fault(Part::Database, &classify::error_chain(&e));
                 }
                 return Step::Fault;
             }
@@ -422,8 +422,7 @@ impl WorkerState {
         }
         if wrote {
             if let Err(e) = files.write_index(store) {
-                self.health
-                    .fault(Part::Results, &crate::classify::error_chain(&e));
+                self.health.fault(Part::Results, &classify::error_chain(&e));
             }
         }
         Ok(wrote)

@@ -80,7 +80,7 @@ const RIDGE: f64 = 1e-2;
 /// slopes (Newton's method): the intercept followed by one slope per
 /// feature. `None` when there is no case, the lengths differ, or the fit
 /// is not finite.
-pub fn logistic_regression(features: &[Vec<f64>], targets: &[f64]) -> Option<Vec<f64>> {
+fn logistic_regression(features: &[Vec<f64>], targets: &[f64]) -> Option<Vec<f64>> {
     let k = features.first()?.len() + 1;
     if features.len() != targets.len() || features.iter().any(|x| x.len() + 1 != k) {
         return None;
