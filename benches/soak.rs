@@ -5,7 +5,10 @@
 //! process for a while, `kill -9` of the daemon and a restart. Reports
 //! scans lost, scans recorded twice, the longest time from a fault
 //! clearing to every file that arrived before it being finished, the
-//! daemon's peak resident memory, and log lines per minute during faults.
+//! daemon's peak resident memory, and log lines per minute during faults
+//! (other than the one result line per scan recorded; a fault shorter
+//! than a minute counts its lines as that minute's). The daemon's logs
+//! are kept in `target/soak-logs`.
 //!
 //! Uses the 116 PNAS teeth as the library when `../shared/data/pnas-teeth`
 //! is beside the project (a synthetic library otherwise); scans are small
@@ -16,7 +19,8 @@
 //! Knobs (environment): `MORPHOID_SOAK_SCANS` (2000), `MORPHOID_SOAK_INTERVAL`
 //! (mean seconds between arrivals, 1.0), `MORPHOID_SOAK_VERTICES` (scan
 //! size, 400), `MORPHOID_SOAK_TARGET` (`[clean] target_vertices`, 5000),
-//! `MORPHOID_SOAK_SEED` (1).
+//! `MORPHOID_SOAK_SEED` (1), `MORPHOID_SOAK_TMPFS` (size of the file system
+//! that holds the database and the results folder, `8g`: the reports take about 2.5 MB a scan).
 
 use morphoid::mesh::io;
 use morphoid::mesh::synth::{self, LibrarySpec, RigidMotion, CROWN_GENERA};
@@ -92,9 +96,15 @@ fn main() {
     let export = root.join("export");
     std::fs::create_dir_all(&export).unwrap();
     let dbdir = root.join("dbfs");
-    let _mount = root_user.then(|| Mount::tmpfs(&dbdir, "512m"));
+    // The database and the results folder share one file system, as
+    // on a lab server's data disk: when it fills, the result files (a
+    // report of about 2 MB per scan) fail at once, and the database once
+    // its write-ahead log needs to grow.
+    let _mount =
+        root_user.then(|| Mount::tmpfs(&dbdir, &knob("MORPHOID_SOAK_TMPFS", "8g".to_string())));
     std::fs::create_dir_all(&dbdir).unwrap();
     let db = dbdir.join("db.sqlite");
+    let results = dbdir.join("results");
     let cache = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/target/soak-cache"));
     let config = root.join("morphoid.toml");
     std::fs::write(
@@ -102,7 +112,8 @@ fn main() {
         format!(
             "[watch]\ndir = {export:?}\nsettle_seconds = 0.3\n\
              [library]\ndir = {library:?}\nranks = [\"order\", \"family\", \"genus\"]\ncache = {cache:?}\n\
-             [database]\npath = {db:?}\n[clean]\ntarget_vertices = {target}\n"
+             [database]\npath = {db:?}\n[results]\ndir = {results:?}\n\
+             [clean]\ntarget_vertices = {target}\n"
         ),
     )
     .unwrap();
@@ -163,7 +174,7 @@ fn main() {
                 };
                 let kind = kinds[rng.gen_range(0..kinds.len())];
                 let lasts = Duration::from_secs_f64(rng.gen_range(5.0..25.0));
-                let lines = daemon.log_text().lines().count();
+                let lines = fault_lines(&daemon.log_text(), &export);
                 let mut ep = Episode {
                     kind,
                     started: Instant::now(),
@@ -192,7 +203,7 @@ fn main() {
                         kills += 1;
                         std::thread::sleep(Duration::from_secs_f64(rng.gen_range(0.5..3.0)));
                         daemon = Daemon::start(&env);
-                        ep.log_lines = daemon.log_text().lines().count();
+                        ep.log_lines = fault_lines(&daemon.log_text(), &export);
                         ep.cleared = Some(Instant::now());
                         ep.waiting_for = placed.len();
                         ep.finished_at_clear = count_true(&finished_count(&db, &placed));
@@ -203,7 +214,7 @@ fn main() {
             Some((_, until)) if Instant::now() >= *until => {
                 let (f, _) = fault.take().unwrap();
                 let ep = episodes.last_mut().unwrap();
-                ep.log_lines = daemon.log_text().lines().count() - ep.log_lines;
+                ep.log_lines = fault_lines(&daemon.log_text(), &export) - ep.log_lines;
                 match f {
                     Fault::Full { filler } => std::fs::remove_file(filler).unwrap(),
                     Fault::Locked { conn } => conn.execute_batch("COMMIT").unwrap(),
@@ -214,20 +225,12 @@ fn main() {
             }
             _ => {}
         }
-        // Drains: every file that arrived before a fault cleared finished.
+        // Resumed and drained, for the faults that cleared.
         if episodes
             .iter()
-            .any(|e| e.cleared.is_some() && e.drained.is_none())
+            .any(|e| e.cleared.is_some() && (e.drained.is_none() || e.resumed.is_none()))
         {
-            let done = finished_count(&db, &placed);
-            for e in episodes
-                .iter_mut()
-                .filter(|e| e.cleared.is_some() && e.drained.is_none())
-            {
-                if done.iter().take(e.waiting_for).all(|&d| d) {
-                    e.drained = e.cleared.map(|c| c.elapsed());
-                }
-            }
+            note_progress(&mut episodes, &finished_count(&db, &placed));
         }
         std::thread::sleep(Duration::from_millis(100));
     }
@@ -235,18 +238,7 @@ fn main() {
     let end = Instant::now() + Duration::from_secs(1800);
     while Instant::now() < end && !finished_count(&db, &placed).iter().all(|&d| d) {
         std::thread::sleep(Duration::from_millis(500));
-        let done = finished_count(&db, &placed);
-        let n_done = count_true(&done);
-        for e in episodes.iter_mut().filter(|e| e.resumed.is_none()) {
-            if n_done > e.finished_at_clear {
-                e.resumed = e.cleared.map(|c| c.elapsed());
-            }
-        }
-        for e in episodes.iter_mut().filter(|e| e.drained.is_none()) {
-            if done.iter().take(e.waiting_for).all(|&d| d) {
-                e.drained = e.cleared.map(|c| c.elapsed());
-            }
-        }
+        note_progress(&mut episodes, &finished_count(&db, &placed));
     }
     std::thread::sleep(Duration::from_secs(3));
     peak_rss_kb = peak_rss_kb.max(daemon.peak_rss_kb().unwrap_or(0));
@@ -311,7 +303,8 @@ fn main() {
         let rate = if e.kind == "kill" {
             None
         } else {
-            Some(e.log_lines as f64 / (lasted.as_secs_f64() / 60.0).max(1.0 / 60.0))
+            // A fault shorter than a minute: its lines are that minute's.
+            Some(e.log_lines as f64 / (lasted.as_secs_f64() / 60.0).max(1.0))
         };
         if let Some(r) = rate {
             worst_rate = worst_rate.max(r);
@@ -329,7 +322,46 @@ fn main() {
         worst.as_secs_f64()
     );
     println!("peak RSS: {:.0} MB", peak_rss_kb as f64 / 1024.0);
-    println!("log lines per minute during faults (worst): {worst_rate:.1}");
+    println!("log lines per minute during faults (worst; scans' own result lines not counted): {worst_rate:.1}");
+    // The daemon's logs, for reading after the temporary folder is gone.
+    let keep = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/target/soak-logs"));
+    let _ = std::fs::remove_dir_all(&keep);
+    if std::fs::create_dir_all(&keep).is_ok() {
+        for entry in std::fs::read_dir(&root).into_iter().flatten().flatten() {
+            let name = entry.file_name();
+            if name.to_string_lossy().ends_with(".log") {
+                let _ = std::fs::copy(entry.path(), keep.join(&name));
+            }
+        }
+        println!("daemon logs kept in {}", keep.display());
+    }
+}
+
+/// Lines of the daemon's log that are not a scan's own result line (one
+/// INFO line per scan recorded, `<path>: order=…`, which a fault does
+/// not cause): the fault's and the recovery's state changes.
+fn fault_lines(log: &str, export: &Path) -> usize {
+    let prefix = export.to_string_lossy().into_owned();
+    log.lines()
+        .filter(|l| {
+            !(l.contains(" INFO ") && l.contains(prefix.as_str()) && l.contains(": order="))
+        })
+        .count()
+}
+
+/// For each fault that cleared: when the next file finished after it
+/// (work resumed) and when every file that arrived before it cleared had
+/// finished (drained). `done` holds, per placed file, whether it finished.
+fn note_progress(episodes: &mut [Episode], done: &[bool]) {
+    let n_done = count_true(done);
+    for e in episodes.iter_mut().filter(|e| e.cleared.is_some()) {
+        if e.resumed.is_none() && n_done > e.finished_at_clear {
+            e.resumed = e.cleared.map(|c| c.elapsed());
+        }
+        if e.drained.is_none() && done.iter().take(e.waiting_for).all(|&d| d) {
+            e.drained = e.cleared.map(|c| c.elapsed());
+        }
+    }
 }
 
 fn count_true(v: &[bool]) -> usize {
