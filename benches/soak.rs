@@ -20,7 +20,8 @@
 //! (mean seconds between arrivals, 1.0), `MORPHOID_SOAK_VERTICES` (scan
 //! size, 400), `MORPHOID_SOAK_TARGET` (`[clean] target_vertices`, 5000),
 //! `MORPHOID_SOAK_SEED` (1), `MORPHOID_SOAK_TMPFS` (size of the file system
-//! that holds the database and the results folder, `8g`: the reports take about 2.5 MB a scan).
+//! that holds the database and the results folder, `8g`: a scan's result
+//! files take about 2.5 MB).
 
 use morphoid::mesh::io;
 use morphoid::mesh::synth::{self, LibrarySpec, RigidMotion, CROWN_GENERA};
@@ -97,8 +98,8 @@ fn main() {
     std::fs::create_dir_all(&export).unwrap();
     let dbdir = root.join("dbfs");
     // The database and the results folder share one file system, as
-    // on a lab server's data disk: when it fills, the result files (a
-    // report of about 2 MB per scan) fail at once, and the database once
+    // on a lab server's data disk: when it fills, the result files (about
+    // 2.5 MB a scan, mostly the report) fail at once, and the database once
     // its write-ahead log needs to grow.
     let _mount =
         root_user.then(|| Mount::tmpfs(&dbdir, &knob("MORPHOID_SOAK_TMPFS", "8g".to_string())));
