@@ -1,5 +1,5 @@
 //! Many scans dropped at once: each identified exactly once, memory bounded.
-//! `MORPHOID_DAEMON_SCANS` sets the count (default 200).
+//! `MORPHOID_DAEMON_SCANS` sets the count (default 100).
 
 use crate::support::daemon::*;
 use morphoid::store::ScanStatus;
@@ -10,7 +10,7 @@ fn scans_dropped_at_once_are_all_identified_once_in_bounded_memory() {
     let n: usize = std::env::var("MORPHOID_DAEMON_SCANS")
         .ok()
         .and_then(|v| v.parse().ok())
-        .unwrap_or(200);
+        .unwrap_or(100);
     let env = env(1.0, "", "");
     // Written elsewhere, then moved in together.
     let staging = env.root.join("staging");
@@ -71,7 +71,7 @@ fn scans_dropped_at_once_are_all_identified_once_in_bounded_memory() {
 
 /// The 116-tooth library, when the data is present: real scans (copies of
 /// library teeth, each identified as itself), peak memory under 300 MB.
-/// `MORPHOID_DAEMON_REAL_SCANS` sets how many (default 10, at most 116).
+/// `MORPHOID_DAEMON_REAL_SCANS` sets how many (default 5, at most 116).
 #[test]
 fn the_real_library_identifies_its_own_teeth_in_bounded_memory() {
     let Some(data) = crate::support::data::teeth_dir() else {
@@ -80,7 +80,7 @@ fn the_real_library_identifies_its_own_teeth_in_bounded_memory() {
     let n: usize = std::env::var("MORPHOID_DAEMON_REAL_SCANS")
         .ok()
         .and_then(|v| v.parse().ok())
-        .unwrap_or(10)
+        .unwrap_or(5)
         .min(116);
     let tmp = tempfile::tempdir().unwrap();
     let root = tmp.path().to_path_buf();
