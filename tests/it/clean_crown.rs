@@ -291,16 +291,34 @@ fn clean_crown_open_crowns_are_untouched() {
 /// `pipeline::prepare_file` → the crown compared with the tooth's cleaned
 /// original. Returns the prepared closed versions, the teeth refused and
 /// the teeth cut off target (mean distance ≥ 1 % of the diagonal or area
-/// off by more than 10 %).
+/// off by more than 10 %). Every `step`-th tooth, or those named in
+/// `MORPHOID_WHOLE_TEETH_NAMES`; `MORPHOID_WHOLE_TEETH_DIR` keeps the files.
 fn real_whole_teeth(step: usize) -> Option<WholeTeeth> {
     let dir = crate::support::data::teeth_dir()?;
     let names = crate::support::cp::tooth_names(&dir);
     let tmp = tempfile::tempdir().unwrap();
+    // `MORPHOID_WHOLE_TEETH_DIR` keeps the whole teeth written (to look at
+    // them, or to classify them with the command-line tool).
+    let out_dir = std::env::var_os("MORPHOID_WHOLE_TEETH_DIR")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| tmp.path().to_path_buf());
+    std::fs::create_dir_all(&out_dir).unwrap();
     let settings = morphoid::pipeline::Settings {
         clean: auto(),
         ..Default::default()
     };
-    let picked: Vec<(usize, &String)> = names.iter().enumerate().step_by(step).collect();
+    // `MORPHOID_WHOLE_TEETH_NAMES` (comma-separated) takes only those teeth.
+    let only: Option<Vec<String>> = std::env::var("MORPHOID_WHOLE_TEETH_NAMES")
+        .ok()
+        .map(|v| v.split(',').map(|s| s.trim().to_string()).collect());
+    let picked: Vec<(usize, &String)> = match &only {
+        Some(only) => names
+            .iter()
+            .enumerate()
+            .filter(|(_, n)| only.contains(n))
+            .collect(),
+        None => names.iter().enumerate().step_by(step).collect(),
+    };
     use rayon::prelude::*;
     type Outcome = (
         String,
@@ -324,7 +342,7 @@ fn real_whole_teeth(step: usize) -> Option<WholeTeeth> {
             let tooth = whole_tooth(&original, &WholeToothParams::default(), seed)
                 .unwrap_or_else(|e| panic!("{name}: {e}"));
             let mv = motion(seed, &original);
-            let path = tmp.path().join(format!("{name}.ply"));
+            let path = out_dir.join(format!("{name}.ply"));
             morphoid::mesh::io::write_ply(&path, &moved(&tooth.mesh, &mv)).unwrap();
             let out = morphoid::pipeline::prepare_file(&path, &settings)
                 .map_err(|e| format!("{name}: {e}"))?;
