@@ -73,81 +73,33 @@ fn read_binary(bytes: &[u8], n: usize) -> ParseResult<Mesh> {
 /// Bytes of one binary STL triangle record.
 const RECORD: usize = 50;
 
-/// Triangles per part when a binary STL file is read in parts on several
-/// threads: below twice this, one thread reads the whole file.
-const PART_TRIANGLES: usize = 1 << 18;
-
 /// Read a binary STL file of `size` bytes record by record, without
 /// holding the file in memory (a µCT export can be hundreds of megabytes).
 /// `Ok(None)` when the size does not match a binary STL (the caller reads
 /// it as ASCII); `Err` carries the I/O error or the message of a bad
-/// record (the first in the file), with the file name attached by the
-/// caller.
-///
-/// A big file is read in one part per thread, each sharing its own corners;
-/// the parts are then joined, looking up only each part's distinct
-/// vertices (about a sixth of its corners) in the first part's index. Most
-/// of the reading time is those hash lookups: measured on a 2.56 M-triangle
-/// file on two cores, 0.64 s as one part.
+/// record, with the file name attached by the caller.
 pub(crate) fn read_binary_file(path: &Path, size: u64) -> Result<Option<Mesh>, BinaryFileError> {
     use std::io::Read;
+    let mut file = std::io::BufReader::with_capacity(
+        RECORD * 4096,
+        std::fs::File::open(path).map_err(BinaryFileError::Io)?,
+    );
     let mut header = [0u8; 84];
     if size < 84 {
         return Ok(None);
     }
-    std::fs::File::open(path)
-        .and_then(|mut f| f.read_exact(&mut header))
-        .map_err(BinaryFileError::Io)?;
+    file.read_exact(&mut header).map_err(BinaryFileError::Io)?;
     let n = u32::from_le_bytes([header[80], header[81], header[82], header[83]]) as u64;
     if 84 + RECORD as u64 * n != size {
         return Ok(None);
     }
-    let n = n as usize;
-    let parts = (n / PART_TRIANGLES).clamp(1, rayon::current_num_threads().max(1));
-    read_binary_parts(path, n, parts).map(Some)
-}
-
-/// The `n` triangles of a binary STL file read in `parts` parts, one per
-/// thread, and joined in file order: the same mesh whatever `parts` is.
-fn read_binary_parts(path: &Path, n: usize, parts: usize) -> Result<Mesh, BinaryFileError> {
-    use rayon::prelude::*;
-    let parts = parts.max(1);
-    let bounds: Vec<(usize, usize)> = (0..parts)
-        .map(|i| (i * n / parts, (i + 1) * n / parts))
-        .collect();
-    let read: Vec<Result<SharedCorners, BinaryFileError>> = bounds
-        .into_par_iter()
-        .map(|(first, end)| read_binary_part(path, first, end))
-        .collect();
-    let mut parts = read.into_iter();
-    let Some(first) = parts.next() else {
-        return Ok(Mesh::default());
-    };
-    let mut whole = first?;
-    for part in parts {
-        whole.join(part?);
-    }
-    Ok(whole.into_mesh())
-}
-
-/// Triangles `first..end` of a binary STL file, their corners shared.
-fn read_binary_part(
-    path: &Path,
-    first: usize,
-    end: usize,
-) -> Result<SharedCorners, BinaryFileError> {
-    use std::io::{Read, Seek, SeekFrom};
-    let mut file = std::fs::File::open(path).map_err(BinaryFileError::Io)?;
-    file.seek(SeekFrom::Start(84 + (RECORD * first) as u64))
-        .map_err(BinaryFileError::Io)?;
-    let mut file = std::io::BufReader::with_capacity(RECORD * 4096, file);
-    let mut soup = SharedCorners::with_triangles(end - first);
+    let mut soup = SharedCorners::with_triangles(n as usize);
     let mut record = [0u8; RECORD];
-    for t in first..end {
+    for t in 0..n as usize {
         file.read_exact(&mut record).map_err(BinaryFileError::Io)?;
         soup.push(t, &record).map_err(BinaryFileError::Invalid)?;
     }
-    Ok(soup)
+    Ok(Some(soup.into_mesh()))
 }
 
 /// Why [`read_binary_file`] failed.
@@ -209,32 +161,6 @@ impl SharedCorners {
         }
         self.faces.push(face);
         Ok(())
-    }
-
-    /// Append the triangles of `other` (read after these), sharing the
-    /// vertices both have. New vertices are added in `other`'s order, so
-    /// the mesh is the one a single pass over the file gives.
-    fn join(&mut self, other: SharedCorners) {
-        let SharedCorners {
-            index,
-            vertices,
-            faces,
-        } = other;
-        drop(index);
-        let renumber: Vec<u32> = vertices
-            .iter()
-            .map(|p| {
-                // Exact: the coordinates were read as f32.
-                let key = p.map(|x| (x as f32).to_bits());
-                let own = &mut self.vertices;
-                *self.index.entry(key).or_insert_with(|| {
-                    own.push(*p);
-                    (own.len() - 1) as u32
-                })
-            })
-            .collect();
-        self.faces
-            .extend(faces.into_iter().map(|f| f.map(|v| renumber[v as usize])));
     }
 
     fn into_mesh(self) -> Mesh {
@@ -374,43 +300,5 @@ mod tests {
         b.extend_from_slice(&[0, 0]);
         let m = read_stl(&b).unwrap();
         assert_eq!(m.vertices, vec![[0., 0., 0.], [2., 0., 0.], [0., 3., 0.]]);
-    }
-
-    #[test]
-    fn binary_file_read_in_parts_is_the_mesh_read_in_one() {
-        let crown = crate::mesh::synth::crown(&crate::mesh::synth::CROWN_GENERA[1], 3, 800);
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("crown.stl");
-        crate::mesh::io::write_stl(&path, &crown).unwrap();
-        let n = crown.faces.len();
-        let whole = read_binary_parts(&path, n, 1).unwrap();
-        assert_eq!(whole.faces.len(), n);
-        assert_eq!(whole.vertices.len(), crown.vertices.len());
-        for parts in [2, 3, 7] {
-            let joined = read_binary_parts(&path, n, parts).unwrap();
-            assert_eq!(joined.vertices, whole.vertices, "{parts} parts");
-            assert_eq!(joined.faces, whole.faces, "{parts} parts");
-        }
-    }
-
-    #[test]
-    fn binary_file_reports_the_first_bad_record_of_any_part() {
-        let crown = crate::mesh::synth::crown(&crate::mesh::synth::CROWN_GENERA[0], 5, 400);
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("crown.stl");
-        crate::mesh::io::write_stl(&path, &crown).unwrap();
-        let mut bytes = std::fs::read(&path).unwrap();
-        let n = crown.faces.len();
-        // A NaN coordinate in two records, one in the second half.
-        for t in [n / 3, 3 * n / 4] {
-            let at = 84 + RECORD * t + 12;
-            bytes[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
-        }
-        std::fs::write(&path, &bytes).unwrap();
-        let message = |parts| match read_binary_parts(&path, n, parts) {
-            Err(BinaryFileError::Invalid(m)) => m,
-            other => panic!("{parts} parts: {other:?}"),
-        };
-        assert_eq!(message(1), message(4));
     }
 }
