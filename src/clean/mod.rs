@@ -157,7 +157,7 @@ pub struct Cleaned {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CleanError {
     /// The surface is closed (no boundary).
-    #[error("the surface is closed (no boundary loop) and crown extraction is off; crop the crown to a disk-type surface, or set [clean] crown = \"auto\" to cut a whole tooth at its cervical margin (experimental)")]
+    #[error("the surface is closed (no boundary loop) and crown extraction is off; crop the crown to a disk-type surface, or set [clean] crown = \"auto\" to cut a whole tooth at its cervical margin")]
     Closed,
     /// A closed surface whose crown could not be cut.
     #[error(transparent)]

@@ -1,7 +1,9 @@
 //! `morphoid demo`: the whole loop on synthetic data in a temporary
-//! folder — a reference library, an export folder with new scans (one of
-//! them broken), identification through the same path the daemon takes,
-//! results in a real SQLite database. Needs no data and no configuration.
+//! folder — a reference library, an export folder with new scans as a
+//! scanner writes them (cropped crowns in four formats, a closed whole
+//! tooth, a folder of TIFF slices, and one broken file), identification
+//! through the same path the daemon takes, results in a real SQLite
+//! database. Needs no data and no configuration.
 
 use super::classify::summary;
 use super::common::{progress_bar, ConfigFile};
@@ -9,7 +11,8 @@ use anyhow::{Context, Result};
 use morphoid::classify::{self, Classifier};
 use morphoid::library::{Cache, Library};
 use morphoid::mesh::io;
-use morphoid::mesh::synth::{self, LibrarySpec, RigidMotion, CROWN_GENERA};
+use morphoid::mesh::synth::{self, LibrarySpec, RigidMotion, WholeToothParams, CROWN_GENERA};
+use morphoid::volume::synth::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
 use morphoid::store::Store;
 use std::path::Path;
 use std::process::ExitCode;
@@ -67,11 +70,35 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
         io::save(&path, &posed)?;
         expected.push((path, genus.name));
     }
-    let broken = export.join("scan06.ply");
+    // A closed whole tooth (crown, cervical neck, roots), as an isosurface
+    // export of a segmented tooth is: its crown is cut at the margin.
+    let genus = &CROWN_GENERA[1];
+    let crown = synth::crown(genus, 1010, 4000);
+    let whole = synth::whole_tooth(&crown, &WholeToothParams::default(), 1010)
+        .context("building the demo's whole tooth")?;
+    let path = export.join("scan06_whole_tooth.stl");
+    io::save(
+        &path,
+        &RigidMotion::random(1010, 20.0).apply(&whole.mesh),
+    )?;
+    expected.push((path, genus.name));
+    // A reconstructed slice stack of another whole tooth: 16-bit TIFF
+    // slices with a brighter enamel cap, blur and noise.
+    let genus = &CROWN_GENERA[3];
+    let crown = synth::crown(genus, 1020, 4000);
+    let whole = synth::whole_tooth(&crown, &WholeToothParams::default(), 1020)
+        .context("building the demo's slice stack")?;
+    let grid = phantom(&whole, &PhantomParams::default());
+    let path = export.join("scan07_slices");
+    write_volume(&grid, &path, SynthFormat::Tiff16, &StackSpec::default())
+        .with_context(|| format!("writing {}", path.display()))?;
+    expected.push((path, genus.name));
+
+    let broken = export.join("scan08.ply");
     let good = std::fs::read(&expected[0].0)?;
     std::fs::write(&broken, &good[..good.len() / 3])?;
     println!(
-        "export: {} scans (one of them cut short) in {}",
+        "export: {} scans (a closed whole tooth, a folder of slices, one file cut short) in {}",
         expected.len() + 1,
         export.display()
     );

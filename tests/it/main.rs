@@ -15,6 +15,7 @@ mod clean_teeth;
 mod clean_variants;
 mod cli_classify;
 mod cli_config;
+mod cli_demo;
 mod cli_cwn;
 mod cli_inspect;
 mod conformal_cleaned_teeth;

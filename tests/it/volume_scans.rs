@@ -41,7 +41,8 @@ fn write(grid: &Grid, path: &Path, format: SynthFormat) {
     write_volume(grid, path, format, &StackSpec::default()).unwrap();
 }
 
-/// The `[clean]` line that turns crown extraction on (off by default).
+/// The `[clean]` line that turns crown extraction on (the default; said
+/// here so that these tests do not depend on it).
 const AUTO_CROWN: &str = "crown = \"auto\"";
 
 fn classify_json(env: &Env, scan: &Path) -> serde_json::Value {

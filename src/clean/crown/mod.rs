@@ -41,18 +41,27 @@ use geometry::{area_weighted_axes, signed_volume6, Cylinder, SurfaceGeometry};
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum CrownMode {
-    /// Closed whole teeth are cut at the cervical margin.
-    Auto,
-    /// Closed surfaces are refused (the default while the extraction is
-    /// below its accuracy target on whole teeth built from real crowns:
-    /// a refused scan is better than a confident wrong answer).
+    /// Closed whole teeth are cut at the cervical margin (the default: a
+    /// scanner's isosurface export is closed). A cut that cannot be the
+    /// margin is refused, not used ([`MIN_CUT_HEIGHT`]).
     #[default]
+    Auto,
+    /// Closed surfaces are refused.
     Off,
 }
 
 /// The smallest mean turn (degrees) of the surface along the cut for it to
 /// count as the cervical margin.
 pub const MIN_CREASE_DEGREES: f64 = 15.0;
+
+/// The lowest the chosen cut may dip, as a fraction of the tooth's length
+/// from the apex: below the whole of its cervical margin a tooth has
+/// roots longer than this. A cut that dips lower ran round a wrong axis
+/// (on whole teeth built from the 116 PNAS crowns, the margin's lowest
+/// point lies at 0.55 or higher; the three cuts about a wrong axis dipped
+/// to 0.07–0.17, and no other loop found was the margin either), so the
+/// scan is refused rather than identified from a wrong crown.
+pub const MIN_CUT_HEIGHT: f64 = 0.3;
 
 /// The smallest share of the cut's length that must run along crease
 /// edges (turn ≥ 10°): the enamel edge runs all around the tooth.
@@ -94,6 +103,10 @@ pub struct CrownReport {
     /// Height range of the cut as a fraction of the crown's height above
     /// its lowest point (hand crops of real teeth: about 0.27).
     pub cut_variation: f64,
+    /// How clearly the cut is a cervical margin: the share of it on
+    /// crease less 0.1 × its rise and fall (what ranks the loops found
+    /// about the different axes; 0 to 1).
+    pub margin_merit: f64,
 }
 
 /// Why no crown could be cut from a closed surface.
@@ -559,6 +572,7 @@ fn judge(
         cut_height_mean: scale(cut_mean),
         cut_height_max: scale(cut_high),
         cut_variation: (cut_high - cut_low) / (crown_top - cut_low).max(f64::MIN_POSITIVE),
+        margin_merit: 0.0,
     })
 }
 
@@ -609,6 +623,12 @@ pub fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
             .unwrap_or_default();
         return Err(CrownError::NoCrown(reason));
     };
+    if best.report.cut_height_min < MIN_CUT_HEIGHT {
+        return Err(CrownError::NoCrown(format!(
+            "the best margin line found dips to {:.0} % of the tooth's length above the apex, where no cervical margin lies: the tooth's axis was not found",
+            100.0 * best.report.cut_height_min
+        )));
+    }
     let faces: Vec<[u32; 3]> = oriented
         .faces
         .iter()
@@ -622,7 +642,9 @@ pub fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
     if loops != 1 || euler != 1 {
         return Err(CrownError::NotDisk { loops, euler });
     }
+    let merit = best.merit();
     let mut report = best.report;
+    report.margin_merit = merit;
     report.removed_handles = (2 - euler_characteristic(mesh)) / 2;
     tracing::debug!(
         kept_area = report.kept_area,
