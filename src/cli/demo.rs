@@ -12,8 +12,8 @@ use morphoid::classify::{self, Classifier};
 use morphoid::library::{Cache, Library};
 use morphoid::mesh::io;
 use morphoid::mesh::synth::{self, LibrarySpec, RigidMotion, WholeToothParams, CROWN_GENERA};
-use morphoid::volume::synth::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
 use morphoid::store::Store;
+use morphoid::volume::synth::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
 use std::path::Path;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -77,10 +77,7 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     let whole = synth::whole_tooth(&crown, &WholeToothParams::default(), 1010)
         .context("building the demo's whole tooth")?;
     let path = export.join("scan06_whole_tooth.stl");
-    io::save(
-        &path,
-        &RigidMotion::random(1010, 20.0).apply(&whole.mesh),
-    )?;
+    io::save(&path, &RigidMotion::random(1010, 20.0).apply(&whole.mesh))?;
     expected.push((path, genus.name));
     // A reconstructed slice stack of another whole tooth: 16-bit TIFF
     // slices with a brighter enamel cap, blur and noise.
