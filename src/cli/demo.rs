@@ -70,22 +70,23 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
         io::save(&path, &posed)?;
         expected.push((path, genus.name));
     }
-    // A closed whole tooth (crown, cervical neck, roots), as an isosurface
-    // export of a segmented tooth is: its crown is cut at the margin.
+    // Whole teeth (crown, cervical neck, roots) below new crowns.
+    let whole_tooth = |genus: &synth::CrownGenus, seed: u64| {
+        let crown = synth::crown(genus, seed, 4000);
+        synth::whole_tooth(&crown, &WholeToothParams::default(), seed)
+            .with_context(|| format!("building a whole {} tooth", genus.name))
+    };
+    // A closed whole tooth, as an isosurface export of a segmented tooth
+    // is: its crown is cut at the margin.
     let genus = &CROWN_GENERA[1];
-    let crown = synth::crown(genus, 1010, 4000);
-    let whole = synth::whole_tooth(&crown, &WholeToothParams::default(), 1010)
-        .context("building the demo's whole tooth")?;
+    let whole = whole_tooth(genus, 1010)?;
     let path = export.join("scan06_whole_tooth.stl");
     io::save(&path, &RigidMotion::random(1010, 20.0).apply(&whole.mesh))?;
     expected.push((path, genus.name));
     // A reconstructed slice stack of another whole tooth: 16-bit TIFF
     // slices with a brighter enamel cap, blur and noise.
     let genus = &CROWN_GENERA[3];
-    let crown = synth::crown(genus, 1020, 4000);
-    let whole = synth::whole_tooth(&crown, &WholeToothParams::default(), 1020)
-        .context("building the demo's slice stack")?;
-    let grid = phantom(&whole, &PhantomParams::default());
+    let grid = phantom(&whole_tooth(genus, 1020)?, &PhantomParams::default());
     let path = export.join("scan07_slices");
     write_volume(&grid, &path, SynthFormat::Tiff16, &StackSpec::default())
         .with_context(|| format!("writing {}", path.display()))?;

@@ -137,23 +137,28 @@ pub struct ExtractedCrown {
 /// One axis tried and the crown it gives.
 struct Candidate {
     inside: Vec<bool>,
-    score: f64,
     report: CrownReport,
 }
 
 impl Candidate {
-    /// What ranks the loops found about the different axes: the share of
-    /// the loop on crease, less [`CREST_PENALTY`] per unit of the cut's
-    /// rise and fall relative to the crown's height. A cervical margin
-    /// runs round the tooth at much the same height; a loop round another
-    /// axis that follows the occlusal crests climbs over the crown, and on
-    /// a crenulated crown it can be as much on crease as the margin.
+    /// What ranks the loops found about the different axes (see
+    /// [`margin_merit`]), as the report carries it.
     fn merit(&self) -> f64 {
-        self.score - CREST_PENALTY * self.report.cut_variation
+        self.report.margin_merit
     }
 }
 
-/// Penalty on a cut's rise and fall in [`Candidate::merit`]: on whole teeth
+/// The merit of a loop whose share on crease is `score` and whose cut
+/// rises and falls by `cut_variation` of the crown's height: the share
+/// less [`CREST_PENALTY`] per unit of rise and fall. A cervical margin
+/// runs round the tooth at much the same height; a loop round another
+/// axis that follows the occlusal crests climbs over the crown, and on a
+/// crenulated crown it can be as much on crease as the margin.
+fn margin_merit(score: f64, cut_variation: f64) -> f64 {
+    score - CREST_PENALTY * cut_variation
+}
+
+/// Penalty on a cut's rise and fall in [`margin_merit`]: on whole teeth
 /// built from the 116 PNAS crowns, the margin's loop lost to a crest loop
 /// by less than 0.01 in score where the crest loop rose and fell by 0.3
 /// more (of the crown's height), and won by 0.03 where it rose and fell
@@ -398,14 +403,10 @@ fn crown_of_loop(
             continue;
         }
         match judge(mesh, geo, &cyl, &inside, (zmin, zmax)) {
-            Ok(report) => sides.push((
-                bulge,
-                Candidate {
-                    inside,
-                    score,
-                    report,
-                },
-            )),
+            Ok(mut report) => {
+                report.margin_merit = margin_merit(score, report.cut_variation);
+                sides.push((bulge, Candidate { inside, report }));
+            }
             Err(r) => reasons.push((score, r)),
         }
     }
@@ -581,6 +582,7 @@ fn judge(
         cut_height_mean: scale(cut_mean),
         cut_height_max: scale(cut_high),
         cut_variation: (cut_high - cut_low) / (crown_top - cut_low).max(f64::MIN_POSITIVE),
+        // Set by the caller, which knows the loop's share on crease.
         margin_merit: 0.0,
     })
 }
@@ -651,9 +653,7 @@ pub fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
     if loops != 1 || euler != 1 {
         return Err(CrownError::NotDisk { loops, euler });
     }
-    let merit = best.merit();
     let mut report = best.report;
-    report.margin_merit = merit;
     report.removed_handles = (2 - euler_characteristic(mesh)) / 2;
     tracing::debug!(
         kept_area = report.kept_area,
