@@ -59,7 +59,7 @@ fn main() {
         tooth.vertices.len(),
         100.0 * ob
     );
-    let cloud = morphoid::mesh::synth::transform::to_point_cloud(&tooth);
+    let cloud = morphoid::mesh::synth::to_point_cloud(&tooth);
     for (label, m) in [
         ("tooth", &tooth),
         ("16x denser", &dense),

@@ -17,7 +17,6 @@ use crate::library::{
     self, BuildOutcome, Cache, CacheError, CachedReference, Calibration, DistanceRow,
     LandmarkPoint, Library, ScanLandmarks, ScanOutcome,
 };
-use crate::mesh::io::{self, Format, LoadError};
 use crate::pipeline::{self, PipelineError, PreparedSurface, Settings};
 use crate::report::{Scene, SceneReference};
 use crate::store::{self, Job, ScanRecord, ScanStatus, Store, StoreError};
@@ -31,7 +30,7 @@ use std::time::Instant;
 pub const NEAREST: usize = store::DEFAULT_NEAREST;
 
 /// How many nearest references a report draws beside the scan.
-pub const REPORT_NEAREST: usize = 3;
+const REPORT_NEAREST: usize = 3;
 
 /// Why the pictures of a recorded scan cannot be drawn again.
 #[derive(Debug, thiserror::Error)]
@@ -296,7 +295,7 @@ impl Classifier {
     /// = false`): answers carry no confidence, and a library that is new
     /// to the cache starts without comparing its references with each
     /// other.
-    pub fn build_uncalibrated(
+    fn build_uncalibrated(
         library: &Library,
         cache: &Cache,
         settings: &Settings,
@@ -339,7 +338,7 @@ impl Classifier {
     /// then answers carry no confidence and are marked `calibrating`. A
     /// library of fewer than [`library::MIN_HELD`] references is left
     /// without calibration (`None`).
-    pub fn calibrate_later(mut self, cache: Option<Cache>) -> (Self, Option<PendingCalibration>) {
+    fn calibrate_later(mut self, cache: Option<Cache>) -> (Self, Option<PendingCalibration>) {
         if self.references.len() < library::MIN_HELD {
             self.calibration = Calibrated::Off;
             return (self, None);
@@ -378,12 +377,13 @@ impl Classifier {
     }
 
     /// Where the confidence model stands.
-    pub fn calibration_state(&self) -> CalibrationState {
+    #[cfg(test)]
+    fn calibration_state(&self) -> CalibrationState {
         self.calibration.state()
     }
 
-    /// A handle that follows [`calibration_state`](Self::calibration_state)
-    /// from elsewhere.
+    /// A handle that follows where the confidence model stands, from
+    /// elsewhere.
     pub fn calibration_probe(&self) -> CalibrationProbe {
         CalibrationProbe(self.calibration.clone())
     }
@@ -471,30 +471,6 @@ impl Classifier {
         Ok((outcome, surface))
     }
 
-    /// Identify a surface given as the bytes of the file `path`.
-    pub fn classify_bytes(&self, path: &Path, bytes: &[u8]) -> Result<ScanOutcome, ClassifyError> {
-        self.identify_bytes(path, bytes).map(|(outcome, _)| outcome)
-    }
-
-    /// [`classify_bytes`](Self::classify_bytes), with the prepared scan.
-    fn identify_bytes(
-        &self,
-        path: &Path,
-        bytes: &[u8],
-    ) -> Result<(ScanOutcome, PreparedSurface), ClassifyError> {
-        if self.references.is_empty() {
-            return Err(ClassifyError::EmptyLibrary);
-        }
-        let name = path
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let _span = tracing::info_span!("scan", scan = %name).entered();
-        let (surface, load_ms) = self.prepare_bytes(path, bytes)?;
-        let outcome = self.compare_prepared(&name, &surface, load_ms);
-        Ok((outcome, surface))
-    }
-
     /// What a report draws of the prepared scan `scan`: its
     /// [`REPORT_NEAREST`] nearest references (of `nearest`, nearest
     /// first; names the library no longer holds are skipped), each moved
@@ -558,40 +534,6 @@ impl Classifier {
             .map(|n| (n.reference.clone(), n.distance))
             .collect();
         Ok(self.scene(&surface, &nearest, record.landmarks.as_ref()))
-    }
-
-    /// Load, clean and prepare the surface given as the bytes of `path`;
-    /// also the milliseconds loading took.
-    fn prepare_bytes(
-        &self,
-        path: &Path,
-        bytes: &[u8],
-    ) -> Result<(PreparedSurface, f64), ClassifyError> {
-        let name = path
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let t = Instant::now();
-        let format = Format::from_path(path).ok_or_else(|| {
-            PipelineError::Load(LoadError::UnknownFormat {
-                path: path.to_path_buf(),
-            })
-        })?;
-        let loaded = io::load_bytes(bytes, format, path).map_err(PipelineError::from)?;
-        let load_ms = t.elapsed().as_secs_f64() * 1e3;
-        let surface = pipeline::prepare_mesh(&loaded.mesh, &name, &self.settings).map_err(|e| {
-            ClassifyError::Pipeline(match e {
-                pipeline::MeshError::Clean(source) => PipelineError::Clean {
-                    path: path.to_path_buf(),
-                    source,
-                },
-                pipeline::MeshError::Prepare(source) => PipelineError::Prepare {
-                    path: path.to_path_buf(),
-                    source,
-                },
-            })
-        })?;
-        Ok((surface, load_ms))
     }
 
     /// Compare a prepared scan named `name` with every reference and
@@ -719,19 +661,10 @@ pub enum Finding {
 }
 
 /// Identify the file of a claimed job (no database access): the outcome
-/// with its total time, or the message of why it cannot be identified.
-pub fn identify_job(classifier: &Classifier, job: &Job) -> Finding {
-    identify_job_with_scene(classifier, job, false).0
-}
-
-/// [`identify_job`], and with `scene` what its report draws (computed
-/// while the prepared scan is at hand; `None` when not asked for or not
-/// identified).
-pub fn identify_job_with_scene(
-    classifier: &Classifier,
-    job: &Job,
-    scene: bool,
-) -> (Finding, Option<Scene>) {
+/// with its total time, or the message of why it cannot be identified;
+/// with `scene`, also what its report draws (computed while the prepared
+/// scan is at hand; `None` when not asked for or not identified).
+pub fn identify_job(classifier: &Classifier, job: &Job, scene: bool) -> (Finding, Option<Scene>) {
     let started = Instant::now();
     match classifier.identify_path(Path::new(&job.path)) {
         Ok((mut outcome, surface)) => {
@@ -785,7 +718,7 @@ pub fn run_job(
     classifier: &Classifier,
     job: &Job,
 ) -> Result<ScanStatus, StoreError> {
-    let (finding, scene) = identify_job_with_scene(classifier, job, classifier.results.is_some());
+    let (finding, scene) = identify_job(classifier, job, classifier.results.is_some());
     let status = record_finding(store, job.scan_id, &finding)?;
     if let Some(files) = &classifier.results {
         match store.scan(job.scan_id, NEAREST) {
@@ -837,7 +770,7 @@ pub(crate) fn error_chain(e: &dyn std::error::Error) -> String {
 
 /// All result files of a recorded scan: the JSON (and landmarks), the
 /// report drawing `scene` (with `note` on the page), then the overview.
-pub fn write_result_files(
+fn write_result_files(
     store: &mut Store,
     files: &ResultFiles,
     record: &ScanRecord,

@@ -134,12 +134,12 @@ fn default_trigger() -> String {
 
 /// The standard rates `serial.baud` is checked against (others are
 /// usually typos).
-pub const STANDARD_BAUDS: [u32; 11] = [
+const STANDARD_BAUDS: [u32; 11] = [
     1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200, 230400, 460800, 921600,
 ];
 
 /// Whether `baud` is a standard rate.
-pub fn is_standard_baud(baud: u32) -> bool {
+fn is_standard_baud(baud: u32) -> bool {
     STANDARD_BAUDS.contains(&baud)
 }
 

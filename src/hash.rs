@@ -49,7 +49,7 @@ pub fn content_hash_file(path: &Path) -> std::io::Result<(String, u64)> {
 /// streamed file by file. Returns the hash and the total bytes of the
 /// slices. The same slices under another folder name hash the same; a
 /// renamed, changed, added or removed slice changes the hash.
-pub fn content_hash_folder(dir: &Path) -> std::io::Result<(String, u64)> {
+fn content_hash_folder(dir: &Path) -> std::io::Result<(String, u64)> {
     let mut hasher = Sha256::new();
     // Keeps a folder's hash apart from any file whose bytes happen to
     // spell the same stream.

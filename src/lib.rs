@@ -3,6 +3,7 @@
 //!
 //! The library is layered; each layer only uses the ones above it:
 //! - [`hash`], [`atomic_write`]: content hashes and atomic file replacement;
+//! - [`stats`]: order statistics over plain numbers;
 //! - [`mesh`]: the triangle-mesh type, file formats, synthetic surfaces;
 //! - [`clean`]: turn a raw scan into a clean disk-type surface;
 //! - [`conformal`]: normalization and conformal flattening to the unit disk;
@@ -44,5 +45,6 @@ pub mod library;
 pub mod mesh;
 pub mod pipeline;
 pub mod report;
+pub mod stats;
 pub mod store;
 pub mod volume;

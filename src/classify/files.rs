@@ -96,7 +96,7 @@ impl ResultFiles {
     }
 
     /// The overview page, `index.html` in the folder.
-    pub fn index_path(&self) -> PathBuf {
+    fn index_path(&self) -> PathBuf {
         self.dir.join("index.html")
     }
 

@@ -6,7 +6,7 @@ use rustc_hash::FxHashMap as HashMap;
 
 /// The closest point of `p` on the triangle `abc` (Ericson, Real-Time
 /// Collision Detection, 5.1.5: Voronoi regions of the vertices and edges).
-pub fn closest_point_on_triangle(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
+fn closest_point_on_triangle(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
     let ab = sub(b, a);
     let ac = sub(c, a);
     let ap = sub(p, a);

@@ -221,7 +221,7 @@ fn slabs(mesh: &Mesh, count: usize) -> Option<Vec<u16>> {
 /// boundary; decimated vertices are a subset of the input vertices, so the
 /// result stays on the input surface. The face target is corrected a few
 /// times from the vertex count obtained; the closest result is kept.
-pub fn decimate_to_vertex_count(mesh: &Mesh, target_vertices: usize) -> Mesh {
+fn decimate_to_vertex_count(mesh: &Mesh, target_vertices: usize) -> Mesh {
     let positions = separated_positions(mesh);
     let indices: Vec<u32> = mesh.faces.iter().flatten().copied().collect();
     let mut target_faces = (2 * target_vertices).max(1) as f64;
@@ -270,7 +270,7 @@ fn angle_at(p: [f64; 3], q: [f64; 3], r: [f64; 3]) -> f64 {
 /// vertices keep at least three edges. A face with an angle over 150° at
 /// the edge (a cap) is flipped whatever the dihedral angle. Returns the mesh
 /// and the flip count.
-pub fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
+fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
     let ef = edge_face_map(mesh);
     let mut faces = mesh.faces.clone();
     let mut e2f: HashMap<EdgeKey, [u32; 2]> =
@@ -408,7 +408,7 @@ impl SurfaceReference {
     }
 
     /// Closest point of the boundary (`p` itself when there is none).
-    pub fn closest_boundary_point(&self, p: [f64; 3]) -> [f64; 3] {
+    fn closest_boundary_point(&self, p: [f64; 3]) -> [f64; 3] {
         let mut best = (f64::INFINITY, p);
         for &[a, b] in &self.boundary {
             let ab = sub(b, a);
@@ -438,7 +438,7 @@ impl SurfaceReference {
 /// more than 60° it stays (corners are kept). A move that would turn an
 /// incident triangle over (or shrink it below a tenth of its area) is
 /// dropped. Jacobi update: the result does not depend on vertex order.
-pub fn relax_tangential(mesh: &Mesh, reference: &SurfaceReference, lambda: f64) -> Mesh {
+fn relax_tangential(mesh: &Mesh, reference: &SurfaceReference, lambda: f64) -> Mesh {
     let n = mesh.vertices.len();
     let v = &mesh.vertices;
     // Boundary neighbours (u32::MAX = none); a third one marks a pinch.
@@ -550,7 +550,7 @@ pub fn resample_to_vertex_count(mesh: &Mesh, target_vertices: usize) -> Mesh {
 ///   tip vertex goes with it.
 ///
 /// Returns the mesh and the number of faces removed.
-pub fn remove_boundary_caps(mesh: &Mesh) -> (Mesh, usize) {
+fn remove_boundary_caps(mesh: &Mesh) -> (Mesh, usize) {
     let mut m = mesh.clone();
     let mut total = 0;
     for _ in 0..3 {

@@ -29,7 +29,7 @@ use crate::landmarks::{self, Landmarks, PropagateError, Surface};
 use rayon::prelude::*;
 
 /// Each specimen's image of every template vertex.
-pub type VertexImages = Vec<Vec<[f64; 3]>>;
+type VertexImages = Vec<Vec<[f64; 3]>>;
 
 /// Settings of the synchronization.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

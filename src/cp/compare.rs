@@ -50,7 +50,7 @@ pub fn compare(s: &Prepared, t: &Prepared, params: &CompareParams) -> Comparison
 mod tests {
     use super::*;
     use crate::cp::{prepare, PrepareParams};
-    use crate::mesh::synth::{self, transform, CROWN_GENERA};
+    use crate::mesh::synth::{self, CROWN_GENERA};
 
     fn prepared(m: &crate::mesh::Mesh) -> Prepared {
         prepare(m, &PrepareParams::default()).expect("prepare")
@@ -61,10 +61,10 @@ mod tests {
         let params = CompareParams::default();
         let m = synth::crown(&CROWN_GENERA[1], 3, 1500);
         let a = prepared(&m);
-        let moved = prepared(&transform::scale(&transform::rigid_motion(&m, 5), 2.5));
+        let moved = prepared(&synth::scale(&synth::rigid_motion(&m, 5), 2.5));
         let c = compare(&a, &moved, &params);
         assert!(c.distance < 1e-3 && !c.reflected, "{}", c.distance);
-        let mirrored = prepared(&transform::mirror(&m));
+        let mirrored = prepared(&synth::mirror(&m));
         let c = compare(&a, &mirrored, &params);
         assert!(c.distance < 1e-3 && c.reflected, "{}", c.distance);
         let without = CompareParams {

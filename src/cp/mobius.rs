@@ -131,11 +131,6 @@ impl Mobius {
     pub fn reverses_orientation(&self) -> bool {
         self.reflect
     }
-
-    /// The image of the origin.
-    pub fn image_of_origin(&self) -> [f64; 2] {
-        self.apply([0.0, 0.0])
-    }
 }
 
 #[cfg(test)]

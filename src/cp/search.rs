@@ -420,7 +420,7 @@ pub fn search_directed(s: &Prepared, t: &Prepared, params: &CompareParams) -> Di
 mod tests {
     use super::*;
     use crate::cp::{prepare, PrepareParams};
-    use crate::mesh::synth::{self, transform, CROWN_GENERA};
+    use crate::mesh::synth::{self, CROWN_GENERA};
 
     use crate::cp::test_crown as crown;
 
@@ -487,7 +487,7 @@ mod tests {
     fn a_surface_and_its_moved_copy_are_found_to_match() {
         let m = synth::crown(&CROWN_GENERA[2], 4, 1500);
         let s = prepare(&m, &PrepareParams::default()).expect("prepare");
-        let moved = transform::rigid_motion(&m, 3);
+        let moved = synth::rigid_motion(&m, 3);
         let t = prepare(&moved, &PrepareParams::default()).expect("prepare");
         let d = search_directed(&s, &t, &CompareParams::default());
         assert!(d.distance < 1e-3, "{}", d.distance);

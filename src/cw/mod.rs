@@ -293,7 +293,7 @@ pub fn distance_matrix(
 mod tests {
     use super::*;
     use crate::cp::PrepareParams;
-    use crate::mesh::synth::{self, transform, CROWN_GENERA};
+    use crate::mesh::synth::{self, CROWN_GENERA};
 
     fn crown(
         genus: usize,
@@ -340,7 +340,7 @@ mod tests {
     #[test]
     fn a_mirror_image_matches_through_a_reflection_only_when_reflections_are_on() {
         let a = crown(0, 1, |m| m);
-        let b = crown(0, 1, |m| transform::mirror(&m));
+        let b = crown(0, 1, |m| synth::mirror(&m));
         let other = crown(2, 9, |m| m);
         let apart = distance(&a, &other, &CwParams::default()).unwrap().distance;
         let with = distance(&a, &b, &CwParams::default()).unwrap();

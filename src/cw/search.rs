@@ -59,7 +59,7 @@ pub fn exact_transport(
 }
 
 /// The entropic transport cost between `a` moved by `m` and `b`.
-pub fn screened_cost(a: &DiskMeasure, b: &DiskMeasure, m: &Mobius, params: &CwParams) -> f64 {
+fn screened_cost(a: &DiskMeasure, b: &DiskMeasure, m: &Mobius, params: &CwParams) -> f64 {
     let cost = cost_matrix(&a.moved(m), &b.points, params.cap);
     entropic_transport_cost(
         &a.masses,

@@ -216,9 +216,7 @@ mod tests {
         let params = CwnParams::default();
         let a = prepare(&prepared(0, 1, |m| m), &params).unwrap();
         let moved = prepare(
-            &prepared(0, 1, |m| {
-                synth::transform::scale(&synth::transform::rigid_motion(&m, 5), 3.7)
-            }),
+            &prepared(0, 1, |m| synth::scale(&synth::rigid_motion(&m, 5), 3.7)),
             &params,
         )
         .unwrap();
@@ -259,7 +257,7 @@ mod tests {
     fn mirror_images_match_through_reflections() {
         let params = CwnParams::default();
         let a = prepare(&prepared(0, 1, |m| m), &params).unwrap();
-        let b = prepare(&prepared(0, 1, |m| synth::transform::mirror(&m)), &params).unwrap();
+        let b = prepare(&prepared(0, 1, |m| synth::mirror(&m)), &params).unwrap();
         let with = distance(&a, &b, &params).unwrap();
         let without = distance(
             &a,

@@ -3,7 +3,7 @@
 //! only, so `*.part` skips `a/b/x.part`.
 
 /// Whether `name` matches the glob `pattern`.
-pub fn glob_match(pattern: &str, name: &str) -> bool {
+fn glob_match(pattern: &str, name: &str) -> bool {
     let p: Vec<char> = pattern.chars().collect();
     let n: Vec<char> = name.chars().collect();
     // Iterative matcher with one backtrack point for the last `*`.

@@ -73,7 +73,7 @@ impl Filter {
     /// Whether `dir` is a folder that may hold a slice stack: below the
     /// export folder (directly, unless recursive), not ignored, not the
     /// quarantine folder or inside it.
-    pub fn is_candidate_folder(&self, dir: &Path) -> bool {
+    fn is_candidate_folder(&self, dir: &Path) -> bool {
         if dir == self.dir.as_path() || !dir.starts_with(&self.dir) {
             return false;
         }
@@ -175,7 +175,7 @@ fn is_scan_file(path: &Path) -> bool {
 /// under `dir`, recursively if asked, with its stamp; `skip` (the
 /// quarantine folder) is not entered. Other files (the scanner's logs,
 /// reports, images) are left alone rather than recorded as errors.
-pub fn list_candidates(
+fn list_candidates(
     dir: &Path,
     recursive: bool,
     ignore: &[String],

@@ -53,11 +53,11 @@ use worker::{Setup, Worker};
 
 /// A job running longer than this is taken as hung: watchdog pings stop,
 /// so systemd restarts the daemon (and [`MAX_ATTEMPTS`] ends the loop).
-pub const JOB_HANG_LIMIT: Duration = Duration::from_secs(30 * 60);
+const JOB_HANG_LIMIT: Duration = Duration::from_secs(30 * 60);
 /// How long a stop waits for the current job before abandoning it, unless
 /// `$MORPHOID_STOP_GRACE` (seconds, at most 60) says otherwise. systemd's
 /// `TimeoutStopSec=` must be longer.
-pub const STOP_GRACE: Duration = Duration::from_secs(7);
+const STOP_GRACE: Duration = Duration::from_secs(7);
 /// How often the STATUS line is recomputed (sent only when it changes).
 const STATUS_INTERVAL: Duration = Duration::from_secs(2);
 
@@ -72,7 +72,7 @@ fn stop_grace() -> Duration {
 }
 
 /// Any error a [`Loader`] reports, with its chain of causes.
-pub type BoxError = Box<dyn std::error::Error + Send + Sync + 'static>;
+type BoxError = Box<dyn std::error::Error + Send + Sync + 'static>;
 
 /// Why a [`Loader`] could not load the configuration or the library.
 #[derive(Debug, thiserror::Error)]

@@ -18,7 +18,7 @@ pub const BACKOFF_MAX: Duration = Duration::from_secs(30);
 /// How long one read waits for input before the stop flag is checked.
 const READ_TIMEOUT: Duration = Duration::from_millis(200);
 /// The next retry delay: doubled, capped at [`BACKOFF_MAX`].
-pub fn next_backoff(current: Duration) -> Duration {
+fn next_backoff(current: Duration) -> Duration {
     (current * 2).min(BACKOFF_MAX)
 }
 
@@ -64,7 +64,7 @@ enum LineError {
 
 /// Splits received bytes into trimmed, non-empty lines (CR, LF or CRLF).
 #[derive(Debug, Default)]
-pub struct LineSplitter {
+struct LineSplitter {
     pending: Vec<u8>,
 }
 

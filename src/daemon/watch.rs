@@ -24,13 +24,13 @@ use tokio::sync::mpsc::{self, UnboundedReceiver, UnboundedSender};
 pub const POLL_INTERVAL: Duration = Duration::from_millis(250);
 /// How often a polled folder is listed when nothing is settling (a large
 /// folder costs one `stat` per file per listing).
-pub const IDLE_POLL_INTERVAL: Duration = Duration::from_secs(1);
+const IDLE_POLL_INTERVAL: Duration = Duration::from_secs(1);
 /// How often the whole folder is listed even when the watcher works.
 pub const RESCAN_INTERVAL: Duration = Duration::from_secs(30);
 
 /// The environment variable that forces polling (`MORPHOID_WATCH=poll`),
 /// for folders where change events are unreliable (some network mounts).
-pub const WATCH_MODE_VAR: &str = "MORPHOID_WATCH";
+const WATCH_MODE_VAR: &str = "MORPHOID_WATCH";
 
 /// What a batch of watcher events asks for.
 #[derive(Debug, Default)]
@@ -119,7 +119,7 @@ impl FolderWatch {
     }
 
     /// Whether the folder is being polled rather than watched.
-    pub fn is_polling(&self) -> bool {
+    fn is_polling(&self) -> bool {
         matches!(self.mode, Mode::Polling { .. })
     }
 

@@ -276,11 +276,8 @@ impl WorkerState {
         self.progress.started_ms.store(now_ms(), Ordering::SeqCst);
         self.progress.current.store(job.scan_id, Ordering::SeqCst);
         let started = Instant::now();
-        let (finding, scene) = classify::identify_job_with_scene(
-            &self.setup.classifier,
-            &job,
-            self.setup.files.is_some(),
-        );
+        let (finding, scene) =
+            classify::identify_job(&self.setup.classifier, &job, self.setup.files.is_some());
         if let Some(scene) = scene {
             self.scenes.insert(job.scan_id, scene);
             while self.scenes.len() > SCENES_KEPT {

@@ -174,7 +174,7 @@ impl ShardFile {
     /// The file text: three comment lines (`# morphoid matrix shard K/N`,
     /// `# content: …`, `# names: …`), the header
     /// `a,b,distance,forward,backward`, one line per pair.
-    pub fn to_text(&self) -> String {
+    fn to_text(&self) -> String {
         let content: Vec<&str> = (0..self.names.len())
             .map(|k| self.content.get(k).and_then(Option::as_deref).unwrap_or(""))
             .collect();

@@ -81,11 +81,6 @@ impl Landmarks {
         &self.points
     }
 
-    /// The positions, to move them in place (the number stays).
-    pub fn points_mut(&mut self) -> &mut [[f64; 3]] {
-        &mut self.points
-    }
-
     /// One optional label per point.
     pub fn labels(&self) -> &[Option<String>] {
         &self.labels
@@ -153,7 +148,7 @@ impl Format {
 
     /// The format of a file from its extension and, for `.txt`, its text:
     /// morphologika when it starts with a `[section]`, else CSV.
-    pub fn from_path_and_text(path: &Path, text: &str) -> Option<Format> {
+    fn from_path_and_text(path: &Path, text: &str) -> Option<Format> {
         let fmt = Format::from_path(path)?;
         let txt = path
             .extension()

@@ -161,7 +161,7 @@ fn interpolate(t: &[[f64; 3]; 3], b: [f64; 3]) -> [f64; 3] {
 /// Barycentric coordinates of `p` (a point of the triangle's plane, or its
 /// projection onto it) in the triangle `abc`, clamped to the triangle; a
 /// degenerate triangle gives its first corner.
-pub fn barycentric_coordinates(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
+fn barycentric_coordinates(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
     let (e0, e1, ep) = (sub(b, a), sub(c, a), sub(p, a));
     let (d00, d01, d11) = (dot(e0, e0), dot(e0, e1), dot(e1, e1));
     let (d20, d21) = (dot(ep, e0), dot(ep, e1));

@@ -139,7 +139,7 @@ pub struct Cache {
 /// The cache folder when none is configured: systemd's
 /// `$CACHE_DIRECTORY`, else `$XDG_CACHE_HOME/morphoid`, else
 /// `~/.cache/morphoid`, else `.morphoid-cache` in the working folder.
-pub fn default_cache_root() -> PathBuf {
+fn default_cache_root() -> PathBuf {
     std::env::var_os("CACHE_DIRECTORY")
         .map(PathBuf::from)
         .or_else(|| std::env::var_os("XDG_CACHE_HOME").map(|d| Path::new(&d).join("morphoid")))

@@ -19,9 +19,9 @@ mod matrix;
 pub use cache::{Cache, CacheError, CachedReference};
 pub use calibration::{
     calibration_pairs, expected_calibration_error, fit_logistic, novelty_score,
-    reference_distances, reliability, roc_auc, share_caught_at, upper_median, Calibration,
-    DistancesError, Logistic, RankCalibration, ReferenceDistances, ReliabilityBin,
-    CALIBRATION_SAMPLE, FALSE_FLAG_RATE, MIN_HELD, MIN_PRESENT,
+    reference_distances, reliability, roc_auc, share_caught_at, Calibration, DistancesError,
+    Logistic, RankCalibration, ReferenceDistances, ReliabilityBin, CALIBRATION_SAMPLE,
+    FALSE_FLAG_RATE, MIN_HELD, MIN_PRESENT,
 };
 pub use identify::{
     identify, Confidence, DistanceRow, Identification, LandmarkPoint, Nearest, RankResult,

@@ -442,7 +442,7 @@ fn cleaning(h: &mut String, report: &serde_json::Value) {
 }
 
 /// `(dotted key, text)` of each scalar in `value`.
-pub fn flatten_json(prefix: &str, value: &serde_json::Value, out: &mut Vec<(String, String)>) {
+fn flatten_json(prefix: &str, value: &serde_json::Value, out: &mut Vec<(String, String)>) {
     let key = |k: &str| {
         if prefix.is_empty() {
             k.to_string()

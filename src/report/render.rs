@@ -52,7 +52,8 @@ pub struct Image {
 
 impl Image {
     /// Number of pixels something was drawn on (alpha not zero).
-    pub fn covered_pixels(&self) -> usize {
+    #[cfg(test)]
+    fn covered_pixels(&self) -> usize {
         self.rgba.chunks_exact(4).filter(|p| p[3] != 0).count()
     }
 }

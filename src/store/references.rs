@@ -76,10 +76,7 @@ impl Store {
             ),
             params![name, now_ms()],
         )?;
-        if n == 0 {
-            return Err(StoreError::UnknownReference(name.to_string()));
-        }
-        Ok(())
+        one_reference_updated(n, name)
     }
 
     /// Mark the current version of `name` failed, with the reason.
@@ -90,10 +87,7 @@ impl Store {
             ),
             params![name, message],
         )?;
-        if n == 0 {
-            return Err(StoreError::UnknownReference(name.to_string()));
-        }
-        Ok(())
+        one_reference_updated(n, name)
     }
 
     /// Mark every current reference whose name is not in `keep` removed
@@ -153,4 +147,13 @@ fn reference_from_row(r: &Row<'_>) -> Result<ReferenceRecord, StoreError> {
         added_at_ms: r.get("added_at")?,
         prepared_at_ms: r.get("prepared_at")?,
     })
+}
+
+/// An update of the current version of `name` that changed `n` rows:
+/// none means the store has no such reference.
+fn one_reference_updated(n: usize, name: &str) -> Result<(), StoreError> {
+    if n == 0 {
+        return Err(StoreError::UnknownReference(name.to_string()));
+    }
+    Ok(())
 }

@@ -186,7 +186,7 @@ fn open(path: &Path) -> Result<Box<dyn SliceSource>, VolumeError> {
 }
 
 /// Read the volume at `path` slice by slice into the working grid.
-pub fn read_working_grid(
+fn read_working_grid(
     path: &Path,
     opts: &VolumeOptions,
 ) -> Result<(Grid, VolumeInfo, usize), VolumeError> {
@@ -220,7 +220,7 @@ pub fn read_working_grid(
 
 /// Why a working grid gave no surface (the caller names the file).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum SegmentError {
+enum SegmentError {
     /// Every sample has the same value.
     #[error("the volume is uniform (all background): no specimen to segment")]
     Uniform,
@@ -241,7 +241,7 @@ pub enum SegmentError {
 
 /// The surface of the specimen in `grid` (see the module documentation),
 /// with the thresholds and what segmentation and the crown cut did.
-pub fn surface_from_grid(
+fn surface_from_grid(
     grid: &Grid,
     opts: &VolumeOptions,
 ) -> Result<(Mesh, Thresholds, SegmentReport, GridSurfaceReport), SegmentError> {
@@ -346,7 +346,7 @@ fn interior_samples(mask: &[bool], dims: [usize; 3], depth: usize) -> Vec<usize>
 
 /// What [`surface_from_grid`] measured.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct GridSurfaceReport {
+struct GridSurfaceReport {
     /// Triangles of the closed isosurface.
     pub isosurface_faces: usize,
     /// Its area.

@@ -31,7 +31,7 @@ impl Histogram {
     }
 
     /// Whether all values were equal (no threshold separates anything).
-    pub fn is_flat(&self) -> bool {
+    fn is_flat(&self) -> bool {
         self.counts.iter().filter(|&&c| c > 0).count() < 2
     }
 }

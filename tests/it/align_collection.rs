@@ -61,9 +61,34 @@ fn round_trip(
         / diag
 }
 
-/// Mean cycle error (% of the diagonal) over `triples` of the consistent
-/// maps of `al` (through the template), starting from every fourth
-/// pseudolandmark of `start`'s alignment.
+/// Mean cycle error (% of the diagonal) over `triples`, starting from
+/// every fourth pseudolandmark of `start`'s alignment, with `carry(x, y,
+/// points)` moving points from specimen `x` to specimen `y`.
+fn mean_cycle_error(
+    surfaces: &[Surface],
+    start: &Alignment,
+    triples: &[[usize; 3]],
+    carry: impl Fn(usize, usize, &[[f64; 3]]) -> Vec<[f64; 3]> + Sync,
+) -> f64 {
+    let per: Vec<f64> = triples
+        .par_iter()
+        .map(|&[a, b, c]| {
+            let cycle = [a, b, c, a];
+            let points: Vec<[f64; 3]> = start.pseudolandmarks[a]
+                .iter()
+                .step_by(4)
+                .copied()
+                .collect();
+            round_trip(&points, &surfaces[a], |k, p| {
+                carry(cycle[k], cycle[k + 1], p)
+            })
+        })
+        .collect();
+    per.iter().sum::<f64>() / per.len() as f64
+}
+
+/// [`mean_cycle_error`] of the consistent maps of `al` (through the
+/// template).
 fn consistent_cycle_error(
     al: &Alignment,
     surfaces: &[Surface],
@@ -75,36 +100,22 @@ fn consistent_cycle_error(
         .iter()
         .map(|im| collection::template_on(im, &al.template_faces).unwrap())
         .collect();
-    let per: Vec<f64> = triples
-        .par_iter()
-        .map(|&[a, b, c]| {
-            let cycle = [a, b, c, a];
-            let points: Vec<[f64; 3]> = start.pseudolandmarks[a]
-                .iter()
-                .step_by(4)
-                .copied()
-                .collect();
-            round_trip(&points, &surfaces[a], |k, p| {
-                let (x, y) = (cycle[k], cycle[k + 1]);
-                p.iter()
-                    .map(|&q| {
-                        collection::transfer_through_template(
-                            q,
-                            &on[x],
-                            &al.template_images[y],
-                            &surfaces[y],
-                        )
-                        .unwrap()
-                    })
-                    .collect()
+    mean_cycle_error(surfaces, start, triples, |x, y, p| {
+        p.iter()
+            .map(|&q| {
+                collection::transfer_through_template(
+                    q,
+                    &on[x],
+                    &al.template_images[y],
+                    &surfaces[y],
+                )
+                .unwrap()
             })
-        })
-        .collect();
-    per.iter().sum::<f64>() / per.len() as f64
+            .collect()
+    })
 }
 
-/// Mean cycle error (% of the diagonal) over `triples` of the pairwise cP
-/// maps, from the same points as [`consistent_cycle_error`].
+/// [`mean_cycle_error`] of the pairwise cP maps.
 fn pairwise_cycle_error(
     prepared: &[Prepared],
     surfaces: &[Surface],
@@ -112,34 +123,22 @@ fn pairwise_cycle_error(
     triples: &[[usize; 3]],
 ) -> f64 {
     let params = cp::CompareParams::default();
-    let per: Vec<f64> = triples
-        .par_iter()
-        .map(|&[a, b, c]| {
-            let cycle = [a, b, c, a];
-            let points: Vec<[f64; 3]> = start.pseudolandmarks[a]
-                .iter()
-                .step_by(4)
-                .copied()
-                .collect();
-            round_trip(&points, &surfaces[a], |k, p| {
-                let (x, y) = (cycle[k], cycle[k + 1]);
-                let map = cp::compare_directed(&prepared[x], &prepared[y], &params);
-                landmarks::propagate(
-                    &Landmarks::from_points(p.to_vec()),
-                    &surfaces[x],
-                    &surfaces[y],
-                    &map.correspondence,
-                )
-                .unwrap()
-                .landmarks
-                .points()
-                .to_vec()
-            })
-        })
-        .collect();
-    per.iter().sum::<f64>() / per.len() as f64
+    mean_cycle_error(surfaces, start, triples, |x, y, p| {
+        let map = cp::compare_directed(&prepared[x], &prepared[y], &params);
+        landmarks::propagate(
+            &Landmarks::from_points(p.to_vec()),
+            &surfaces[x],
+            &surfaces[y],
+            &map.correspondence,
+        )
+        .unwrap()
+        .landmarks
+        .points()
+        .to_vec()
+    })
 }
 
+/// The normalized surface of each prepared specimen, to carry points on.
 fn surfaces_of(prepared: &[Prepared]) -> Vec<Surface> {
     prepared
         .iter()

@@ -2,7 +2,7 @@
 
 use crate::support::clean::mean_max_distance;
 use morphoid::clean::{clean, CleanError, CleanOptions};
-use morphoid::mesh::synth::{self, transform};
+use morphoid::mesh::synth;
 use morphoid::mesh::{bbox_diagonal, boundary_loops, edge_face_map, euler_characteristic, Mesh};
 
 fn crown(n: usize) -> Mesh {
@@ -44,7 +44,7 @@ fn assert_disk_on(m: &Mesh, original: &Mesh, target: usize) {
 fn sphere_is_rejected_as_closed() {
     // With crown extraction off, the sphere is refused for being closed,
     // with what to do; with it on (the default), no tooth crown is found.
-    let sphere = transform::closed_sphere(642);
+    let sphere = synth::closed_sphere(642);
     let off = CleanOptions {
         crown: morphoid::clean::CrownMode::Off,
         ..CleanOptions::default()
@@ -132,12 +132,8 @@ fn crown_with_defects_cleans_to_a_disk() {
     assert!(!clean_base.report.reversed_orientation);
 
     // Soup + debris + some reversed faces + a hole.
-    let holed = transform::punch_hole(&base, base.vertices[base.vertices.len() / 3], 0.08);
-    let soup = transform::triangle_soup(&transform::add_debris(
-        &transform::flip_faces(&holed, 0.3, 3),
-        3,
-        5,
-    ));
+    let holed = synth::punch_hole(&base, base.vertices[base.vertices.len() / 3], 0.08);
+    let soup = synth::triangle_soup(&synth::add_debris(&synth::flip_faces(&holed, 0.3, 3), 3, 5));
     let c = clean(&soup, &opts).expect("clean soup");
     assert_disk_on(&c.mesh, &base, 5000);
     assert!(c.report.welded_vertices > 2 * base.vertices.len());
@@ -147,11 +143,11 @@ fn crown_with_defects_cleans_to_a_disk() {
     assert!(vector_area(&c.mesh)[2] > 0.0);
 
     // Fully reversed and mirrored copies come out outward again.
-    let rev = transform::flip_faces(&base, 1.0, 1);
+    let rev = synth::flip_faces(&base, 1.0, 1);
     let c = clean(&rev, &opts).expect("reversed");
     assert!(c.report.reversed_orientation);
     assert!(vector_area(&c.mesh)[2] > 0.0);
-    let c = clean(&transform::mirror(&base), &opts).expect("mirrored");
+    let c = clean(&synth::mirror(&base), &opts).expect("mirrored");
     assert!(vector_area(&c.mesh)[2] > 0.0);
 }
 
@@ -167,7 +163,7 @@ fn coarse_dense_and_cloud_crowns_reach_the_target() {
     assert_disk_on(&c.mesh, &dense, 5000);
 
     let base = crown(5000);
-    let c = clean(&transform::to_point_cloud(&base), &opts).expect("cloud");
+    let c = clean(&synth::to_point_cloud(&base), &opts).expect("cloud");
     assert!(c.report.triangulated_point_cloud);
     assert_disk_on(&c.mesh, &base, 5000);
     assert!(vector_area(&c.mesh)[2] > 0.0);
@@ -183,7 +179,7 @@ fn coarse_dense_and_cloud_crowns_reach_the_target() {
 #[test]
 fn flat_disk_keeps_its_orientation() {
     let disk = synth::unit_disk(4000);
-    for m in [disk.clone(), transform::flip_faces(&disk, 1.0, 1)] {
+    for m in [disk.clone(), synth::flip_faces(&disk, 1.0, 1)] {
         let up = vector_area(&m)[2] > 0.0;
         let c = clean(&m, &CleanOptions::default()).expect("disk");
         assert!(!c.report.reversed_orientation);
@@ -194,12 +190,12 @@ fn flat_disk_keeps_its_orientation() {
 
 #[test]
 fn cleaning_is_deterministic() {
-    let m = transform::flip_faces(&crown(12000), 0.2, 9);
+    let m = synth::flip_faces(&crown(12000), 0.2, 9);
     let a = clean(&m, &CleanOptions::default()).expect("a");
     let b = clean(&m, &CleanOptions::default()).expect("b");
     assert_eq!(a.mesh, b.mesh);
     assert_eq!(a.report, b.report);
-    let cloud = transform::to_point_cloud(&crown(5000));
+    let cloud = synth::to_point_cloud(&crown(5000));
     let a = clean(&cloud, &CleanOptions::default()).expect("a");
     let b = clean(&cloud, &CleanOptions::default()).expect("b");
     assert_eq!(a.mesh, b.mesh);

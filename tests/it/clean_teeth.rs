@@ -100,7 +100,7 @@ fn every_third_tooth_as_a_point_cloud_cleans_to_a_disk_covering_the_tooth() {
         .par_iter()
         .step_by(3)
         .map(|(name, mesh)| {
-            let cloud = morphoid::mesh::synth::transform::to_point_cloud(mesh);
+            let cloud = morphoid::mesh::synth::to_point_cloud(mesh);
             let c = clean(&cloud, &opts).unwrap_or_else(|e| panic!("{name}: {e}"));
             assert_eq!(boundary_loops(&c.mesh).len(), 1, "{name}");
             assert_eq!(euler_characteristic(&c.mesh), 1, "{name}");

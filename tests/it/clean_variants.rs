@@ -3,7 +3,7 @@
 
 use crate::support::clean::*;
 use morphoid::clean::{clean, CleanOptions, Cleaned};
-use morphoid::mesh::synth::transform;
+use morphoid::mesh::synth;
 use morphoid::mesh::{bbox_diagonal, boundary_loops, euler_characteristic, surface_area, Mesh};
 
 fn tooth() -> Option<Mesh> {
@@ -36,7 +36,7 @@ fn stl_soup_with_debris_cleans_back() {
     let Some(t) = tooth() else {
         return;
     };
-    let soup = transform::triangle_soup(&transform::add_debris(&t, 3, 11));
+    let soup = synth::triangle_soup(&synth::add_debris(&t, 3, 11));
     let dir = tempfile::tempdir().expect("temp dir");
     let path = dir.path().join("soup.stl");
     morphoid::mesh::io::write_stl(&path, &soup).expect("write stl");
@@ -68,7 +68,7 @@ fn mirrored_flipped_cloud_and_dense_variants_clean_back() {
     let base = clean(&t, &opts).expect("clean tooth");
     check("original", &base, &t);
 
-    let mirrored = transform::mirror(&t);
+    let mirrored = synth::mirror(&t);
     let c = clean(&mirrored, &opts).expect("mirror");
     check("mirrored", &c, &mirrored);
     // Mirroring commutes with cleaning's choice of the outward side.
@@ -77,20 +77,20 @@ fn mirrored_flipped_cloud_and_dense_variants_clean_back() {
         base.report.reversed_orientation
     );
 
-    let flipped = transform::flip_faces(&t, 0.4, 2);
+    let flipped = synth::flip_faces(&t, 0.4, 2);
     let c = clean(&flipped, &opts).expect("flipped");
     assert!(c.report.flipped_faces > 0);
     check("flipped faces", &c, &t);
     assert_eq!(c.mesh, base.mesh, "re-oriented faces give the same result");
 
-    let c = clean(&transform::to_point_cloud(&t), &opts).expect("cloud");
+    let c = clean(&synth::to_point_cloud(&t), &opts).expect("cloud");
     assert!(c.report.triangulated_point_cloud);
     check("point cloud", &c, &t);
     // The triangulation covers the tooth, not just part of it.
     let covered = c.report.area / surface_area(&t);
     assert!(covered > 0.95, "point cloud covers {covered} of the area");
 
-    let dense = transform::subdivide_midpoint(&t, 2);
+    let dense = synth::subdivide_midpoint(&t, 2);
     assert!(dense.vertices.len() > 75_000);
     let c = clean(&dense, &opts).expect("dense");
     check("16x denser", &c, &t);

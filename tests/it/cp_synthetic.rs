@@ -9,14 +9,14 @@ fn rigid_copies_and_mirror_images_are_at_distance_zero() {
     let params = CpParams::default();
     let m = synth::crown(&CROWN_GENERA[1], 3, 2000);
     let a = cp::prepare(&m, &params.prepare).expect("prepare");
-    let moved = synth::transform::scale(&synth::transform::rigid_motion(&m, 5), 3.0);
+    let moved = synth::scale(&synth::rigid_motion(&m, 5), 3.0);
     let c = cp::compare(
         &a,
         &cp::prepare(&moved, &params.prepare).expect("prepare"),
         &params.compare,
     );
     assert!(c.distance < 1e-3 && !c.reflected, "{}", c.distance);
-    let mirrored = synth::transform::mirror(&m);
+    let mirrored = synth::mirror(&m);
     let c = cp::compare(
         &a,
         &cp::prepare(&mirrored, &params.prepare).expect("prepare"),

@@ -7,7 +7,7 @@
 
 use morphoid::cp::{self, CpParams, Prepared};
 use morphoid::cw::{self, CwParams};
-use morphoid::mesh::synth::transform;
+use morphoid::mesh::synth;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rayon::prelude::*;
@@ -82,7 +82,7 @@ fn a_real_mirror_image_is_at_cw_zero_only_with_reflections() {
     };
     let prepare = |m: &morphoid::mesh::Mesh| cp::prepare(m, &CpParams::default().prepare).unwrap();
     let tooth = crate::support::cp::load_tooth(&dir, "H10");
-    let (a, mirrored) = (prepare(&tooth), prepare(&transform::mirror(&tooth)));
+    let (a, mirrored) = (prepare(&tooth), prepare(&synth::mirror(&tooth)));
     let other = prepare(&crate::support::cp::load_tooth(&dir, "H16"));
     let params = CwParams::default();
     let apart = cw::distance(&a, &other, &params).unwrap().distance;

@@ -6,7 +6,7 @@
 //! identified.
 
 use crate::support::daemon::*;
-use morphoid::mesh::synth::{self, LibrarySpec};
+use morphoid::mesh::synth::LibrarySpec;
 use morphoid::store::{ScanRecord, ScanStatus};
 use std::collections::BTreeSet;
 use std::os::unix::net::UnixDatagram;
@@ -270,39 +270,17 @@ fn an_unwritable_results_folder_is_in_the_log_and_the_row_until_written() {
 /// takes many times longer to calibrate (every pair of references, on
 /// half the cores) than a scan takes to identify (each reference once).
 fn calibrating_env() -> Env {
-    let tmp = tempfile::tempdir().unwrap();
-    let root = tmp.path().to_path_buf();
     let spec = LibrarySpec {
         per_genus: 5,
         target_vertices: 800,
         seed: 11,
         random_pose: true,
     };
-    synth::write_synthetic_library(&root.join("library"), &spec).unwrap();
-    let export = root.join("export");
-    std::fs::create_dir_all(&export).unwrap();
-    let db = root.join("db.sqlite");
-    let config = root.join("morphoid.toml");
-    std::fs::write(
-        &config,
-        format!(
-            "[watch]\ndir = {export:?}\nsettle_seconds = 0.3\n\
-             [library]\ndir = {:?}\nranks = [\"order\", \"family\", \"genus\"]\ncache = {:?}\n\
-             [database]\npath = {db:?}\n[clean]\ntarget_vertices = 800\n\
-             [results]\ndir = {:?}\n",
-            root.join("library"),
-            root.join("cache"),
-            root.join("results"),
-        ),
-    )
-    .unwrap();
-    Env {
-        tmp,
-        root,
-        export,
-        db,
-        config,
-    }
+    let env = env_with(&spec, 0.3, "", "");
+    let mut config = std::fs::read_to_string(&env.config).unwrap();
+    config += &format!("[results]\ndir = {:?}\n", env.root.join("results"));
+    std::fs::write(&env.config, config).unwrap();
+    env
 }
 
 /// The STATUS lines a service manager gets, collected on a thread.

@@ -161,8 +161,8 @@ fn synthetic_library_is_complete_and_reproducible() {
         ..spec
     };
     let g = &CROWN_GENERA[0];
-    let plain = morphoid::mesh::synth::library::specimen_mesh(g, 9, &spec);
-    let moved = morphoid::mesh::synth::library::specimen_mesh(g, 9, &posed);
+    let plain = morphoid::mesh::synth::specimen_mesh(g, 9, &spec);
+    let moved = morphoid::mesh::synth::specimen_mesh(g, 9, &posed);
     assert_eq!(plain.faces, moved.faces);
     let ratio = morphoid::mesh::surface_area(&moved) / morphoid::mesh::surface_area(&plain);
     assert!((0.25 - 1e-9..=4.0 + 1e-9).contains(&ratio), "{ratio}");

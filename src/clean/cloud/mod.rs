@@ -14,14 +14,15 @@
 //! The triangles need not form a disk yet: the rest of [`crate::clean`]
 //! keeps the largest piece, repairs it and fills its holes.
 
-pub mod neighbours;
-pub mod normals;
-pub mod outliers;
-pub mod reconstruct;
+mod neighbours;
+mod normals;
+mod outliers;
+mod reconstruct;
 
 use crate::mesh::principal_axes;
 use crate::mesh::Mesh;
-use neighbours::{mean_neighbour_distances, median, Neighbours};
+use crate::stats::upper_median;
+use neighbours::{mean_neighbour_distances, Neighbours};
 use normals::{local_plane, orient_by_propagation, LocalPlane};
 use reconstruct::{band_nodes, surface_nets, Grid, OrientedSamples};
 
@@ -156,7 +157,7 @@ pub fn reconstruct_surface(
         .collect();
 
     // The zero set near the points.
-    let s = median(&spacing);
+    let s = upper_median(&spacing).unwrap_or(0.0);
     let diagonal = crate::mesh::bbox_diagonal(&Mesh::new(inliers.clone(), Vec::new()));
     let h = (GRID_SPACING * s).max(diagonal / MAX_CELLS_PER_DIAGONAL);
     if h <= 0.0 || !h.is_finite() {

@@ -66,17 +66,6 @@ pub fn mean_neighbour_distances(neighbours: &Neighbours, k: usize) -> Vec<f64> {
         .collect()
 }
 
-/// The median of `values` (0 for none).
-pub fn median(values: &[f64]) -> f64 {
-    if values.is_empty() {
-        return 0.0;
-    }
-    let mut v = values.to_vec();
-    let mid = v.len() / 2;
-    let (_, m, _) = v.select_nth_unstable_by(mid, f64::total_cmp);
-    *m
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -92,6 +81,5 @@ mod tests {
         assert!(found.iter().all(|f| (f.1 - 1.0).abs() < 1e-12));
         let spacing = mean_neighbour_distances(&nb, 2);
         assert!((spacing[0] - 1.5).abs() < 1e-12 && (spacing[5] - 1.0).abs() < 1e-12);
-        assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
     }
 }

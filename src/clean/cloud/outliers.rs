@@ -7,8 +7,8 @@
 //! from the plane fitted to their neighbours compared with how well that
 //! plane fits the neighbours themselves.
 
-use super::neighbours::median;
 use super::normals::{local_plane, plane_distance};
+use crate::stats::upper_median;
 
 /// A point whose mean neighbour distance is this many times the median of
 /// its neighbours' is isolated.
@@ -24,13 +24,13 @@ const OFF_PLANE_SPACING: f64 = 0.75;
 /// Which points are isolated: `spacing[i]` is point `i`'s mean distance to
 /// its neighbours `neighbours[i]`.
 pub fn isolated_points(spacing: &[f64], neighbours: &[Vec<usize>]) -> Vec<bool> {
-    let global = median(spacing);
+    let global = upper_median(spacing).unwrap_or(0.0);
     spacing
         .iter()
         .zip(neighbours)
         .map(|(&d, list)| {
             let around: Vec<f64> = list.iter().map(|&j| spacing[j]).collect();
-            let local = median(&around);
+            let local = upper_median(&around).unwrap_or(0.0);
             d > GLOBAL_ISOLATION * global || (!around.is_empty() && d > LOCAL_ISOLATION * local)
         })
         .collect()
@@ -55,7 +55,8 @@ pub fn off_surface_points(
                 return false;
             };
             // The neighbours' spacing: an outlier's own is inflated.
-            let local = median(&list.iter().map(|&j| spacing[j]).collect::<Vec<_>>());
+            let local =
+                upper_median(&list.iter().map(|&j| spacing[j]).collect::<Vec<_>>()).unwrap_or(0.0);
             let limit = (OFF_PLANE_RESIDUALS * plane.residual).max(OFF_PLANE_SPACING * local);
             plane_distance(&plane, points[i]).abs() > limit
         })

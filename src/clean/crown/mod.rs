@@ -52,7 +52,7 @@ pub enum CrownMode {
 
 /// The smallest mean turn (degrees) of the surface along the cut for it to
 /// count as the cervical margin.
-pub const MIN_CREASE_DEGREES: f64 = 15.0;
+const MIN_CREASE_DEGREES: f64 = 15.0;
 
 /// The lowest the chosen cut may dip, as a fraction of the tooth's length
 /// from the apex: below the whole of its cervical margin a tooth has
@@ -61,11 +61,11 @@ pub const MIN_CREASE_DEGREES: f64 = 15.0;
 /// a wrong crown. (On whole teeth built from the 116 PNAS crowns the
 /// margin's lowest point lies at 0.48 or higher; the three wrong cuts of
 /// the search before [`END_EXCLUDED`] was raised dipped to 0.07–0.17.)
-pub const MIN_CUT_HEIGHT: f64 = 0.3;
+const MIN_CUT_HEIGHT: f64 = 0.3;
 
 /// The smallest share of the cut's length that must run along crease
 /// edges (turn ≥ 10°): the enamel edge runs all around the tooth.
-pub const MIN_CREASE_COVERAGE: f64 = 0.5;
+const MIN_CREASE_COVERAGE: f64 = 0.5;
 
 /// What the crown extraction did.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]

@@ -28,11 +28,12 @@ pub use cached::{calibration_pairs, reference_distances, CALIBRATION_SAMPLE};
 pub use statistic::{
     conformal_quantile, expected_calibration_error, fit_logistic, fit_rank_weight,
     mean_within_taxon_rank, novelty_score, rank_term, relative_distance, reliability, roc_auc,
-    share_caught_at, upper_median, Logistic, ReliabilityBin,
+    share_caught_at, Logistic, ReliabilityBin,
 };
 
 use super::identify::{Confidence, DistanceRow, RankResult};
 use crate::eval::Labels;
+use crate::stats::upper_median;
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 

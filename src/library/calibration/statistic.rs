@@ -6,19 +6,6 @@
 
 use serde::{Deserialize, Serialize};
 
-/// The median of the finite `values`: the upper one of the two middle
-/// values for an even count (so it is always one of the values); `None`
-/// without finite values.
-pub fn upper_median(values: &[f64]) -> Option<f64> {
-    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
-    if v.is_empty() {
-        return None;
-    }
-    let mid = v.len() / 2;
-    let (_, m, _) = v.select_nth_unstable_by(mid, f64::total_cmp);
-    Some(*m)
-}
-
 /// `ln(nearest / median)`: the distance to the nearest reference relative
 /// to the scan's median distance to the library, so that the scale of the
 /// scan's own distances (a worn or noisy scan is far from everything)
@@ -351,10 +338,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn upper_median_and_quantile() {
-        assert_eq!(upper_median(&[3.0, 1.0, 2.0]), Some(2.0));
-        assert_eq!(upper_median(&[4.0, 1.0, 3.0, 2.0]), Some(3.0));
-        assert_eq!(upper_median(&[f64::NAN]), None);
+    fn conformal_quantile_takes_the_rank_of_the_level() {
         let v: Vec<f64> = (1..=20).map(f64::from).collect();
         // (20 + 1) · 0.95 = 19.95: the 20th of 20; 19 values: the 19th.
         assert_eq!(conformal_quantile(&v, 0.05), Some(20.0));

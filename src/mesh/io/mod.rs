@@ -26,7 +26,7 @@ use std::path::{Path, PathBuf};
 
 /// Largest file the readers accept (bytes); bigger files are refused before
 /// they are read.
-pub const MAX_FILE_BYTES: u64 = 2 << 30;
+const MAX_FILE_BYTES: u64 = 2 << 30;
 
 /// A surface file format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]

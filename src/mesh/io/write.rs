@@ -30,7 +30,7 @@ pub enum Encoding {
 
 impl Encoding {
     /// The default encoding of a format (binary where there is a choice).
-    pub fn default_for(format: Format) -> Encoding {
+    fn default_for(format: Format) -> Encoding {
         match format {
             Format::Ply => Encoding::PlyBinaryLe,
             Format::Stl => Encoding::StlBinary,

@@ -49,7 +49,7 @@ pub struct Specimen {
 
 /// The seed of specimen `index` of configuration `genus` (a fixed mixing of
 /// the master seed, so that specimens are independent but reproducible).
-pub fn specimen_seed(master: u64, genus: usize, index: usize) -> u64 {
+fn specimen_seed(master: u64, genus: usize, index: usize) -> u64 {
     let mut z = master.wrapping_add(
         0x9E37_79B9_7F4A_7C15u64.wrapping_mul(1 + ((genus as u64) << 20) + index as u64),
     );

@@ -22,15 +22,15 @@
 //! [`subdivide_midpoint`] are re-exported from [`crate::mesh`] for the
 //! generator's users.
 
-pub mod bad_inputs;
-pub mod library;
-pub mod scanner;
-pub mod transform;
+mod bad_inputs;
+mod library;
+mod scanner;
+mod transform;
 mod whole_tooth;
 
 pub use crate::mesh::unit_disk;
 pub use bad_inputs::write_bad_inputs;
-pub use library::{write_synthetic_library, LibrarySpec, Specimen};
+pub use library::{specimen_mesh, write_synthetic_library, LibrarySpec, Specimen};
 pub use scanner::{overhanging_crown, scanner_cloud, ScannerCloud};
 pub use transform::{
     add_debris, closed_sphere, flip_faces, mirror, punch_hole, rigid_motion, scale,

@@ -37,7 +37,7 @@ impl Default for PhantomParams {
 
 /// Whether each sample centre of the grid lies inside the closed `mesh`:
 /// the crossings of a ray along x through each row, in parity.
-pub fn inside_mask(mesh: &Mesh, grid: &Grid) -> Vec<bool> {
+fn inside_mask(mesh: &Mesh, grid: &Grid) -> Vec<bool> {
     let [nx, ny, nz] = grid.dims;
     // Faces binned by the rows (y, z) their projection may cover.
     let mut bins: Vec<Vec<u32>> = vec![Vec::new(); ny * nz];
@@ -106,7 +106,7 @@ fn ray_x_crossing(t: [[f64; 3]; 3], py: f64, pz: f64) -> Option<f64> {
 }
 
 /// Separable Gaussian blur of `grid` with standard deviation `sigma` samples.
-pub fn gaussian_blur(grid: &mut Grid, sigma: f64) {
+fn gaussian_blur(grid: &mut Grid, sigma: f64) {
     if sigma <= 0.0 {
         return;
     }

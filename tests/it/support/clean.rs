@@ -46,9 +46,7 @@ pub fn mean_max_distance(points: &[[f64; 3]], mesh: &Mesh) -> (f64, f64) {
     (mean, d.iter().copied().fold(0.0, f64::max))
 }
 
-/// Median of a list.
+/// Median of a list (the upper middle value; NaN when empty).
 pub fn median(xs: &[f64]) -> f64 {
-    let mut v = xs.to_vec();
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+    morphoid::stats::upper_median(xs).unwrap_or(f64::NAN)
 }

@@ -19,15 +19,12 @@ pub fn load_tooth(dir: &Path, name: &str) -> Mesh {
         .mesh
 }
 
-/// Names in labels.csv order.
+/// Names in labels.csv order, read as `morphoid evaluate` reads them.
 pub fn tooth_names(dir: &Path) -> Vec<String> {
-    let text = std::fs::read_to_string(dir.join("labels.csv")).expect("labels");
-    text.lines()
-        .skip(1)
-        .filter_map(|l| l.split(',').next())
-        .filter(|s| !s.is_empty())
-        .map(|s| s.to_string())
-        .collect()
+    morphoid::eval::Labels::read(&dir.join("labels.csv"), None)
+        .expect("labels")
+        .names()
+        .to_vec()
 }
 
 /// Parameters from the JSON in the environment variable `var`, else the

@@ -25,15 +25,20 @@ pub struct Env {
 /// A library of 2 crowns per genus (12), 1500 vertices, and a config with
 /// `settle_seconds` and any `extra` TOML (e.g. a `[serial]` section).
 pub fn env(settle_seconds: f64, watch_extra: &str, extra: &str) -> Env {
-    let tmp = tempfile::tempdir().unwrap();
-    let root = tmp.path().to_path_buf();
     let spec = LibrarySpec {
         per_genus: 2,
         target_vertices: 1500,
         seed: 3,
         random_pose: true,
     };
-    synth::write_synthetic_library(&root.join("library"), &spec).unwrap();
+    env_with(&spec, settle_seconds, watch_extra, extra)
+}
+
+/// [`env`] with the library of `spec`, cleaned to its vertex count.
+pub fn env_with(spec: &LibrarySpec, settle_seconds: f64, watch_extra: &str, extra: &str) -> Env {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path().to_path_buf();
+    synth::write_synthetic_library(&root.join("library"), spec).unwrap();
     let export = root.join("export");
     std::fs::create_dir_all(&export).unwrap();
     let db = root.join("db.sqlite");
@@ -43,11 +48,12 @@ pub fn env(settle_seconds: f64, watch_extra: &str, extra: &str) -> Env {
         format!(
             "[watch]\ndir = {:?}\nsettle_seconds = {settle_seconds}\n{watch_extra}\n\
              [library]\ndir = {:?}\nranks = [\"order\", \"family\", \"genus\"]\ncache = {:?}\n\
-             [database]\npath = {:?}\n[clean]\ntarget_vertices = 1500\n{extra}\n",
+             [database]\npath = {:?}\n[clean]\ntarget_vertices = {}\n{extra}\n",
             export,
             root.join("library"),
             root.join("cache"),
-            db
+            db,
+            spec.target_vertices,
         ),
     )
     .unwrap();
