@@ -16,7 +16,7 @@
 //! 4. the largest connected component by area is kept ([`components`]);
 //! 5. non-manifold edges and vertices are repaired ([`manifold`]);
 //! 6. face orientation is made consistent ([`orient`]);
-//! 7. a closed surface (or a nearly closed one: every hole short, see
+//! 7. a closed surface (or a nearly closed one: every hole small, see
 //!    [`NEARLY_CLOSED`]) is taken for a whole tooth and cut to its crown at
 //!    the cervical margin ([`crown`], unless `crown = "off"`);
 //! 8. all boundary loops but the longest (by geometric length) are filled
@@ -48,16 +48,19 @@ pub use closest::{point_to_surface_distances, TriangleGrid};
 pub use cloud::{CloudError, CloudReport};
 
 use crate::mesh::{
-    bbox_diagonal, boundary_loop_length, boundary_loops, euler_characteristic, genus,
+    bbox_diagonal, boundary_loop_extent, boundary_loops, euler_characteristic, genus,
     longest_boundary_loop, surface_area, Mesh,
 };
 pub use crown::{CrownError, CrownMode, CrownReport};
 
-/// A surface whose longest boundary loop is shorter than this many times
-/// the square root of its area is a closed surface with holes, not a
-/// cropped crown (whose boundary runs all around it: 1.9–2.7 on every
-/// 10th of the real crowns).
-pub const NEARLY_CLOSED: f64 = 0.6;
+/// A surface whose every boundary loop spans less than this share of its
+/// bounding-box diagonal ([`boundary_loop_extent`]) is a closed surface
+/// with holes, not a cropped crown: a crop's rim runs all around the
+/// crown (0.72–0.94 of the diagonal on the 116 real crowns). The extent,
+/// not the length: a root cut off by the scan's field of view leaves a
+/// rim as long as the crown is round, though it spans a small part of
+/// the tooth.
+pub const NEARLY_CLOSED: f64 = 0.4;
 
 /// Surfaces of more than five times `2 × EARLY_DECIMATION_FACTOR ×
 /// target_vertices` faces are first decimated to `2 ×
@@ -285,10 +288,13 @@ fn cut_whole_tooth(
     report: &mut CleanReport,
     crown: CrownMode,
 ) -> Result<Mesh, CleanError> {
-    let longest = longest_boundary_loop(&m).map(|lp| boundary_loop_length(&m, &lp));
-    let whole = match longest {
+    let widest = boundary_loops(&m)
+        .iter()
+        .map(|lp| boundary_loop_extent(&m, lp))
+        .reduce(f64::max);
+    let whole = match widest {
         None => true,
-        Some(len) => crown == CrownMode::Auto && len < NEARLY_CLOSED * surface_area(&m).sqrt(),
+        Some(extent) => crown == CrownMode::Auto && extent < NEARLY_CLOSED * bbox_diagonal(&m),
     };
     if !whole {
         return Ok(m);

@@ -20,8 +20,11 @@ use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
 /// Bumped whenever the cached layout or the meaning of `Prepared` changes,
-/// so old entries are ignored instead of misread.
-const CACHE_FORMAT: u32 = 2;
+/// so old entries are ignored instead of misread, and whenever cleaning
+/// or preparation makes something else of some file under the same
+/// settings, so no reference keeps what the old code made of it (3: a
+/// nearly closed surface is told by its holes' extent, not their length).
+const CACHE_FORMAT: u32 = 3;
 
 /// Extension of cache entries.
 const EXTENSION: &str = "prep";

@@ -10,7 +10,7 @@
 //! Half-edge `3f + k` of a mesh runs from corner `k` to corner `k + 1`
 //! (mod 3) of face `f`.
 
-use super::{norm, sub, Mesh};
+use super::{norm, points_bounding_box, sub, Mesh};
 
 /// An undirected edge, smaller index first.
 pub type EdgeKey = (u32, u32);
@@ -249,6 +249,14 @@ pub fn boundary_loop_length(mesh: &Mesh, lp: &[u32]) -> f64 {
             ))
         })
         .sum()
+}
+
+/// Extent of the loop `lp` of vertices of `mesh`: the diagonal of the
+/// bounding box of its vertices. Unlike its length, a jagged rim (a hole
+/// torn through long, thin triangles) does not make it larger.
+pub fn boundary_loop_extent(mesh: &Mesh, lp: &[u32]) -> f64 {
+    points_bounding_box(lp.iter().map(|&v| mesh.vertices[v as usize]))
+        .map_or(0.0, |(lo, hi)| norm(sub(hi, lo)))
 }
 
 /// The [`boundary_loops`] ordered by decreasing [`boundary_loop_length`]
