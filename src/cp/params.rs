@@ -45,7 +45,8 @@ pub struct CompareParams {
     pub coarse_samples: usize,
     /// Rotation angles tried for each feature pair.
     pub angles: usize,
-    /// Candidates (best by sample score) that are refined.
+    /// Candidates (best by sample score) that are refined; as many of the
+    /// other orientation are added when these are all of one.
     pub refine_candidates: usize,
     /// Objective evaluations of the local refinement of each candidate.
     pub refine_evaluations: usize,

@@ -57,8 +57,9 @@ fn sphere_is_rejected_as_closed() {
     assert!(err.to_string().contains("closed surface"));
 }
 
-/// A torus grid with a block of faces removed: one boundary loop, one handle.
-fn torus_with_hole() -> Mesh {
+/// A torus grid with a block of `along` × 2 faces removed (of 16 × 8):
+/// one boundary loop, one handle.
+fn torus_with_hole(along: u32) -> Mesh {
     let (n, m) = (16u32, 8u32);
     let mut v = Vec::new();
     for i in 0..n {
@@ -75,7 +76,7 @@ fn torus_with_hole() -> Mesh {
     let mut f = Vec::new();
     for i in 0..n {
         for j in 0..m {
-            if i < 2 && j < 2 {
+            if i < along && j < 2 {
                 continue;
             }
             f.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
@@ -87,11 +88,18 @@ fn torus_with_hole() -> Mesh {
 
 #[test]
 fn torus_patch_with_a_handle_is_rejected() {
-    let t = torus_with_hole();
+    // An open patch (its rim spans most of the torus): refused for its
+    // handle.
+    let t = torus_with_hole(6);
     assert_eq!(euler_characteristic(&t), -1);
     let err = clean(&t, &CleanOptions::default()).unwrap_err();
     assert_eq!(err, CleanError::Handles(1, -1));
     assert!(err.to_string().starts_with("the surface has 1 handle"));
+    // A closed torus with a small hole is nearly closed: not a tooth.
+    let t = torus_with_hole(2);
+    assert_eq!(euler_characteristic(&t), -1);
+    let err = clean(&t, &CleanOptions::default()).unwrap_err();
+    assert!(matches!(err, CleanError::Crown(_)), "{err:?}");
 }
 
 #[test]

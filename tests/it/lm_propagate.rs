@@ -263,9 +263,6 @@ fn command_line_follows_the_spanning_tree_of_a_given_matrix() {
     let diag = bbox_diagonal(&source.cleaned);
     let mut motions = Vec::new();
     for (k, name) in ["b", "c"].iter().enumerate() {
-        // Poses 40/41/50 and 42/43/50 meet the search weakness of
-        // `two_moved_remeshed_copies_are_matched_without_reflection`; this
-        // test is about the route, so it uses poses the search handles.
         let m = RigidMotion::random(46 + k as u64, 2.0 * SCALE * diag);
         io::save(
             &lib.join(format!("{name}.ply")),
@@ -323,15 +320,11 @@ fn command_line_follows_the_spanning_tree_of_a_given_matrix() {
     assert!(mean < 0.015, "mean error {mean}");
 }
 
-/// A known weakness of the cP search, kept as a failing reproduction: two
-/// moved, remeshed copies of one synthetic crown (Lophodon, seed 8; motions
-/// 41 and 40) are matched as mirror images at distance 0.0046, while the
-/// right map, which the search also reaches from other poses, gives about
-/// 0.0011. The outcome depends on the vertex order of the input, so a scan
-/// can meet it. Run with `--ignored` to see whether the search has been
-/// fixed.
+/// Two moved, remeshed copies of one synthetic crown (Lophodon, seed 8;
+/// motions 41 and 40) are matched by the right map (about 0.0011), not as
+/// mirror images (0.0046, what the search found when it refined only the
+/// two best candidates overall, both mirror images here).
 #[test]
-#[ignore = "known cP search weakness (a wrong mirror-image map for one pose); see the comment"]
 fn two_moved_remeshed_copies_are_matched_without_reflection() {
     let settings = Settings::default();
     let genus = synth::crown_genus("Lophodon").expect("genus");
