@@ -508,6 +508,40 @@ mod tests {
     }
 
     #[test]
+    fn refinement_starts_from_both_orientations() {
+        let map = |k: usize, reflect: bool| {
+            let th = k as f64 * 0.1;
+            (
+                k as f64,
+                k,
+                Mobius::sending([0.0; 2], [0.0; 2], th, reflect),
+            )
+        };
+        let orientations = |starts: &[Mobius]| -> Vec<bool> {
+            starts.iter().map(|m| m.reverses_orientation()).collect()
+        };
+        // The two best are mirror images: the two best proper maps join.
+        let cands = [
+            map(0, true),
+            map(1, true),
+            map(2, true),
+            map(3, false),
+            map(4, false),
+            map(5, false),
+        ];
+        let starts = refine_starts(&cands, 2);
+        assert_eq!(orientations(&starts), [true, true, false, false]);
+        assert_eq!(starts[2], cands[3].2);
+        assert_eq!(starts[3], cands[4].2);
+        // Both orientations among the best: nothing is added.
+        let cands = [map(0, false), map(1, true), map(2, true), map(3, false)];
+        assert_eq!(orientations(&refine_starts(&cands, 2)), [false, true]);
+        // One orientation only (reflections off): the best two.
+        let cands = [map(0, false), map(1, false), map(2, false)];
+        assert_eq!(refine_starts(&cands, 2).len(), 2);
+    }
+
+    #[test]
     fn a_surface_and_its_moved_copy_are_found_to_match() {
         let m = synth::crown(&CROWN_GENERA[2], 4, 1500);
         let s = prepare(&m, &PrepareParams::default()).expect("prepare");

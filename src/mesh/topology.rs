@@ -252,8 +252,9 @@ pub fn boundary_loop_length(mesh: &Mesh, lp: &[u32]) -> f64 {
 }
 
 /// Extent of the loop `lp` of vertices of `mesh`: the diagonal of the
-/// bounding box of its vertices. Unlike its length, a jagged rim (a hole
-/// torn through long, thin triangles) does not make it larger.
+/// bounding box of its vertices. Unlike its length, it says how much of
+/// the surface a hole spans: the rim of a root cut off is as long as the
+/// root is round, but spans only the root's width.
 pub fn boundary_loop_extent(mesh: &Mesh, lp: &[u32]) -> f64 {
     points_bounding_box(lp.iter().map(|&v| mesh.vertices[v as usize]))
         .map_or(0.0, |(lo, hi)| norm(sub(hi, lo)))
@@ -431,6 +432,9 @@ mod tests {
         );
         assert_eq!(boundary_loop_length(&m, &loops[0]), 12.0);
         assert_eq!(boundary_loop_length(&m, &loops[1]), 4.0);
+        // The rim spans the 3 × 3 square, the hole its middle cell.
+        assert!((boundary_loop_extent(&m, &loops[0]) - 18f64.sqrt()).abs() < 1e-12);
+        assert!((boundary_loop_extent(&m, &loops[1]) - 2f64.sqrt()).abs() < 1e-12);
         assert_eq!(longest_boundary_loop(&m), Some(loops[0].clone()));
         // Renumbered so that a hole vertex is vertex 0, the hole comes first
         // in vertex order but the rim is still the longest.
