@@ -25,11 +25,7 @@ pub fn normalize(mesh: &Mesh) -> Result<Normalization, FlattenError> {
     if mesh.faces.is_empty() || mesh.vertices.is_empty() {
         return Err(FlattenError::Empty);
     }
-    if let Some(vertex) = mesh
-        .vertices
-        .iter()
-        .position(|p| p.iter().any(|c| !c.is_finite()))
-    {
+    if let Some(vertex) = mesh.first_non_finite_vertex() {
         return Err(FlattenError::NonFinite { vertex });
     }
     let n = mesh.vertices.len();

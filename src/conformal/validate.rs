@@ -14,11 +14,7 @@ pub fn check_disk_topology(mesh: &Mesh) -> Result<Vec<u32>, FlattenError> {
     if mesh.faces.is_empty() || n == 0 {
         return Err(FlattenError::Empty);
     }
-    if let Some(vertex) = mesh
-        .vertices
-        .iter()
-        .position(|p| p.iter().any(|c| !c.is_finite()))
-    {
+    if let Some(vertex) = mesh.first_non_finite_vertex() {
         return Err(FlattenError::NonFinite { vertex });
     }
     let mut used = vec![false; n];

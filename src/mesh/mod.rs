@@ -63,6 +63,23 @@ impl Mesh {
     pub fn face_count(&self) -> usize {
         self.faces.len()
     }
+
+    /// The first vertex with a non-finite coordinate, if any.
+    pub fn first_non_finite_vertex(&self) -> Option<usize> {
+        self.vertices
+            .iter()
+            .position(|p| p.iter().any(|c| !c.is_finite()))
+    }
+
+    /// The first face that refers to a vertex past the last one, and that
+    /// index, if any.
+    pub fn first_face_out_of_range(&self) -> Option<(usize, u32)> {
+        let n = self.vertices.len();
+        self.faces
+            .iter()
+            .enumerate()
+            .find_map(|(fi, f)| f.iter().find(|&&v| v as usize >= n).map(|&bad| (fi, bad)))
+    }
 }
 
 /// Vector difference `a - b`.
@@ -198,4 +215,25 @@ pub fn reversed_winding(faces: &[[u32; 3]]) -> Vec<[u32; 3]> {
 /// Length of the bounding-box diagonal (0 for an empty mesh).
 pub fn bbox_diagonal(mesh: &Mesh) -> f64 {
     bounding_box(mesh).map_or(0.0, |(lo, hi)| norm(sub(hi, lo)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_first_bad_vertex_and_face_are_found() {
+        let mut m = Mesh::new(
+            vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            vec![[0, 1, 2], [2, 1, 0]],
+        );
+        assert_eq!(m.first_non_finite_vertex(), None);
+        assert_eq!(m.first_face_out_of_range(), None);
+        m.vertices[2][1] = f64::NAN;
+        m.vertices[1][0] = f64::INFINITY;
+        assert_eq!(m.first_non_finite_vertex(), Some(1));
+        m.faces.push([0, 7, 3]);
+        m.faces.push([5, 0, 1]);
+        assert_eq!(m.first_face_out_of_range(), Some((2, 7)));
+    }
 }

@@ -172,8 +172,8 @@ fn volume_file_format(path: &Path) -> Option<VolumeFormat> {
 
 fn open(path: &Path) -> Result<Box<dyn SliceSource>, VolumeError> {
     Ok(match volume_file_format(path) {
-        Some(VolumeFormat::Nrrd) => Box::new(nrrd::NrrdFile::open(path)?),
-        Some(_) => Box::new(nifti::NiftiFile::open(path)?),
+        Some(VolumeFormat::Nrrd) => Box::new(nrrd::open(path)?),
+        Some(_) => Box::new(nifti::open(path)?),
         None => {
             let (files, format) = stack::slice_files(path)?;
             if format == VolumeFormat::Dicom {

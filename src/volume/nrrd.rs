@@ -1,20 +1,10 @@
 //! Single-file NRRD (raw or gzip encoding, 3 dimensions): a small header
 //! parser, then the samples streamed slice by slice.
 
-use super::source::{decode_samples, SampleType, SliceSource, VolumeFormat, VolumeInfo};
+use super::source::{RawSlices, SampleType, VolumeFormat, VolumeInfo};
 use super::VolumeError;
 use std::io::{BufRead, BufReader, Read};
-use std::path::{Path, PathBuf};
-
-/// An open NRRD file positioned at the next slice.
-pub(crate) struct NrrdFile {
-    info: VolumeInfo,
-    path: PathBuf,
-    kind: SampleType,
-    little: bool,
-    reader: Box<dyn Read>,
-    bytes: Vec<u8>,
-}
+use std::path::Path;
 
 fn sample_type(name: &str) -> Option<SampleType> {
     Some(match name {
@@ -34,190 +24,135 @@ fn sample_type(name: &str) -> Option<SampleType> {
     })
 }
 
-impl NrrdFile {
-    /// Read the header of `path` and position at the first slice.
-    pub(crate) fn open(path: &Path) -> Result<NrrdFile, VolumeError> {
-        let invalid = |problem: String| VolumeError::Invalid {
-            path: path.to_path_buf(),
-            problem,
-        };
-        let io = |source| VolumeError::Io {
-            path: path.to_path_buf(),
-            source,
-        };
-        let file = std::fs::File::open(path).map_err(io)?;
-        let mut reader = BufReader::new(file);
-        let mut line = String::new();
-        reader.read_line(&mut line).map_err(io)?;
-        if !line.starts_with("NRRD000") {
-            return Err(invalid("not an NRRD file (no NRRD000x magic)".into()));
+/// Read the header of the NRRD file `path` and position at the first
+/// slice.
+pub(crate) fn open(path: &Path) -> Result<RawSlices, VolumeError> {
+    let invalid = |problem: String| VolumeError::Invalid {
+        path: path.to_path_buf(),
+        problem,
+    };
+    let io = |source| VolumeError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = std::fs::File::open(path).map_err(io)?;
+    let mut reader = BufReader::new(file);
+    let mut line = String::new();
+    reader.read_line(&mut line).map_err(io)?;
+    if !line.starts_with("NRRD000") {
+        return Err(invalid("not an NRRD file (no NRRD000x magic)".into()));
+    }
+    let (mut kind, mut dims, mut encoding, mut little) = (None, None, String::from("raw"), true);
+    let mut spacing = [1.0f64; 3];
+    let mut unit = String::from("voxel");
+    let mut header_bytes = line.len();
+    loop {
+        line.clear();
+        let n = reader.read_line(&mut line).map_err(io)?;
+        header_bytes += n;
+        if n == 0 {
+            return Err(invalid(
+                "the header has no end (no blank line before the data)".into(),
+            ));
         }
-        let (mut kind, mut dims, mut encoding, mut little) =
-            (None, None, String::from("raw"), true);
-        let mut spacing = [1.0f64; 3];
-        let mut unit = String::from("voxel");
-        let mut header_bytes = line.len();
-        loop {
-            line.clear();
-            let n = reader.read_line(&mut line).map_err(io)?;
-            header_bytes += n;
-            if n == 0 {
+        if header_bytes > 1 << 20 {
+            return Err(invalid("header longer than 1 MiB".into()));
+        }
+        let l = line.trim_end_matches(['\n', '\r']);
+        if l.is_empty() {
+            break;
+        }
+        if l.starts_with('#') {
+            continue;
+        }
+        let Some((key, value)) = l.split_once(':') else {
+            continue;
+        };
+        let value = value.trim_start_matches('=').trim();
+        match key.trim() {
+            "type" => {
+                kind = Some(
+                    sample_type(value)
+                        .ok_or_else(|| invalid(format!("unsupported type \"{value}\"")))?,
+                )
+            }
+            "dimension" if value != "3" => {
+                return Err(invalid(format!("dimension {value}; a 3D volume is needed")))
+            }
+            "sizes" => {
+                let s: Vec<usize> = value
+                    .split_whitespace()
+                    .map(|t| {
+                        t.parse()
+                            .map_err(|_| invalid(format!("bad sizes \"{value}\"")))
+                    })
+                    .collect::<Result<_, _>>()?;
+                if s.len() != 3 || s.contains(&0) {
+                    return Err(invalid(format!(
+                        "sizes \"{value}\": three positive sizes needed"
+                    )));
+                }
+                dims = Some([s[0], s[1], s[2]]);
+            }
+            "encoding" => encoding = value.to_string(),
+            "endian" => little = value != "big",
+            "spacings" => {
+                for (k, t) in value.split_whitespace().take(3).enumerate() {
+                    spacing[k] = t.parse::<f64>().ok().filter(|v| *v > 0.0).unwrap_or(1.0);
+                }
+                unit = "unknown".into();
+            }
+            "space directions" => {
+                let vectors: Vec<f64> = value
+                    .split(')')
+                    .filter(|t| t.contains('('))
+                    .map(|t| {
+                        t.trim()
+                            .trim_start_matches('(')
+                            .split(',')
+                            .filter_map(|c| c.trim().parse::<f64>().ok())
+                            .map(|c| c * c)
+                            .sum::<f64>()
+                            .sqrt()
+                    })
+                    .collect();
+                for (k, &l) in vectors.iter().take(3).enumerate() {
+                    if l > 0.0 {
+                        spacing[k] = l;
+                    }
+                }
+                unit = "unknown".into();
+            }
+            "space units" => {
+                if let Some(u) = value.split('"').nth(1) {
+                    unit = u.to_string();
+                }
+            }
+            "data file" | "datafile" => {
                 return Err(invalid(
-                    "the header has no end (no blank line before the data)".into(),
-                ));
+                    "detached data files are not supported; save as a single .nrrd".into(),
+                ))
             }
-            if header_bytes > 1 << 20 {
-                return Err(invalid("header longer than 1 MiB".into()));
-            }
-            let l = line.trim_end_matches(['\n', '\r']);
-            if l.is_empty() {
-                break;
-            }
-            if l.starts_with('#') {
-                continue;
-            }
-            let Some((key, value)) = l.split_once(':') else {
-                continue;
-            };
-            let value = value.trim_start_matches('=').trim();
-            match key.trim() {
-                "type" => {
-                    kind = Some(
-                        sample_type(value)
-                            .ok_or_else(|| invalid(format!("unsupported type \"{value}\"")))?,
-                    )
-                }
-                "dimension" if value != "3" => {
-                    return Err(invalid(format!("dimension {value}; a 3D volume is needed")))
-                }
-                "sizes" => {
-                    let s: Vec<usize> = value
-                        .split_whitespace()
-                        .map(|t| {
-                            t.parse()
-                                .map_err(|_| invalid(format!("bad sizes \"{value}\"")))
-                        })
-                        .collect::<Result<_, _>>()?;
-                    if s.len() != 3 || s.contains(&0) {
-                        return Err(invalid(format!(
-                            "sizes \"{value}\": three positive sizes needed"
-                        )));
-                    }
-                    dims = Some([s[0], s[1], s[2]]);
-                }
-                "encoding" => encoding = value.to_string(),
-                "endian" => little = value != "big",
-                "spacings" => {
-                    for (k, t) in value.split_whitespace().take(3).enumerate() {
-                        spacing[k] = t.parse::<f64>().ok().filter(|v| *v > 0.0).unwrap_or(1.0);
-                    }
-                    unit = "unknown".into();
-                }
-                "space directions" => {
-                    let vectors: Vec<f64> = value
-                        .split(')')
-                        .filter(|t| t.contains('('))
-                        .map(|t| {
-                            t.trim()
-                                .trim_start_matches('(')
-                                .split(',')
-                                .filter_map(|c| c.trim().parse::<f64>().ok())
-                                .map(|c| c * c)
-                                .sum::<f64>()
-                                .sqrt()
-                        })
-                        .collect();
-                    for (k, &l) in vectors.iter().take(3).enumerate() {
-                        if l > 0.0 {
-                            spacing[k] = l;
-                        }
-                    }
-                    unit = "unknown".into();
-                }
-                "space units" => {
-                    if let Some(u) = value.split('"').nth(1) {
-                        unit = u.to_string();
-                    }
-                }
-                "data file" | "datafile" => {
-                    return Err(invalid(
-                        "detached data files are not supported; save as a single .nrrd".into(),
-                    ))
-                }
-                _ => {}
-            }
+            _ => {}
         }
-        let kind = kind.ok_or_else(|| invalid("no \"type\" field".into()))?;
-        let dims = dims.ok_or_else(|| invalid("no \"sizes\" field".into()))?;
-        let reader: Box<dyn Read> = match encoding.as_str() {
-            "raw" => Box::new(reader),
-            "gzip" | "gz" => Box::new(flate2::bufread::MultiGzDecoder::new(reader)),
-            other => {
-                return Err(invalid(format!(
-                    "unsupported encoding \"{other}\" (raw or gzip)"
-                )))
-            }
-        };
-        Ok(NrrdFile {
-            info: VolumeInfo {
-                format: VolumeFormat::Nrrd,
-                dims,
-                voxel_size: spacing,
-                unit,
-                bits: (kind.bytes() * 8) as u16,
-            },
-            path: path.to_path_buf(),
-            kind,
-            little,
-            reader,
-            bytes: Vec::new(),
-        })
     }
-}
-
-/// Read one slice of raw samples from `reader`; a short read is a
-/// truncated file.
-pub(crate) fn read_raw_slice(
-    reader: &mut dyn Read,
-    path: &Path,
-    info: &VolumeInfo,
-    kind: SampleType,
-    little: bool,
-    bytes: &mut Vec<u8>,
-    out: &mut Vec<f32>,
-) -> Result<(), VolumeError> {
-    bytes.resize(info.dims[0] * info.dims[1] * kind.bytes(), 0);
-    reader.read_exact(bytes).map_err(|source| {
-        if source.kind() == std::io::ErrorKind::UnexpectedEof {
-            VolumeError::Invalid {
-                path: path.to_path_buf(),
-                problem: "the data ends before the last slice (truncated file)".into(),
-            }
-        } else {
-            VolumeError::Io {
-                path: path.to_path_buf(),
-                source,
-            }
+    let kind = kind.ok_or_else(|| invalid("no \"type\" field".into()))?;
+    let dims = dims.ok_or_else(|| invalid("no \"sizes\" field".into()))?;
+    let reader: Box<dyn Read> = match encoding.as_str() {
+        "raw" => Box::new(reader),
+        "gzip" | "gz" => Box::new(flate2::bufread::MultiGzDecoder::new(reader)),
+        other => {
+            return Err(invalid(format!(
+                "unsupported encoding \"{other}\" (raw or gzip)"
+            )))
         }
-    })?;
-    decode_samples(bytes, kind, little, out);
-    Ok(())
-}
-
-impl SliceSource for NrrdFile {
-    fn info(&self) -> &VolumeInfo {
-        &self.info
-    }
-
-    fn next_slice(&mut self, out: &mut Vec<f32>) -> Result<(), VolumeError> {
-        read_raw_slice(
-            &mut self.reader,
-            &self.path,
-            &self.info,
-            self.kind,
-            self.little,
-            &mut self.bytes,
-            out,
-        )
-    }
+    };
+    let info = VolumeInfo {
+        format: VolumeFormat::Nrrd,
+        dims,
+        voxel_size: spacing,
+        unit,
+        bits: (kind.bytes() * 8) as u16,
+    };
+    Ok(RawSlices::new(info, path, kind, little, reader))
 }

@@ -2,6 +2,8 @@
 //! slices one after another, as `f32` grey values.
 
 use super::VolumeError;
+use std::io::Read;
+use std::path::{Path, PathBuf};
 
 /// The file format of a volume.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -90,5 +92,64 @@ pub(crate) fn decode_samples(bytes: &[u8], kind: SampleType, little: bool, out: 
             SampleType::F64 => f64::from_le_bytes(b) as f32,
         };
         out.push(if v.is_finite() { v } else { 0.0 });
+    }
+}
+
+/// A raw volume file (NRRD, NIfTI) positioned at its first slice: the
+/// samples follow one another, slice after slice, as the header says.
+pub(crate) struct RawSlices {
+    info: VolumeInfo,
+    path: PathBuf,
+    kind: SampleType,
+    little: bool,
+    reader: Box<dyn Read>,
+    bytes: Vec<u8>,
+}
+
+impl RawSlices {
+    /// The slices that `reader` (of the file `path`, its header read)
+    /// holds: samples of `kind`, little- or big-endian.
+    pub(crate) fn new(
+        info: VolumeInfo,
+        path: &Path,
+        kind: SampleType,
+        little: bool,
+        reader: Box<dyn Read>,
+    ) -> Self {
+        Self {
+            info,
+            path: path.to_path_buf(),
+            kind,
+            little,
+            reader,
+            bytes: Vec::new(),
+        }
+    }
+}
+
+impl SliceSource for RawSlices {
+    fn info(&self) -> &VolumeInfo {
+        &self.info
+    }
+
+    /// One slice of raw samples; a short read is a truncated file.
+    fn next_slice(&mut self, out: &mut Vec<f32>) -> Result<(), VolumeError> {
+        let dims = self.info.dims;
+        self.bytes.resize(dims[0] * dims[1] * self.kind.bytes(), 0);
+        self.reader.read_exact(&mut self.bytes).map_err(|source| {
+            if source.kind() == std::io::ErrorKind::UnexpectedEof {
+                VolumeError::Invalid {
+                    path: self.path.clone(),
+                    problem: "the data ends before the last slice (truncated file)".into(),
+                }
+            } else {
+                VolumeError::Io {
+                    path: self.path.clone(),
+                    source,
+                }
+            }
+        })?;
+        decode_samples(&self.bytes, self.kind, self.little, out);
+        Ok(())
     }
 }

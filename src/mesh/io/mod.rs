@@ -194,20 +194,14 @@ fn validate(mesh: Mesh) -> ParseResult<Mesh> {
     if mesh.vertices.is_empty() {
         return Err("file contains no vertices".into());
     }
-    if let Some(i) = mesh
-        .vertices
-        .iter()
-        .position(|v| v.iter().any(|c| !c.is_finite()))
-    {
+    if let Some(i) = mesh.first_non_finite_vertex() {
         return Err(format!("vertex {i} has a non-finite coordinate"));
     }
-    let n = mesh.vertices.len();
-    for (fi, f) in mesh.faces.iter().enumerate() {
-        if let Some(&bad) = f.iter().find(|&&v| v as usize >= n) {
-            return Err(format!(
-                "face {fi} refers to vertex {bad}, but there are only {n} vertices"
-            ));
-        }
+    if let Some((fi, bad)) = mesh.first_face_out_of_range() {
+        let n = mesh.vertices.len();
+        return Err(format!(
+            "face {fi} refers to vertex {bad}, but there are only {n} vertices"
+        ));
     }
     Ok(mesh)
 }

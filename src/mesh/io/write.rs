@@ -153,11 +153,7 @@ pub fn encode(mesh: &Mesh, encoding: Encoding) -> Result<Vec<u8>, EncodeError> {
 }
 
 fn check_writable(mesh: &Mesh) -> Result<(), String> {
-    if let Some(i) = mesh
-        .vertices
-        .iter()
-        .position(|v| v.iter().any(|c| !c.is_finite()))
-    {
+    if let Some(i) = mesh.first_non_finite_vertex() {
         return Err(format!("vertex {i} has a non-finite coordinate"));
     }
     let n = mesh.vertices.len();
@@ -165,11 +161,7 @@ fn check_writable(mesh: &Mesh) -> Result<(), String> {
         // PLY stores indices as int, OBJ/OFF readers as u32.
         return Err(format!("{n} vertices are too many to write"));
     }
-    if let Some(fi) = mesh
-        .faces
-        .iter()
-        .position(|f| f.iter().any(|&v| v as usize >= n))
-    {
+    if let Some((fi, _)) = mesh.first_face_out_of_range() {
         return Err(format!("face {fi} refers to a vertex past {n}"));
     }
     Ok(())
