@@ -12,10 +12,33 @@ const NELDER_MEAD_TOLERANCE: f64 = 1e-4;
 /// five (fewer once the simplex's values agree to
 /// [`NELDER_MEAD_TOLERANCE`]).
 pub fn nelder_mead(
+    f: impl FnMut([f64; 3]) -> f64,
+    x0: [f64; 3],
+    step: [f64; 3],
+    max_evals: usize,
+) -> ([f64; 3], f64) {
+    nelder_mead_unless(f, x0, step, max_evals, None)
+}
+
+/// When a minimization is not worth finishing: once `after` evaluations
+/// are spent, a best value still above `above` ends it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GiveUp {
+    /// Evaluations spent before the check.
+    pub after: usize,
+    /// The value the best vertex must be at or below by then.
+    pub above: f64,
+}
+
+/// [`nelder_mead`], ended early by `give_up`. Until it ends, the steps
+/// are exactly those of [`nelder_mead`], so a minimization that is not
+/// given up gives the same result.
+pub fn nelder_mead_unless(
     mut f: impl FnMut([f64; 3]) -> f64,
     x0: [f64; 3],
     step: [f64; 3],
     max_evals: usize,
+    give_up: Option<GiveUp>,
 ) -> ([f64; 3], f64) {
     let mut simplex: Vec<([f64; 3], f64)> = Vec::with_capacity(4);
     simplex.push((x0, f(x0)));
@@ -69,6 +92,12 @@ pub fn nelder_mead(
         if spread <= NELDER_MEAD_TOLERANCE * simplex[0].1.abs().max(1e-300) {
             break;
         }
+        if let Some(g) = give_up {
+            let best = simplex.iter().map(|s| s.1).fold(f64::INFINITY, f64::min);
+            if evals >= g.after && best > g.above {
+                break;
+            }
+        }
     }
     simplex.sort_by(|a, b| a.1.total_cmp(&b.1));
     simplex[0]
@@ -108,6 +137,42 @@ mod tests {
         let g = |x: [f64; 3]| x[0] + x[1] + x[2];
         let (x, gx) = nelder_mead(g, [0.0; 3], [-1.0, 0.0, 0.0], 4);
         assert_eq!((x, gx), ([-1.0, 0.0, 0.0], -1.0));
+    }
+
+    #[test]
+    fn giving_up_ends_a_hopeless_minimization_and_changes_no_other() {
+        fn counted(calls: &mut usize) -> impl FnMut([f64; 3]) -> f64 + '_ {
+            move |x| {
+                *calls += 1;
+                1.0 + x[0].powi(2) + 2.0 * (x[1] - 0.5).powi(2) + x[2].powi(2)
+            }
+        }
+        let (mut full_calls, mut kept_calls, mut gave_up_calls) = (0, 0, 0);
+        let full = nelder_mead(counted(&mut full_calls), [0.3; 3], [0.1; 3], 200);
+        // A bound the minimization meets in time: the same steps, the same
+        // result.
+        let met = GiveUp {
+            after: 20,
+            above: 10.0,
+        };
+        let kept = nelder_mead_unless(counted(&mut kept_calls), [0.3; 3], [0.1; 3], 200, Some(met));
+        assert_eq!(full, kept);
+        assert_eq!(full_calls, kept_calls);
+        // A bound below the minimum: it ends soon after 20 evaluations.
+        let missed = GiveUp {
+            after: 20,
+            above: 0.5,
+        };
+        let (_, fx) = nelder_mead_unless(
+            counted(&mut gave_up_calls),
+            [0.3; 3],
+            [0.1; 3],
+            200,
+            Some(missed),
+        );
+        assert!(fx > 1.0);
+        assert!((20..=26).contains(&gave_up_calls), "{gave_up_calls}");
+        assert!(full_calls > 40, "{full_calls}");
     }
 
     #[test]

@@ -10,7 +10,7 @@ use super::evaluate::{evaluate_images, evaluate_map, handedness, sample_residual
 use super::locate::NO_TRIANGLE;
 use super::mobius::Mobius;
 use super::moser::{area_preserving_correction, FLOW_STEPS};
-use super::optimize::nelder_mead;
+use super::optimize::{nelder_mead_unless, GiveUp};
 use super::params::CompareParams;
 use super::prepared::Prepared;
 use super::procrustes::RigidFit;
@@ -152,10 +152,25 @@ fn perturbed(m: &Mobius, x: [f64; 3]) -> Option<Mobius> {
 /// closely than this.
 const FULL_EVALUATION_MARGIN: f64 = 1.3;
 
+/// A refinement that is not the first gives up after this share of
+/// `refine_evaluations` when its residual is still above
+/// [`GIVE_UP_MARGIN`] times the best refined residual so far. Most later
+/// starts are of the wrong orientation or in another basin and are far
+/// behind by then; a start that is not given up runs exactly as before.
+/// Measured on the directed pairs among every 4th real tooth (29 teeth):
+/// 8 % less CPU time, one distance of 406 changed (0.0675 → 0.0667); with
+/// a margin of 1.3 (the full-evaluation margin), 17 changed, by up to
+/// 0.008.
+const GIVE_UP_SHARE: f64 = 0.25;
+
+/// See [`GIVE_UP_SHARE`].
+const GIVE_UP_MARGIN: f64 = 2.0;
+
 /// Refine the candidate map `m0` by Nelder–Mead over `m0 ∘ φ` (φ a disk
 /// automorphism, initial steps `step` in `(Re a, Im a, θ)`), scored by the
-/// residual on all samples. Returns that residual and the refined map (`m0`
-/// itself if refinement does not improve it).
+/// residual on all samples, given up as `give_up` says. Returns that
+/// residual and the refined map (`m0` itself if refinement does not
+/// improve it).
 fn refine(
     s: &Prepared,
     t: &Prepared,
@@ -163,6 +178,7 @@ fn refine(
     m0: Mobius,
     step: [f64; 3],
     params: &CompareParams,
+    give_up: Option<GiveUp>,
 ) -> (f64, DiskMap) {
     let mut hints = vec![NO_TRIANGLE; s.samples.len()];
     let start = DiskMap::for_candidate(m0, features, params);
@@ -175,7 +191,7 @@ fn refine(
             DiskMap::for_candidate(m, features, params).residual(s, t, &mut hints)
         })
     };
-    let (x, fx) = nelder_mead(obj, [0.0; 3], step, params.refine_evaluations);
+    let (x, fx) = nelder_mead_unless(obj, [0.0; 3], step, params.refine_evaluations, give_up);
     match perturbed(&m0, x) {
         Some(m) if fx < score => (fx, DiskMap::for_candidate(m, features, params)),
         _ => (score, start),
@@ -393,10 +409,17 @@ pub fn search_directed(s: &Prepared, t: &Prepared, params: &CompareParams) -> Di
     let features = FeaturePoints::of(s, t);
     let cands = ranked_candidates(s, t, &features, params);
     let step = std::f64::consts::TAU / params.angles.max(1) as f64;
-    let refined: Vec<(f64, DiskMap)> = refine_starts(&cands, params.refine_candidates.max(1))
-        .into_iter()
-        .map(|m0| refine(s, t, &features, m0, [0.05, 0.05, 0.5 * step], params))
-        .collect();
+    let after = (GIVE_UP_SHARE * params.refine_evaluations as f64).ceil() as usize;
+    let mut refined: Vec<(f64, DiskMap)> = Vec::new();
+    for m0 in refine_starts(&cands, params.refine_candidates.max(1)) {
+        let best = refined.iter().map(|r| r.0).fold(f64::INFINITY, f64::min);
+        let give_up = best.is_finite().then_some(GiveUp {
+            after,
+            above: GIVE_UP_MARGIN * best,
+        });
+        let step = [0.05, 0.05, 0.5 * step];
+        refined.push(refine(s, t, &features, m0, step, params, give_up));
+    }
     let mut evaluated = evaluate_refined(s, t, refined);
     let search_residual = evaluated.first().map_or(f64::MAX, |b| b.residual);
     if let Some(first) = evaluated.first_mut() {
