@@ -174,3 +174,112 @@ fn slice_stacks_of_all_real_teeth() {
         );
     }
 }
+
+/// Every 4th tooth as an 8-bit TIFF stack, held out as a new scan would
+/// be: compared with the other 115 original crowns (prepared and cached
+/// as `Classifier::build` does), identified, and its confidence assessed
+/// with a calibration fitted on those 115 alone; next to it the crop of
+/// the same tooth, held out the same way. A stack is a scan of a genus the
+/// library holds, so "no close match" on it is a false flag; the stacks
+/// may be flagged at most as often as the crops plus 2 of 29, and must be
+/// identified to genus as often as the crops, less 2. Set
+/// `MORPHOID_CALIBRATION_CACHE` to a folder to keep the prepared teeth
+/// and their distances between runs.
+#[test]
+#[ignore = "real data, minutes: run by name"]
+fn held_out_slice_stacks_are_flagged_as_rarely_as_crops() {
+    use morphoid::classify::Classifier;
+    use morphoid::library::{self, Cache, Calibration, DistanceRow, Library};
+    let Some(dir) = data::teeth_dir() else {
+        return;
+    };
+    let ranks: Vec<String> = ["order", "family", "genus"].map(String::from).to_vec();
+    let library = Library::open(&dir, Some(&ranks)).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let root = std::env::var_os("MORPHOID_CALIBRATION_CACHE")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| tmp.path().to_path_buf());
+    let cache = Cache::for_folder(Some(&root), &dir).unwrap();
+    let settings = Settings::default();
+    let (classifier, built) = Classifier::build(&library, &cache, &settings, |_| {}).unwrap();
+    assert!(built.failures().is_empty());
+    let references = classifier.references();
+    let table = library::reference_distances(references, &settings, Some(&cache), |_| {});
+    let labels = library.labels();
+    let names: Vec<String> = table.names().to_vec();
+    let picked: Vec<usize> = (0..names.len()).step_by(4).collect();
+    let pick: Vec<String> = picked.iter().map(|&i| names[i].clone()).collect();
+    let stacks = check_teeth(&pick, &dir, SynthFormat::Tiff8);
+
+    let genus = |row: &[DistanceRow], cal: &Calibration| {
+        let mut id = library::identify(row, labels, 1);
+        cal.assess(row, &mut id.ranks);
+        let r = id.ranks.into_iter().find(|r| r.rank == "genus").unwrap();
+        let c = r.confidence.clone().expect("genus confidence");
+        (r, c)
+    };
+    let (mut right, mut flagged) = ([0usize; 2], [0usize; 2]);
+    for (&i, stack) in picked.iter().zip(&stacks) {
+        let keep: Vec<usize> = (0..names.len()).filter(|&j| j != i).collect();
+        let cal = Calibration::fit(table.subset(&keep).unwrap(), labels);
+        let crop_rows: Vec<DistanceRow> = keep
+            .iter()
+            .map(|&j| {
+                let d = table.distance(i, j).unwrap();
+                DistanceRow {
+                    reference: names[j].clone(),
+                    forward: d,
+                    backward: d,
+                    distance: d,
+                    reflected: false,
+                }
+            })
+            .collect();
+        let stack_rows: Vec<DistanceRow> = keep
+            .par_iter()
+            .map(|&j| {
+                let c = morphoid::cp::compare(
+                    &stack.prepared,
+                    references[j].prepared(),
+                    &settings.cp.compare,
+                );
+                DistanceRow {
+                    reference: names[j].clone(),
+                    forward: c.forward.distance,
+                    backward: c.backward.distance,
+                    distance: c.distance,
+                    reflected: c.reflected,
+                }
+            })
+            .collect();
+        let truth = labels.get(&names[i], "genus");
+        let mut line = format!("{}:", names[i]);
+        for (k, rows) in [&crop_rows, &stack_rows].into_iter().enumerate() {
+            let (r, c) = genus(rows, &cal);
+            let ok = Some(r.taxon.as_str()) == truth;
+            let flag = c.no_close_match == Some(true);
+            right[k] += usize::from(ok);
+            flagged[k] += usize::from(flag);
+            line += &format!(
+                "  {} {} at {:.4} ({}), novelty {:.3}{}",
+                ["crop", "stack"][k],
+                r.taxon,
+                r.distance,
+                if ok { "right" } else { "wrong" },
+                c.novelty,
+                if flag { " NO CLOSE MATCH" } else { "" }
+            );
+        }
+        println!("{line}");
+    }
+    println!(
+        "{} teeth held out: genus right crop {} / stack {}; flagged crop {} / stack {}",
+        picked.len(),
+        right[0],
+        right[1],
+        flagged[0],
+        flagged[1]
+    );
+    assert!(right[1] + 2 >= right[0], "genus right {right:?}");
+    assert!(flagged[1] <= flagged[0] + 2, "flagged {flagged:?}");
+}
