@@ -4,7 +4,7 @@
 //! round-trips), and a reader that also takes `\r\n`, line breaks inside
 //! quoted fields and a leading byte-order mark.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Why a table file (a distance matrix, labels) could not be read or
 /// written; the message names the file, and the line for bad content.
@@ -154,9 +154,57 @@ pub(crate) fn trimmed(field: &str) -> &str {
     field.trim_matches([' ', '\t'])
 }
 
+/// The records of a table file's `text` (as [`rows`], without comments)
+/// split into its header and the rest, with errors that name `path` and
+/// the line. A text with no record is an "empty file".
+pub(crate) fn header_and_rows<'a>(
+    text: &'a str,
+    path: &'a Path,
+) -> Result<(Row, impl Iterator<Item = Result<Row, TableError>> + 'a), TableError> {
+    let err = move |(line, message): (usize, String)| TableError::Format {
+        path: path.to_path_buf(),
+        line,
+        message,
+    };
+    let mut rows = rows(text, false).map(move |r| r.map_err(err));
+    let header = rows
+        .next()
+        .unwrap_or_else(|| Err(err((1, "empty file".into()))))?;
+    Ok((header, rows))
+}
+
+/// The content error of line `line` of `path`.
+pub(crate) fn format_error(path: &Path, line: usize, message: String) -> TableError {
+    TableError::Format {
+        path: path.to_path_buf(),
+        line,
+        message,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_table_without_records_is_an_empty_file_and_lines_are_kept() {
+        let path = Path::new("t.csv");
+        for text in ["", "\n  \n"] {
+            let Err(TableError::Format { line, message, .. }) = header_and_rows(text, path) else {
+                panic!("{text:?} has no header");
+            };
+            assert_eq!((line, message.as_str()), (1, "empty file"));
+        }
+        let (header, rows) = header_and_rows("\nname,a\n\nx,1\n", path).unwrap();
+        assert_eq!(
+            (header.line, header.fields),
+            (2, vec!["name".into(), "a".into()])
+        );
+        let rows: Vec<Row> = rows.collect::<Result<_, _>>().unwrap();
+        assert_eq!((rows[0].line, rows[0].fields.len()), (4, 2));
+        let e = format_error(path, 7, "bad".into());
+        assert_eq!(e.to_string(), "t.csv:7: bad");
+    }
 
     fn all(text: &str) -> Vec<(usize, Vec<String>)> {
         rows(text, false)

@@ -1,6 +1,6 @@
 //! Taxonomic labels of a library (`labels.csv`).
 
-use super::csv_text::{rows, trimmed, CsvString, Row, TableError};
+use super::csv_text::{format_error, header_and_rows, trimmed, CsvString, Row, TableError};
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -22,16 +22,8 @@ impl Labels {
     /// selects the rank columns (default: every column but `name`). `NA`
     /// or an empty field means unknown. `path` is only used in errors.
     pub fn parse(text: &str, ranks: Option<&[String]>, path: &Path) -> Result<Self, TableError> {
-        let err = |line: usize, message: String| TableError::Format {
-            path: path.to_path_buf(),
-            line,
-            message,
-        };
-        let mut rows = rows(text, false);
-        let header = match rows.next() {
-            None => return Err(err(1, "empty file".into())),
-            Some(r) => r.map_err(|(line, m)| err(line, m))?,
-        };
+        let err = |line: usize, message: String| format_error(path, line, message);
+        let (header, rows) = header_and_rows(text, path)?;
         let header_line = header.line;
         let header: Vec<String> = header
             .fields
@@ -60,7 +52,7 @@ impl Labels {
             ..Default::default()
         };
         for r in rows {
-            let Row { line, fields: f } = r.map_err(|(line, m)| err(line, m))?;
+            let Row { line, fields: f } = r?;
             if f.len() != header.len() {
                 return Err(err(
                     line,

@@ -1,6 +1,6 @@
 //! Distance matrices: computation over prepared surfaces and CSV files.
 
-use super::csv_text::{rows, trimmed, CsvString, Row, TableError};
+use super::csv_text::{format_error, header_and_rows, trimmed, CsvString, Row, TableError};
 use crate::cp::{compare, CompareParams, Prepared};
 use rayon::prelude::*;
 use std::path::Path;
@@ -108,16 +108,8 @@ impl DistanceMatrix {
     /// Parse CSV text (`path` is only used in errors). Rows must follow the
     /// header's order of names.
     pub fn parse_csv(text: &str, path: &Path) -> Result<Self, TableError> {
-        let err = |line: usize, message: String| TableError::Format {
-            path: path.to_path_buf(),
-            line,
-            message,
-        };
-        let mut rows = rows(text, false);
-        let header = match rows.next() {
-            None => return Err(err(1, "empty file".into())),
-            Some(r) => r.map_err(|(line, m)| err(line, m))?,
-        };
+        let err = |line: usize, message: String| format_error(path, line, message);
+        let (header, rows) = header_and_rows(text, path)?;
         if header.fields.first().map(|h| trimmed(h)) != Some("name") {
             return Err(err(header.line, "the header must start with `name`".into()));
         }
@@ -127,7 +119,7 @@ impl DistanceMatrix {
             .collect();
         let mut values = Vec::with_capacity(names.len());
         for r in rows {
-            let Row { line, fields: f } = r.map_err(|(line, m)| err(line, m))?;
+            let Row { line, fields: f } = r?;
             let row = values.len();
             if row >= names.len() {
                 return Err(err(line, "more rows than columns".into()));
