@@ -48,13 +48,13 @@ pub use closest::{point_to_surface_distances, TriangleGrid};
 pub use cloud::{CloudError, CloudReport};
 
 use crate::mesh::{
-    bbox_diagonal, boundary_loop_extent, boundary_loops, euler_characteristic, genus,
-    longest_boundary_loop, surface_area, Mesh,
+    bbox_diagonal, boundary_loops, euler_characteristic, genus, longest_boundary_loop,
+    surface_area, widest_boundary_loop_extent, Mesh,
 };
 pub use crown::{CrownError, CrownMode, CrownReport};
 
 /// A surface whose every boundary loop spans less than this share of its
-/// bounding-box diagonal ([`boundary_loop_extent`]) is a closed surface
+/// bounding-box diagonal ([`widest_boundary_loop_extent`]) is a closed surface
 /// with holes, not a cropped crown: a crop's rim runs all around the
 /// crown (0.72–0.94 of the diagonal on the 116 real crowns). The extent,
 /// not the length: a root cut off by the scan's field of view leaves a
@@ -288,11 +288,7 @@ fn cut_whole_tooth(
     report: &mut CleanReport,
     crown: CrownMode,
 ) -> Result<Mesh, CleanError> {
-    let widest = boundary_loops(&m)
-        .iter()
-        .map(|lp| boundary_loop_extent(&m, lp))
-        .reduce(f64::max);
-    let whole = match widest {
+    let whole = match widest_boundary_loop_extent(&m) {
         None => true,
         Some(extent) => crown == CrownMode::Auto && extent < NEARLY_CLOSED * bbox_diagonal(&m),
     };

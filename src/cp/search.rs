@@ -408,7 +408,8 @@ pub(crate) fn directed_for_mobius(s: &Prepared, t: &Prepared, m: Mobius) -> Opti
 pub fn search_directed(s: &Prepared, t: &Prepared, params: &CompareParams) -> Directed {
     let features = FeaturePoints::of(s, t);
     let cands = ranked_candidates(s, t, &features, params);
-    let step = std::f64::consts::TAU / params.angles.max(1) as f64;
+    let angle_step = std::f64::consts::TAU / params.angles.max(1) as f64;
+    let step = [0.05, 0.05, 0.5 * angle_step];
     let after = (GIVE_UP_SHARE * params.refine_evaluations as f64).ceil() as usize;
     let mut refined: Vec<(f64, DiskMap)> = Vec::new();
     for m0 in refine_starts(&cands, params.refine_candidates.max(1)) {
@@ -417,7 +418,6 @@ pub fn search_directed(s: &Prepared, t: &Prepared, params: &CompareParams) -> Di
             after,
             above: GIVE_UP_MARGIN * best,
         });
-        let step = [0.05, 0.05, 0.5 * step];
         refined.push(refine(s, t, &features, m0, step, params, give_up));
     }
     let mut evaluated = evaluate_refined(s, t, refined);

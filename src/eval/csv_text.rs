@@ -161,11 +161,7 @@ pub(crate) fn header_and_rows<'a>(
     text: &'a str,
     path: &'a Path,
 ) -> Result<(Row, impl Iterator<Item = Result<Row, TableError>> + 'a), TableError> {
-    let err = move |(line, message): (usize, String)| TableError::Format {
-        path: path.to_path_buf(),
-        line,
-        message,
-    };
+    let err = move |(line, message): (usize, String)| format_error(path, line, message);
     let mut rows = rows(text, false).map(move |r| r.map_err(err));
     let header = rows
         .next()

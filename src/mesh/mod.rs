@@ -26,7 +26,8 @@ pub use subdivide::subdivide_midpoint;
 pub use topology::{
     boundary_loop_extent, boundary_loop_length, boundary_loops, boundary_loops_by_length,
     boundary_vertices, edge_face_map, edge_key, euler_characteristic, genus, longest_boundary_loop,
-    triangle_adjacency, vertex_adjacency, EdgeKey, EdgeMap, NO_TRIANGLE,
+    triangle_adjacency, vertex_adjacency, widest_boundary_loop_extent, EdgeKey, EdgeMap,
+    NO_TRIANGLE,
 };
 pub(crate) use topology::{half_edge_ends, has_directed_edge};
 

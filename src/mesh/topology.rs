@@ -260,6 +260,15 @@ pub fn boundary_loop_extent(mesh: &Mesh, lp: &[u32]) -> f64 {
         .map_or(0.0, |(lo, hi)| norm(sub(hi, lo)))
 }
 
+/// The largest [`boundary_loop_extent`] of the mesh's boundary loops;
+/// `None` for a closed surface.
+pub fn widest_boundary_loop_extent(mesh: &Mesh) -> Option<f64> {
+    boundary_loops(mesh)
+        .iter()
+        .map(|lp| boundary_loop_extent(mesh, lp))
+        .reduce(f64::max)
+}
+
 /// The [`boundary_loops`] ordered by decreasing [`boundary_loop_length`]
 /// (geometric length, not vertex count); loops of equal length keep the
 /// order of [`boundary_loops`].
@@ -435,6 +444,10 @@ mod tests {
         // The rim spans the 3 × 3 square, the hole its middle cell.
         assert!((boundary_loop_extent(&m, &loops[0]) - 18f64.sqrt()).abs() < 1e-12);
         assert!((boundary_loop_extent(&m, &loops[1]) - 2f64.sqrt()).abs() < 1e-12);
+        assert_eq!(
+            widest_boundary_loop_extent(&m),
+            Some(boundary_loop_extent(&m, &loops[0]))
+        );
         assert_eq!(longest_boundary_loop(&m), Some(loops[0].clone()));
         // Renumbered so that a hole vertex is vertex 0, the hole comes first
         // in vertex order but the rim is still the longest.

@@ -338,10 +338,7 @@ fn real_whole_teeth(step: usize) -> Option<WholeTeeth> {
                 let raw = morphoid::mesh::io::load(&dir.join("meshes").join(format!("{name}.ply")))
                     .unwrap()
                     .mesh;
-                morphoid::mesh::boundary_loops(&raw)
-                    .iter()
-                    .map(|lp| morphoid::mesh::boundary_loop_extent(&raw, lp))
-                    .fold(0.0, f64::max)
+                morphoid::mesh::widest_boundary_loop_extent(&raw).unwrap_or(0.0)
                     / morphoid::mesh::bbox_diagonal(&raw)
             };
             let seed = 7000 + i as u64;

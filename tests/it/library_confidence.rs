@@ -153,25 +153,14 @@ fn a_scan_of_a_missing_taxon_is_flagged_and_one_of_a_held_taxon_is_not() {
 #[test]
 #[ignore = "full 116-tooth measurement (minutes); run by name"]
 fn novelty_and_calibration_on_the_116_teeth() {
-    let Some(data) = crate::support::data::teeth_dir() else {
+    let Some(real) = crate::support::library::real_library() else {
         return;
     };
-    let ranks: Vec<String> = ["order", "family", "genus"].map(String::from).to_vec();
-    let library = Library::open(&data, Some(&ranks)).unwrap();
-    let tmp = tempfile::tempdir().unwrap();
-    let root = std::env::var_os("MORPHOID_CALIBRATION_CACHE")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| tmp.path().to_path_buf());
-    let cache = Cache::for_folder(Some(&root), &data).unwrap();
-    let settings = Settings::default();
-    let (classifier, built) = Classifier::build(&library, &cache, &settings, |_| {}).unwrap();
-    assert!(built.failures().is_empty());
-    assert_eq!(classifier.references().len(), 116);
-    let table =
-        library::reference_distances(classifier.references(), &settings, Some(&cache), |_| {});
+    assert_eq!(real.classifier.references().len(), 116);
+    let table = &real.table;
     assert!(table.is_complete());
-    let labels = library.labels();
-    let m = measure(&table, labels);
+    let labels = real.library.labels();
+    let m = measure(table, labels);
 
     eprintln!(
         "leave-one-out right: order {}, family {}, genus {}",

@@ -188,28 +188,17 @@ fn slice_stacks_of_all_real_teeth() {
 #[test]
 #[ignore = "real data, minutes: run by name"]
 fn held_out_slice_stacks_are_flagged_as_rarely_as_crops() {
-    use morphoid::classify::Classifier;
-    use morphoid::library::{self, Cache, Calibration, DistanceRow, Library};
-    let Some(dir) = data::teeth_dir() else {
+    use morphoid::library::{self, Calibration, DistanceRow};
+    let Some(real) = super::support::library::real_library() else {
         return;
     };
-    let ranks: Vec<String> = ["order", "family", "genus"].map(String::from).to_vec();
-    let library = Library::open(&dir, Some(&ranks)).unwrap();
-    let tmp = tempfile::tempdir().unwrap();
-    let root = std::env::var_os("MORPHOID_CALIBRATION_CACHE")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| tmp.path().to_path_buf());
-    let cache = Cache::for_folder(Some(&root), &dir).unwrap();
-    let settings = Settings::default();
-    let (classifier, built) = Classifier::build(&library, &cache, &settings, |_| {}).unwrap();
-    assert!(built.failures().is_empty());
-    let references = classifier.references();
-    let table = library::reference_distances(references, &settings, Some(&cache), |_| {});
-    let labels = library.labels();
+    let (dir, settings, table) = (&real.dir, &real.settings, &real.table);
+    let references = real.classifier.references();
+    let labels = real.library.labels();
     let names: Vec<String> = table.names().to_vec();
     let picked: Vec<usize> = (0..names.len()).step_by(4).collect();
     let pick: Vec<String> = picked.iter().map(|&i| names[i].clone()).collect();
-    let stacks = check_teeth(&pick, &dir, SynthFormat::Tiff8);
+    let stacks = check_teeth(&pick, dir, SynthFormat::Tiff8);
 
     let genus = |row: &[DistanceRow], cal: &Calibration| {
         let mut id = library::identify(row, labels, 1);

@@ -5,5 +5,6 @@ pub mod cp;
 pub mod daemon;
 pub mod data;
 pub mod faults;
+pub mod library;
 pub mod lm;
 pub mod store;

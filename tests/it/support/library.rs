@@ -1,0 +1,52 @@
+//! The real teeth as the product holds them, for the measurements that
+//! need the whole library: opened with the ranks order, family and genus,
+//! prepared and calibrated by `Classifier::build`, and the distances among
+//! the references. The cache is `MORPHOID_CALIBRATION_CACHE` when set, so
+//! repeated runs prepare and compare once; else a temporary folder.
+
+use morphoid::classify::Classifier;
+use morphoid::library::{self, Cache, Library, ReferenceDistances};
+use morphoid::pipeline::Settings;
+use std::path::PathBuf;
+
+/// What [`real_library`] builds.
+pub struct RealLibrary {
+    /// The real-data folder.
+    pub dir: PathBuf,
+    /// The library (ranks order, family, genus).
+    pub library: Library,
+    /// The classifier built from it with the default settings.
+    pub classifier: Classifier,
+    /// The distances among the classifier's references.
+    pub table: ReferenceDistances,
+    /// The settings everything was built with.
+    pub settings: Settings,
+    /// Holds the temporary cache folder, when there is one.
+    _tmp: tempfile::TempDir,
+}
+
+/// The real teeth built as [`RealLibrary`] says, or `None` without the
+/// data (see `data::teeth_dir`). Every reference must prepare.
+pub fn real_library() -> Option<RealLibrary> {
+    let dir = super::data::teeth_dir()?;
+    let ranks: Vec<String> = ["order", "family", "genus"].map(String::from).to_vec();
+    let library = Library::open(&dir, Some(&ranks)).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let root = std::env::var_os("MORPHOID_CALIBRATION_CACHE")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| tmp.path().to_path_buf());
+    let cache = Cache::for_folder(Some(&root), &dir).unwrap();
+    let settings = Settings::default();
+    let (classifier, built) = Classifier::build(&library, &cache, &settings, |_| {}).unwrap();
+    assert!(built.failures().is_empty());
+    let table =
+        library::reference_distances(classifier.references(), &settings, Some(&cache), |_| {});
+    Some(RealLibrary {
+        dir,
+        library,
+        classifier,
+        table,
+        settings,
+        _tmp: tmp,
+    })
+}
