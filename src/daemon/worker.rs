@@ -295,6 +295,17 @@ impl WorkerState {
             // A new connection may be to a new file: results need the
             // references registered.
             self.setup.classifier.register_references(store)?;
+            // This thread identifies one scan at a time, and between
+            // steps none but the held one: any other left running (a claim
+            // reported failed that reached the file all the same) is
+            // pending again, or it would never be identified.
+            let held = self.held.as_ref().map(|h| h.job.scan_id);
+            let requeued = store.requeue_running_but(held)?;
+            if requeued > 0 {
+                tracing::info!(
+                    "{requeued} scan(s) left running when the database failed are pending again"
+                );
+            }
             self.registered = generation;
         }
         if let Some(held) = self.held.take() {

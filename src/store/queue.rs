@@ -208,13 +208,21 @@ impl Store {
     /// are committed together with `ok`); the query checks it anyway.
     /// Returns how many were requeued.
     pub fn requeue_running(&mut self) -> Result<usize, StoreError> {
+        self.requeue_running_but(None)
+    }
+
+    /// [`Store::requeue_running`], but for the scan `held` (the one the
+    /// worker holds a finding for): after a storage fault, a claim whose
+    /// commit was reported failed may still have reached the file, and
+    /// would stay running for good.
+    pub fn requeue_running_but(&mut self, held: Option<i64>) -> Result<usize, StoreError> {
         Ok(self.conn.execute(
             "UPDATE scan SET status = 'pending', started_at = NULL
-             WHERE status = 'running'
+             WHERE status = 'running' AND id IS NOT ?1
                AND NOT EXISTS (SELECT 1 FROM result WHERE result.scan_id = scan.id)
                AND NOT EXISTS (SELECT 1 FROM distance WHERE distance.scan_id = scan.id)
                AND NOT EXISTS (SELECT 1 FROM landmark WHERE landmark.scan_id = scan.id)",
-            [],
+            [held],
         )?)
     }
 

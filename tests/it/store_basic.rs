@@ -369,6 +369,33 @@ fn requeue_after_crash_runs_each_scan_once() {
     }
 }
 
+/// After a storage fault the worker requeues every running scan but the
+/// one it holds a finding for: that one is recorded, the others run again.
+#[test]
+fn requeue_keeps_the_held_scan_running() {
+    let (_dir, path) = temp_db();
+    let mut store = Store::open(&path).expect("open");
+    register_references(&mut store, 5);
+    store.enqueue("held.ply", "hh", 1).expect("h");
+    store.enqueue("lost.ply", "hl", 1).expect("l");
+    let held = store.claim_next().expect("claim").expect("held");
+    let lost = store.claim_next().expect("claim").expect("lost");
+    assert_eq!(
+        store
+            .requeue_running_but(Some(held.scan_id))
+            .expect("requeue"),
+        1
+    );
+    let status = |store: &Store, id| store.scan(id, 5).expect("read").expect("row").status;
+    assert_eq!(status(&store, held.scan_id), ScanStatus::Running);
+    assert_eq!(status(&store, lost.scan_id), ScanStatus::Pending);
+    store
+        .complete(held.scan_id, &outcome(7, 5))
+        .expect("the held finding is recorded");
+    let again = store.claim_next().expect("claim").expect("lost again");
+    assert_eq!(again.scan_id, lost.scan_id);
+}
+
 #[test]
 fn complete_is_all_or_nothing() {
     let (_dir, path) = temp_db();
