@@ -240,9 +240,25 @@ fn make_disk(m: &Mesh, report: &mut CleanReport, crown: CrownMode) -> Result<Mes
     if m7.faces.len() < min {
         return Err(CleanError::TooFewFaces(m7.faces.len()));
     }
-    let (m8, flipped) =
-        orient::orient_faces_consistently(&m7).map_err(|_| CleanError::NonOrientable)?;
+    let (m8, flipped) = match orient::orient_faces_consistently(&m7) {
+        Ok(oriented) => oriented,
+        // Only a surface this cleaning decimated is cut open where it is
+        // twisted: the decimation folded it, the scan was orientable.
+        Err(_) if report.predecimated_faces > 0 => {
+            let (opened, _) = orient::drop_orientation_conflicts(&m7);
+            let (kept, _) = components::largest_component_by_area(&opened);
+            orient::orient_faces_consistently(&faces::remove_unreferenced_vertices(&kept))
+                .map_err(|_| CleanError::NonOrientable)?
+        }
+        Err(_) => return Err(CleanError::NonOrientable),
+    };
     report.flipped_faces += flipped;
+    if let Some(coarser) = decimated_for_crown_search(&m8, crown) {
+        // The repairs run again on the coarser surface, which the margin
+        // search then takes.
+        report.predecimated_faces = report.predecimated_faces.max(m8.faces.len());
+        return make_disk(&coarser, report, crown);
+    }
     let m8 = cut_whole_tooth(m8, report, crown)?;
     let (m9, filled) = holes::fill_holes_except_longest(&m8);
     report.filled_holes += filled;
@@ -277,7 +293,57 @@ fn decimate_if_dense(m: &Mesh, opts: &CleanOptions, report: &mut CleanReport) ->
         return None;
     }
     report.predecimated_faces = m.faces.len();
-    Some(resample::decimate_to_face_count(m, early_faces))
+    // Pinched vertices (two sheets of an isosurface through one vertex)
+    // are split and debris dropped first: collapsing edges round a pinch
+    // can fold the surface into a non-orientable one.
+    let (repaired, _) = manifold::repair_nonmanifold_edges(m);
+    let (split, _) = manifold::split_nonmanifold_vertices(&repaired);
+    drop(repaired);
+    let (kept, dropped) = components::largest_component_by_area(&split);
+    drop(split);
+    report.dropped_components += dropped;
+    decimated_orientable(&faces::remove_unreferenced_vertices(&kept), early_faces)
+}
+
+/// Faces of a whole tooth on which its margin is searched: the crown
+/// keeps about two fifths of them, several times the working resolution,
+/// and the search's time does not grow with the export's resolution.
+const CROWN_SEARCH_FACES: usize = 60_000;
+
+/// A whole tooth far denser than [`CROWN_SEARCH_FACES`], decimated to it;
+/// `None` for anything else.
+fn decimated_for_crown_search(m: &Mesh, crown: CrownMode) -> Option<Mesh> {
+    if crown != CrownMode::Auto
+        || m.faces.len() <= 3 * CROWN_SEARCH_FACES / 2
+        || !is_whole(m, crown)
+    {
+        return None;
+    }
+    decimated_orientable(m, CROWN_SEARCH_FACES)
+}
+
+/// `m` decimated to about `target` faces, or to twice as many when that
+/// folded a thin part of it (two walls of a narrow tunnel between roots
+/// collapsed into a non-orientable strip); `None` when both did (the
+/// surface is then used as it is).
+fn decimated_orientable(m: &Mesh, target: usize) -> Option<Mesh> {
+    [target, 2 * target]
+        .into_iter()
+        .filter(|&t| t < m.faces.len())
+        .find_map(|t| {
+            let d = resample::decimate_to_face_count(m, t);
+            let (e, _) = manifold::repair_nonmanifold_edges(&d);
+            orient::orient_faces_consistently(&e).is_ok().then_some(d)
+        })
+}
+
+/// Whether `m` is a closed or nearly closed surface (a whole tooth, not a
+/// cropped crown).
+fn is_whole(m: &Mesh, crown: CrownMode) -> bool {
+    match widest_boundary_loop_extent(m) {
+        None => true,
+        Some(extent) => crown == CrownMode::Auto && extent < NEARLY_CLOSED * bbox_diagonal(m),
+    }
 }
 
 /// Step 7: a closed or nearly closed surface is cut to its crown (holes
@@ -288,11 +354,7 @@ fn cut_whole_tooth(
     report: &mut CleanReport,
     crown: CrownMode,
 ) -> Result<Mesh, CleanError> {
-    let whole = match widest_boundary_loop_extent(&m) {
-        None => true,
-        Some(extent) => crown == CrownMode::Auto && extent < NEARLY_CLOSED * bbox_diagonal(&m),
-    };
-    if !whole {
+    if !is_whole(&m, crown) {
         return Ok(m);
     }
     if crown == CrownMode::Off {

@@ -82,6 +82,72 @@ pub fn orient_faces_consistently(mesh: &Mesh) -> Result<(Mesh, usize), NonOrient
     Ok((Mesh::new(mesh.vertices.clone(), faces), reversed))
 }
 
+/// The faces of `mesh` less those where a breadth-first orientation of
+/// the faces meets a contradiction (both faces of each such edge): a
+/// surface that decimation folded (two walls of a narrow tunnel collapsed
+/// into a twisted strip) is cut open there, and the slit is filled like
+/// any hole later. Returns the mesh and the number of faces dropped; a
+/// consistent surface is returned whole.
+pub fn drop_orientation_conflicts(mesh: &Mesh) -> (Mesh, usize) {
+    let n = mesh.faces.len();
+    let ef = edge_face_map(mesh);
+    let mut nbrs: Vec<Vec<(u32, bool)>> = vec![Vec::new(); n];
+    for e in 0..ef.len() {
+        let fs = ef.faces_of(e);
+        if fs.len() != 2 {
+            continue;
+        }
+        let (a, b) = ef.edge(e);
+        let same = has_directed_edge(mesh.faces[fs[0] as usize], a, b)
+            == has_directed_edge(mesh.faces[fs[1] as usize], a, b);
+        nbrs[fs[0] as usize].push((fs[1], same));
+        nbrs[fs[1] as usize].push((fs[0], same));
+    }
+    let mut flip: Vec<Option<bool>> = vec![None; n];
+    let mut dropped = vec![false; n];
+    let mut queue = VecDeque::new();
+    for seed in 0..n {
+        if flip[seed].is_some() {
+            continue;
+        }
+        flip[seed] = Some(false);
+        queue.push_back(seed);
+        while let Some(f) = queue.pop_front() {
+            if dropped[f] {
+                continue;
+            }
+            let ff = flip[f].unwrap_or(false);
+            for &(g, same) in &nbrs[f] {
+                let g = g as usize;
+                if dropped[g] {
+                    continue;
+                }
+                let want = ff ^ same;
+                match flip[g] {
+                    None => {
+                        flip[g] = Some(want);
+                        queue.push_back(g);
+                    }
+                    Some(h) if h != want => {
+                        dropped[f] = true;
+                        dropped[g] = true;
+                        break;
+                    }
+                    Some(_) => {}
+                }
+            }
+        }
+    }
+    let count = dropped.iter().filter(|&&d| d).count();
+    let faces = mesh
+        .faces
+        .iter()
+        .zip(&dropped)
+        .filter_map(|(f, &d)| (!d).then_some(*f))
+        .collect();
+    (Mesh::new(mesh.vertices.clone(), faces), count)
+}
+
 /// Reverse every face.
 pub fn reverse_faces(mesh: &Mesh) -> Mesh {
     Mesh::new(mesh.vertices.clone(), reversed_winding(&mesh.faces))

@@ -23,8 +23,9 @@ use std::path::{Path, PathBuf};
 /// so old entries are ignored instead of misread, and whenever cleaning
 /// or preparation makes something else of some file under the same
 /// settings, so no reference keeps what the old code made of it (3: a
-/// nearly closed surface is told by its holes' extent, not their length).
-const CACHE_FORMAT: u32 = 3;
+/// nearly closed surface is told by its holes' extent, not their length;
+/// 4: the margin of a whole tooth follows its neck's outline).
+const CACHE_FORMAT: u32 = 4;
 
 /// Extension of cache entries.
 const EXTENSION: &str = "prep";

@@ -10,6 +10,7 @@ mod align_formats;
 mod classify_result_files;
 mod clean_cloud;
 mod clean_crown;
+mod clean_exports;
 mod clean_pipeline;
 mod clean_teeth;
 mod clean_variants;

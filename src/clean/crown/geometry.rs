@@ -139,3 +139,34 @@ impl Cylinder {
         (y.atan2(x), x.hypot(y))
     }
 }
+
+/// The vertices of `mesh` after `iterations` rounds of Taubin's λ|μ
+/// smoothing (uniform weights): the voxel staircase of an isosurface and
+/// scanner noise go, the shape's larger bends stay, and, unlike plain
+/// Laplacian smoothing, the surface does not shrink.
+pub(super) fn taubin_smoothed(mesh: &Mesh, iterations: usize) -> Vec<[f64; 3]> {
+    const LAMBDA: f64 = 0.5;
+    const MU: f64 = -0.53;
+    let adjacency = crate::mesh::vertex_adjacency(mesh);
+    let mut points = mesh.vertices.clone();
+    for _ in 0..iterations {
+        for factor in [LAMBDA, MU] {
+            points = points
+                .iter()
+                .zip(&adjacency)
+                .map(|(&p, near)| {
+                    if near.is_empty() {
+                        return p;
+                    }
+                    let n = near.len() as f64;
+                    let mean = near.iter().fold([0.0; 3], |acc, &q| {
+                        let q = points[q as usize];
+                        [acc[0] + q[0], acc[1] + q[1], acc[2] + q[2]]
+                    });
+                    [0, 1, 2].map(|d| p[d] + factor * (mean[d] / n - p[d]))
+                })
+                .collect();
+        }
+    }
+    points
+}

@@ -33,9 +33,11 @@
 mod cut;
 mod cycle;
 mod geometry;
+mod neck;
 
 use crate::mesh::{bbox_diagonal, boundary_loops, euler_characteristic, norm, sub, Mesh};
-use geometry::{area_weighted_axes, signed_volume6, Cylinder, SurfaceGeometry};
+use geometry::{area_weighted_axes, signed_volume6, taubin_smoothed, Cylinder, SurfaceGeometry};
+use neck::{neck_heights, NeckHeights};
 
 /// Whether a closed surface is cut to its crown.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -103,6 +105,11 @@ pub struct CrownReport {
     /// Height range of the cut as a fraction of the crown's height above
     /// its lowest point (hand crops of real teeth: about 0.27).
     pub cut_variation: f64,
+    /// How much wider the crown's outline is at its height of contour than
+    /// at the margin (median over polar sectors round the axis; 0 when the
+    /// cut followed a crease alone, no neck being seen on the outline).
+    #[serde(default)]
+    pub neck_bulge: f64,
     /// How clearly the cut is a cervical margin: the share of it on
     /// crease less 0.1 × its rise and fall (what ranks the loops found
     /// about the different axes; 0 to 1).
@@ -240,7 +247,7 @@ const END_EXCLUDED: f64 = 0.15;
 /// of the tooth, and away from the axis (at least half the widest radius at
 /// their height), so that no small loop round the axis where it pierces the
 /// occlusal surface or the apex competes with the margin.
-fn margin_vertices(mesh: &Mesh, cyl: &Cylinder) -> Vec<bool> {
+fn margin_vertices(mesh: &Mesh, cyl: &Cylinder, neck: Option<&NeckHeights>) -> Vec<bool> {
     const BINS: usize = 50;
     let polar: Vec<(f64, f64)> = mesh
         .vertices
@@ -259,13 +266,35 @@ fn margin_vertices(mesh: &Mesh, cyl: &Cylinder) -> Vec<bool> {
     let widest_all = widest.iter().copied().fold(0.0, f64::max);
     polar
         .iter()
-        .map(|&(z, r)| {
+        .zip(&mesh.vertices)
+        .map(|(&(z, r), &p)| {
             let t = (z - zmin) / length;
             (END_EXCLUDED..=1.0 - END_EXCLUDED).contains(&t)
                 && r >= 0.5 * widest[bin_of(z)]
                 && r >= 0.3 * widest_all
+                && neck.is_none_or(|n| (t - n.at(cyl.polar(p).0)).abs() <= NECK_WINDOW)
         })
         .collect()
+}
+
+/// The least a crown's outline must be wider at its height of contour
+/// than at the neck for the neck to guide the margin: a box or a cylinder
+/// round a slanted axis bends too, but does not narrow under a bulge.
+const MIN_NECK_BULGE: f64 = 1.04;
+
+/// How far (share of the tooth's length) the margin may stray from the
+/// neck's height seen on the outline ([`neck::neck_heights`]).
+const NECK_WINDOW: f64 = 0.15;
+
+/// The distance from the neck's height (share of the length) at which an
+/// edge costs twice its length: the loop follows a crease near the neck
+/// where there is one, and the neck itself where there is none.
+const NECK_BAND: f64 = 0.04;
+
+/// The cost of an edge's straying from the neck's height, per unit of
+/// its length: `1 + ((t − neck) / NECK_BAND)²`.
+fn neck_weight(deviation: f64) -> f64 {
+    1.0 + (deviation / NECK_BAND).powi(2)
 }
 
 /// Largest difference from 1 of the ratio of the two sides' distances
@@ -295,10 +324,15 @@ fn margin_loop(
     geo: &SurfaceGeometry,
     centre: [f64; 3],
     axis: [f64; 3],
+    neck: Option<&NeckHeights>,
 ) -> Option<MarginLoop> {
     let cyl = Cylinder::new(centre, axis);
     let angles: Vec<f64> = mesh.vertices.iter().map(|&p| cyl.polar(p).0).collect();
-    let allowed = margin_vertices(mesh, &cyl);
+    let allowed = margin_vertices(mesh, &cyl, neck);
+    let heights: Vec<f64> = mesh.vertices.iter().map(|&p| cyl.height(p)).collect();
+    let zmin = heights.iter().copied().fold(f64::MAX, f64::min);
+    let zmax = heights.iter().copied().fold(f64::MIN, f64::max);
+    let length = (zmax - zmin).max(f64::MIN_POSITIVE);
     let mut cheapest = vec![f64::INFINITY; mesh.vertices.len()];
     let edges: Vec<(u32, u32, f64)> = geo
         .edges
@@ -306,7 +340,13 @@ fn margin_loop(
         .iter()
         .enumerate()
         .map(|(e, &(a, b))| {
-            let w = crease_weight(geo.turn[e]);
+            let mut w = crease_weight(geo.turn[e]);
+            if let Some(n) = neck {
+                let mid = [0, 1, 2]
+                    .map(|d| 0.5 * (mesh.vertices[a as usize][d] + mesh.vertices[b as usize][d]));
+                let t = (cyl.height(mid) - zmin) / length;
+                w *= neck_weight(t - n.at(cyl.polar(mid).0));
+            }
             cheapest[a as usize] = cheapest[a as usize].min(w);
             cheapest[b as usize] = cheapest[b as usize].min(w);
             let (pa, pb) = (mesh.vertices[a as usize], mesh.vertices[b as usize]);
@@ -362,6 +402,7 @@ fn crown_of_loop(
     mesh: &Mesh,
     geo: &SurfaceGeometry,
     found: &MarginLoop,
+    neck_guided: bool,
 ) -> Result<Candidate, (f64, String)> {
     let k = found.vertices.len();
     let cut: std::collections::HashSet<(u32, u32)> = (0..k)
@@ -373,7 +414,10 @@ fn crown_of_loop(
     let score = found.score;
     let mut reasons = Vec::new();
     let mut sides = Vec::new();
-    for sign in [1.0, -1.0] {
+    // A loop found on the neck's outline has its crown towards the axis'
+    // positive end; a crease loop's side is told by the bulge.
+    let signs: &[f64] = if neck_guided { &[1.0] } else { &[1.0, -1.0] };
+    for &sign in signs {
         let cyl = Cylinder::new(found.centre, found.normal.map(|x| sign * x));
         let heights: Vec<f64> = mesh.vertices.iter().map(|&p| cyl.height(p)).collect();
         let zmin = heights.iter().copied().fold(f64::MAX, f64::min);
@@ -402,7 +446,14 @@ fn crown_of_loop(
             ));
             continue;
         }
-        match judge(mesh, geo, &cyl, &inside, (zmin, zmax)) {
+        if neck_guided && !(bulge > 1.0) {
+            reasons.push((
+                score,
+                "the part above the neck seen on the outline does not bulge over it: the roots' end".into(),
+            ));
+            continue;
+        }
+        match judge(mesh, geo, &cyl, &inside, (zmin, zmax), !neck_guided) {
             Ok(mut report) => {
                 report.margin_merit = margin_merit(score, report.cut_variation);
                 sides.push((bulge, Candidate { inside, report }));
@@ -477,6 +528,7 @@ fn judge(
     cyl: &Cylinder,
     inside: &[bool],
     (zmin, zmax): (f64, f64),
+    crease_required: bool,
 ) -> Result<CrownReport, String> {
     let total: f64 = geo.areas.iter().sum();
     let kept: f64 = geo
@@ -512,13 +564,13 @@ fn judge(
         }
     }
     let crease = (turn_len / len_sum.max(f64::MIN_POSITIVE)).to_degrees();
-    if !(crease >= MIN_CREASE_DEGREES) {
+    if crease_required && !(crease >= MIN_CREASE_DEGREES) {
         return Err(format!(
             "no cervical crease: the surface turns by {crease:.1}° on average along the best margin line, at least {MIN_CREASE_DEGREES}° is needed"
         ));
     }
     let coverage = crease_len / len_sum.max(f64::MIN_POSITIVE);
-    if !(coverage >= MIN_CREASE_COVERAGE) {
+    if crease_required && !(coverage >= MIN_CREASE_COVERAGE) {
         return Err(format!(
             "the best margin line runs along a crease for {:.0} % of its length only, not around the tooth",
             100.0 * coverage
@@ -568,7 +620,12 @@ fn judge(
         folding(mesh, geo, inside, true) / folding(mesh, geo, inside, false).max(f64::MIN_POSITIVE);
     let scale = |z: f64| (z - zmin) / (zmax - zmin);
     Ok(CrownReport {
-        method: "cervical crease".into(),
+        method: if crease_required {
+            "cervical crease"
+        } else {
+            "neck outline"
+        }
+        .into(),
         occlusal: cyl.axis(),
         filled_holes: 0,
         removed_handles: 0,
@@ -584,7 +641,55 @@ fn judge(
         cut_variation: (cut_high - cut_low) / (crown_top - cut_low).max(f64::MIN_POSITIVE),
         // Set by the caller, which knows the loop's share on crease.
         margin_merit: 0.0,
+        // Set by the caller, which knows the neck it followed.
+        neck_bulge: 0.0,
     })
+}
+
+/// How much lower (share of the tooth's length) than the neck seen on the
+/// outline a crease loop may cut.
+const BELOW_NECK: f64 = 0.05;
+
+/// The candidate of highest merit, except that where a neck was seen on
+/// the outline, a crease loop cutting well below it is no margin: below
+/// the neck hang the roots, whose furcation and ridges have creases too.
+fn best_candidate(candidates: Vec<Candidate>) -> Option<Candidate> {
+    let neck = candidates
+        .iter()
+        .filter(|c| c.report.neck_bulge > 0.0)
+        .max_by(|a, b| a.merit().total_cmp(&b.merit()))
+        .map(|c| c.report.cut_height_mean);
+    candidates
+        .into_iter()
+        .filter(|c| {
+            c.report.neck_bulge > 0.0
+                || neck.is_none_or(|n| c.report.cut_height_mean >= n - BELOW_NECK)
+        })
+        .max_by(|a, b| a.merit().total_cmp(&b.merit()))
+}
+
+/// Rounds of smoothing before the margin search: enough to flatten
+/// features below about 0.4 % of the diagonal (a voxel's staircase at
+/// 300 voxels across), none on a coarse surface whose edges are longer.
+fn smoothing_iterations(mesh: &Mesh) -> usize {
+    let edges: f64 = mesh
+        .faces
+        .iter()
+        .take(5000)
+        .map(|f| {
+            norm(sub(
+                mesh.vertices[f[0] as usize],
+                mesh.vertices[f[1] as usize],
+            ))
+        })
+        .sum();
+    let count = mesh.faces.len().clamp(1, 5000) as f64;
+    let edge = edges / count;
+    if !(edge > 0.0) {
+        return 0;
+    }
+    let ratio = 0.004 * bbox_diagonal(mesh) / edge;
+    (ratio * ratio).round().clamp(0.0, 30.0) as usize
 }
 
 /// Cut the crown from a closed, consistently oriented, manifold surface
@@ -600,32 +705,105 @@ pub fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
     } else {
         mesh.clone()
     };
-    let geo = SurfaceGeometry::new(&oriented);
+    // The margin is looked for on a smoothed copy (the voxel staircase of
+    // an isosurface and scanner noise would be creases everywhere); the
+    // crown is cut from the surface as it is, along the same edges.
+    let smoothed = Mesh::new(
+        taubin_smoothed(&oriented, smoothing_iterations(&oriented)),
+        oriented.faces.clone(),
+    );
+    let geo = SurfaceGeometry::new(&smoothed);
     let (centre, axes) = area_weighted_axes(&geo)
         .filter(|_| bbox_diagonal(mesh) > 0.0)
         .ok_or_else(|| CrownError::NoCrown("the surface has no area".into()))?;
-    let mut best: Option<Candidate> = None;
+    let mut candidates: Vec<Candidate> = Vec::new();
     let mut reasons = Vec::new();
     for axis in axes {
-        let Some(first) = margin_loop(&oriented, &geo, centre, axis) else {
-            reasons.push((0.0, "no closed line runs round the surface".to_string()));
-            continue;
-        };
-        // The principal axis is only near the tooth's axis: search again
-        // about the normal of the loop found, which follows the margin.
-        let found = match margin_loop(&oriented, &geo, first.centre, first.normal) {
-            Some(again) if again.score > first.score => again,
-            _ => first,
-        };
-        match crown_of_loop(&oriented, &geo, &found) {
-            Ok(c) => {
-                if best.as_ref().is_none_or(|b| c.merit() > b.merit()) {
-                    best = Some(c);
+        // A loop that follows creases alone, accepted only on a real
+        // crease (an enamel edge), and one guided by the neck seen on the
+        // outline from each end of the axis that shows one (the crown may
+        // be at either; the loop still follows a crease near the neck):
+        // the best of them is taken.
+        let guided: Vec<([f64; 3], NeckHeights)> = [1.0, -1.0]
+            .iter()
+            .filter_map(|&sign| {
+                let a = axis.map(|x| sign * x);
+                neck_heights(&smoothed.vertices, &Cylinder::new(centre, a))
+                    .filter(|n| n.bulge >= MIN_NECK_BULGE)
+                    .map(|n| (a, n))
+            })
+            .collect();
+        let searches: Vec<([f64; 3], Option<NeckHeights>)> = guided
+            .into_iter()
+            .map(|(a, n)| (a, Some(n)))
+            .chain(std::iter::once((axis, None)))
+            .collect();
+        for (axis, neck) in searches {
+            let Some(first) = margin_loop(&smoothed, &geo, centre, axis, neck.as_ref()) else {
+                reasons.push((0.0, "no closed line runs round the surface".to_string()));
+                continue;
+            };
+            // The principal axis is only near the tooth's axis: search
+            // again about the normal of the loop found, which follows the
+            // margin.
+            let neck_again = neck.as_ref().and_then(|_| {
+                neck_heights(
+                    &smoothed.vertices,
+                    &Cylinder::new(first.centre, first.normal),
+                )
+                .filter(|n| n.bulge >= MIN_NECK_BULGE)
+            });
+            let again = if neck.is_some() && neck_again.is_none() {
+                None
+            } else {
+                margin_loop(
+                    &smoothed,
+                    &geo,
+                    first.centre,
+                    first.normal,
+                    neck_again.as_ref(),
+                )
+            };
+            let found = match again {
+                Some(again) if again.score > first.score => again,
+                _ => first,
+            };
+            // A line that dips where no margin lies ran round a wrong
+            // axis or the roots: it cannot be the margin, whatever its
+            // merit.
+            let candidate =
+                crown_of_loop(&smoothed, &geo, &found, neck.is_some()).and_then(|c| {
+                    if c.report.cut_height_min < MIN_CUT_HEIGHT {
+                        Err((found.score, format!(
+                            "the best margin line found dips to {:.0} % of the tooth's length above the apex, where no cervical margin lies: the tooth's axis was not found",
+                            100.0 * c.report.cut_height_min
+                        )))
+                    } else {
+                        Ok(c)
+                    }
+                });
+            match &candidate {
+                Ok(c) => tracing::debug!(
+                    neck = neck.is_some(),
+                    merit = c.merit(),
+                    cut_low = c.report.cut_height_min,
+                    cut_high = c.report.cut_height_max,
+                    "margin candidate"
+                ),
+                Err((_, reason)) => {
+                    tracing::debug!(neck = neck.is_some(), reason = %reason, "margin refused")
                 }
             }
-            Err(reason) => reasons.push(reason),
+            match candidate {
+                Ok(mut c) => {
+                    c.report.neck_bulge = neck.as_ref().map_or(0.0, |n| n.bulge);
+                    candidates.push(c);
+                }
+                Err(reason) => reasons.push(reason),
+            }
         }
     }
+    let best = best_candidate(candidates);
     let Some(best) = best else {
         let reason = reasons
             .into_iter()
@@ -634,12 +812,6 @@ pub fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
             .unwrap_or_default();
         return Err(CrownError::NoCrown(reason));
     };
-    if best.report.cut_height_min < MIN_CUT_HEIGHT {
-        return Err(CrownError::NoCrown(format!(
-            "the best margin line found dips to {:.0} % of the tooth's length above the apex, where no cervical margin lies: the tooth's axis was not found",
-            100.0 * best.report.cut_height_min
-        )));
-    }
     let faces: Vec<[u32; 3]> = oriented
         .faces
         .iter()

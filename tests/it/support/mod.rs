@@ -4,6 +4,7 @@ pub mod clean;
 pub mod cp;
 pub mod daemon;
 pub mod data;
+pub mod exports;
 pub mod faults;
 pub mod library;
 pub mod lm;

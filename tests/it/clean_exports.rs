@@ -1,0 +1,237 @@
+//! Crown extraction on whole teeth as scanners export them
+//! (`support::exports`: isosurfaces of voxelized teeth built below the real
+//! crowns, smooth or sharp necks, one to three roots, a pulp cavity, the
+//! voxel staircase), written as files and prepared as a user's file is;
+//! the crown is compared with the real crop it was built on, and the
+//! whole teeth are identified against the other crowns.
+
+use crate::support::clean::mean_max_distance;
+use crate::support::exports::{exported_tooth, Junction, ToothForm};
+use morphoid::mesh::synth::{scale, RigidMotion};
+use morphoid::mesh::{bbox_diagonal, surface_area, Mesh};
+use std::time::Instant;
+
+/// A kind of export: roots, junction and resolution.
+#[derive(Debug, Clone, Copy)]
+struct Kind {
+    name: &'static str,
+    roots: Option<usize>,
+    junction: Option<Junction>,
+    voxels: usize,
+}
+
+/// Smooth-necked single-rooted teeth.
+const SMOOTH_ONE_ROOT: Kind = Kind {
+    name: "smooth single-rooted",
+    roots: Some(1),
+    junction: Some(Junction::Smooth),
+    voxels: 220,
+};
+
+/// Two-rooted isosurfaces at about 300 voxels across the tooth.
+const TWO_ROOTS_300: Kind = Kind {
+    name: "two-rooted isosurface, 300 voxels",
+    roots: Some(2),
+    junction: None,
+    voxels: 300,
+};
+
+/// Every form mixed: 1–3 roots, every junction, 140–300 voxels.
+const MIXED: Kind = Kind {
+    name: "mixed",
+    roots: None,
+    junction: None,
+    voxels: 0,
+};
+
+fn form_for(kind: Kind, seed: u64) -> ToothForm {
+    // Mixed so that neighbouring seeds differ in every respect.
+    let k = (seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40) as usize;
+    let roots = kind.roots.unwrap_or(1 + k % 3);
+    let junction = kind
+        .junction
+        .unwrap_or([Junction::Smooth, Junction::Kinked, Junction::Ledge][(k / 3) % 3]);
+    let voxels = if kind.voxels > 0 {
+        kind.voxels
+    } else {
+        [140, 200, 300][(k / 2) % 3]
+    };
+    ToothForm::random(seed, roots, junction, voxels)
+}
+
+/// How close an extracted crown is to the crop it was built on.
+struct Fit {
+    mean: f64,
+    area_ratio: f64,
+}
+
+fn fit(extracted: &Mesh, original: &Mesh) -> Fit {
+    let (m1, _) = mean_max_distance(&extracted.vertices, original);
+    let (m2, _) = mean_max_distance(&original.vertices, extracted);
+    Fit {
+        mean: 0.5 * (m1 + m2) / bbox_diagonal(original),
+        area_ratio: surface_area(extracted) / surface_area(original),
+    }
+}
+
+/// What one run found.
+struct Run {
+    prepared: Vec<morphoid::cp::Prepared>,
+    refused: Vec<String>,
+    off_target: Vec<String>,
+    total: usize,
+}
+
+/// Every `step`-th real tooth (or those in `MORPHOID_EXPORT_NAMES`) built
+/// as `kind`, moved at random, written as binary PLY, prepared through
+/// `pipeline::prepare_file`.
+fn run_kind(kind: Kind, step: usize) -> Option<Run> {
+    let dir = crate::support::data::teeth_dir()?;
+    let names = crate::support::cp::tooth_names(&dir);
+    let tmp = tempfile::tempdir().unwrap();
+    let out_dir = std::env::var_os("MORPHOID_EXPORT_DIR")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| tmp.path().to_path_buf());
+    std::fs::create_dir_all(&out_dir).unwrap();
+    let only: Option<Vec<String>> = std::env::var("MORPHOID_EXPORT_NAMES")
+        .ok()
+        .map(|v| v.split(',').map(|s| s.trim().to_string()).collect());
+    let picked: Vec<(usize, &String)> = match &only {
+        Some(only) => names
+            .iter()
+            .enumerate()
+            .filter(|(_, n)| only.contains(n))
+            .collect(),
+        None => names.iter().enumerate().step_by(step).collect(),
+    };
+    let settings = morphoid::pipeline::Settings::default();
+    let mut run = Run {
+        prepared: Vec::new(),
+        refused: Vec::new(),
+        off_target: Vec::new(),
+        total: picked.len(),
+    };
+    use rayon::prelude::*;
+    let outcomes: Vec<_> = picked
+        .par_iter()
+        .map(|&(i, name)| {
+            let original = crate::support::cp::load_tooth(&dir, name);
+            let seed = 9100 + i as u64;
+            let form = form_for(kind, seed);
+            let tooth = exported_tooth(&original, &form).expect("a whole tooth is built");
+            let m = RigidMotion::random(seed, 3.0 * bbox_diagonal(&original));
+            let s = 2f64.powf(((seed * 7919) % 200) as f64 / 100.0 - 1.0);
+            let moved = |x: &Mesh| m.apply(&scale(x, s));
+            let path = out_dir.join(format!("{name}.ply"));
+            morphoid::mesh::io::write_ply(&path, &moved(&tooth.mesh)).unwrap();
+            let started = Instant::now();
+            let out = morphoid::pipeline::prepare_file(&path, &settings);
+            let seconds = started.elapsed().as_secs_f64();
+            let line = format!(
+                "{name}: {} roots, {:?}, {} voxels, blur {:.1}, pulp {}, {} faces, {seconds:.1} s",
+                form.roots,
+                form.junction,
+                form.voxels,
+                form.blur,
+                form.pulp,
+                tooth.mesh.faces.len()
+            );
+            match out {
+                Ok(out) => {
+                    let f = fit(&out.cleaned, &moved(&original));
+                    let crown = out.cleaning.crown.clone();
+                    println!(
+                        "{line}: mean {:.4} area {:.3} cut {:?}",
+                        f.mean,
+                        f.area_ratio,
+                        crown.map(|c| (c.method, c.cut_height_min, c.cut_height_max))
+                    );
+                    Ok((name.clone(), f, out.prepared))
+                }
+                Err(e) => {
+                    println!("{line}: REFUSED {e}");
+                    Err(name.clone())
+                }
+            }
+        })
+        .collect();
+    for o in outcomes {
+        match o {
+            Ok((name, f, prepared)) => {
+                if !(f.mean < 0.01 && (0.9..1.1).contains(&f.area_ratio)) {
+                    run.off_target.push(name);
+                }
+                run.prepared.push(prepared);
+            }
+            Err(name) => run.refused.push(name),
+        }
+    }
+    println!(
+        "{}: {} teeth, {} refused {:?}, {} off target {:?}",
+        kind.name,
+        run.total,
+        run.refused.len(),
+        run.refused,
+        run.off_target.len(),
+        run.off_target
+    );
+    Some(run)
+}
+
+/// The held-out identification of a run's teeth against the other crowns.
+fn identify(run: &Run) -> Vec<morphoid::eval::RankScore> {
+    let dir = crate::support::data::teeth_dir().unwrap();
+    let names = crate::support::cp::tooth_names(&dir);
+    let params = morphoid::cp::CpParams::default();
+    let originals = crate::support::cp::prepare_teeth(&dir, &names, &params);
+    let scores =
+        crate::support::cp::heldout_scores(&dir, &run.prepared, &originals, &params.compare);
+    for s in &scores {
+        println!(
+            "held out, {}: {}/{} ({} refused, not counted)",
+            s.rank,
+            s.correct,
+            s.total,
+            run.refused.len()
+        );
+    }
+    scores
+}
+
+#[test]
+fn clean_exports_whole_teeth_of_every_form_are_cut_on_target() {
+    let Some(run) = run_kind(MIXED, 12) else {
+        return;
+    };
+    // The target is 110 of 116 of each kind (95 %) on target.
+    assert!(run.refused.is_empty(), "refused: {:?}", run.refused);
+    assert!(
+        run.off_target.len() <= 1,
+        "off target: {:?}",
+        run.off_target
+    );
+}
+
+#[test]
+#[ignore = "full data: 116 smooth-necked single-rooted teeth, identified held out"]
+fn clean_exports_smooth_single_rooted_all() {
+    if let Some(run) = run_kind(SMOOTH_ONE_ROOT, 1) {
+        identify(&run);
+    }
+}
+
+#[test]
+#[ignore = "full data: 116 two-rooted isosurfaces at 300 voxels, identified held out"]
+fn clean_exports_two_rooted_300_all() {
+    if let Some(run) = run_kind(TWO_ROOTS_300, 1) {
+        identify(&run);
+    }
+}
+
+#[test]
+#[ignore = "real data: every 4th tooth of every form, cut and measured"]
+fn clean_exports_mixed_subset() {
+    if let Some(run) = run_kind(MIXED, 4) {
+        identify(&run);
+    }
+}
