@@ -103,6 +103,17 @@ impl Db {
     /// opens the file afresh; returns whether it did.
     pub fn failed(&mut self, e: &StoreError) -> bool {
         let storage = e.is_storage_fault();
+        if e.is_disk_full() {
+            // The log may be what fills the disk: folded into the
+            // database and cut to nothing, its space is free for the
+            // retry. On a disk with no room even for that, the retry
+            // (on a new connection) tries again.
+            match self.store.as_ref().map(Store::checkpoint) {
+                Some(Ok(done)) => tracing::debug!("disk full: log checkpointed (complete: {done})"),
+                Some(Err(c)) => tracing::debug!("disk full: checkpoint failed: {c}"),
+                None => {}
+            }
+        }
         if storage {
             self.store = None;
             self.health.fault(Part::Database, &error_chain(e));
@@ -116,6 +127,22 @@ impl Db {
     pub fn take_new_file(&mut self) -> bool {
         self.follow_file();
         std::mem::take(&mut self.new_file)
+    }
+
+    /// Fold the write-ahead log into the database and cut it to nothing
+    /// (the periodic bound on its size; see [`Store::checkpoint`]).
+    /// Nothing when no connection is open; a failure is handled as any
+    /// other storage failure.
+    pub fn checkpoint(&mut self) {
+        let Some(store) = &self.store else {
+            return;
+        };
+        match store.checkpoint() {
+            Ok(done) => tracing::trace!("checkpoint (complete: {done})"),
+            Err(e) => {
+                self.failed(&e);
+            }
+        }
     }
 
     /// An operation worked: the database is healthy.

@@ -60,6 +60,9 @@ const JOB_HANG_LIMIT: Duration = Duration::from_secs(30 * 60);
 const STOP_GRACE: Duration = Duration::from_secs(7);
 /// How often the STATUS line is recomputed (sent only when it changes).
 const STATUS_INTERVAL: Duration = Duration::from_secs(2);
+/// How often the database's write-ahead log is checkpointed and cut to
+/// nothing, beside SQLite's own checkpoints after commits.
+const CHECKPOINT_INTERVAL: Duration = Duration::from_secs(30);
 
 /// The stop grace period: `$MORPHOID_STOP_GRACE` or [`STOP_GRACE`].
 fn stop_grace() -> Duration {
@@ -274,6 +277,7 @@ struct Daemon<'a> {
     hang_logged: bool,
     last_status: String,
     last_status_at: Option<Instant>,
+    last_checkpoint: Instant,
 }
 
 impl<'a> Daemon<'a> {
@@ -337,6 +341,7 @@ impl<'a> Daemon<'a> {
             hang_logged: false,
             last_status: String::new(),
             last_status_at: None,
+            last_checkpoint: Instant::now(),
         };
         // Files that arrived while the daemon was down.
         let ready = daemon.folder.rescan(false);
@@ -539,6 +544,13 @@ impl<'a> Daemon<'a> {
             if !hung && self.last_ping.elapsed() >= every {
                 notify(&[NotifyState::Watchdog]);
                 self.last_ping = Instant::now();
+            }
+        }
+        if self.last_checkpoint.elapsed() >= CHECKPOINT_INTERVAL {
+            // Not while the worker uses the connection: next tick then.
+            if let Ok(mut db) = self.db.try_lock() {
+                db.checkpoint();
+                self.last_checkpoint = Instant::now();
             }
         }
         if self

@@ -352,6 +352,21 @@ impl WorkerState {
         let (job, secs) = (&held.job, held.secs);
         match (&held.finding, status) {
             (_, ScanStatus::Ok) => log_result(store, job.scan_id, &job.path, secs),
+            (Finding::Superseded(content), _) => {
+                let newer = store
+                    .scan(job.scan_id, 0)
+                    .ok()
+                    .flatten()
+                    .and_then(|r| r.superseded_by);
+                tracing::info!(
+                    "{}: changed since it was queued as scan {}; not identified, the content \
+                     read ({} bytes) is scan {}",
+                    job.path,
+                    job.scan_id,
+                    content.size,
+                    newer.map_or_else(|| "?".to_string(), |id| id.to_string())
+                );
+            }
             (Finding::Failed(message), _) => {
                 tracing::warn!("{}: error after {secs:.1} s: {message}", job.path);
                 if let Some(q) = &self.setup.quarantine {

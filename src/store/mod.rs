@@ -86,6 +86,16 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 /// How long a writer waits for another connection's lock before failing.
 const BUSY_TIMEOUT: Duration = Duration::from_secs(10);
 
+/// Pages the write-ahead log may hold before a commit checkpoints it
+/// (SQLite's default is 1000, 4 MB): a scan's transactions touch a few
+/// dozen pages, so the log is folded back into the database after every
+/// scan or two and never holds much more than one scan's worth.
+pub const WAL_AUTOCHECKPOINT_PAGES: u32 = 16;
+
+/// Bytes the write-ahead log file is cut back to when it is reset after a
+/// checkpoint (SQLite otherwise keeps the file at its largest size).
+pub const JOURNAL_SIZE_LIMIT: u64 = 64 * 1024;
+
 /// How many nearest references a [`ScanRecord`] carries by default.
 pub const DEFAULT_NEAREST: usize = 5;
 
@@ -143,6 +153,12 @@ impl Store {
         }
         conn.pragma_update(None, "synchronous", "FULL")
             .map_err(open_err)?;
+        // A bounded log: on a small file system an unbounded one fills the
+        // disk long before the data does.
+        conn.pragma_update(None, "journal_size_limit", JOURNAL_SIZE_LIMIT as i64)
+            .map_err(open_err)?;
+        conn.pragma_update(None, "wal_autocheckpoint", WAL_AUTOCHECKPOINT_PAGES)
+            .map_err(open_err)?;
         conn.pragma_update(None, "foreign_keys", true)
             .map_err(open_err)?;
         schema::migrate(&mut conn, path)?;
@@ -178,6 +194,18 @@ impl Store {
             .ok_or_else(|| StoreError::Corrupt(format!("{} is not UTF-8", target.display())))?;
         self.conn.execute("VACUUM INTO ?1", [target])?;
         Ok(())
+    }
+
+    /// Fold the whole write-ahead log into the database and cut the log
+    /// file to zero bytes (`wal_checkpoint(TRUNCATE)`): what frees the
+    /// log's space when the disk is full, and keeps it small in normal
+    /// running. Returns whether it completed (`false`: another connection
+    /// was reading or writing, so part of the log stays until next time).
+    pub fn checkpoint(&self) -> Result<bool, StoreError> {
+        let busy: i64 = self
+            .conn
+            .query_row("PRAGMA wal_checkpoint(TRUNCATE)", [], |r| r.get(0))?;
+        Ok(busy == 0)
     }
 
     /// The database file.

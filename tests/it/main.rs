@@ -54,5 +54,6 @@ mod report_pages;
 mod store_basic;
 mod store_crash;
 mod store_landmarks;
+mod store_wal;
 mod volume_scans;
 mod volume_teeth;
