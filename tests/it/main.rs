@@ -30,6 +30,7 @@ mod cw_teeth;
 mod cwn_teeth;
 mod daemon_faults;
 mod daemon_files;
+mod daemon_integrity;
 mod daemon_load;
 mod daemon_notify;
 mod daemon_reports;
