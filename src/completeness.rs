@@ -37,6 +37,10 @@ pub fn check_path(path: &Path) -> std::io::Result<Verdict> {
         return Ok(Verdict::Unknown);
     };
     let bytes = std::fs::read(path)?;
+    if bytes.is_empty() {
+        // Nothing written yet, or an empty file: the settle time decides.
+        return Ok(Verdict::Unknown);
+    }
     Ok(match format {
         Format::Stl => stl(&bytes),
         Format::Ply => ply(&bytes),
@@ -83,7 +87,11 @@ pub fn stl(bytes: &[u8]) -> Verdict {
     };
     let n = u64::from(u32::from_le_bytes([c[0], c[1], c[2], c[3]]));
     let needed = 84 + 50 * n;
-    if (bytes.len() as u64) < needed {
+    if needed > MAX_PLAUSIBLE_BYTES {
+        // Not a count any export has: not STL at all, which no more
+        // bytes will mend (the reader says what is wrong).
+        Verdict::Complete
+    } else if (bytes.len() as u64) < needed {
         Verdict::Incomplete(format!(
             "binary STL of {n} triangles needs {needed} bytes, the file has {}",
             bytes.len()
@@ -93,9 +101,17 @@ pub fn stl(bytes: &[u8]) -> Verdict {
     }
 }
 
+/// The largest binary STL taken as plausibly still being written (the
+/// readers' own limit on a file's size).
+const MAX_PLAUSIBLE_BYTES: u64 = 2 << 30;
+
 /// A PLY whose header is not finished, or whose declared elements do not
 /// fit in the bytes that follow (binary) or the lines (ASCII).
 pub fn ply(bytes: &[u8]) -> Verdict {
+    if !b"ply".starts_with(&bytes[..bytes.len().min(3)]) {
+        // Not PLY, however long it grows.
+        return Verdict::Complete;
+    }
     let Some(end) = find(bytes, b"end_header") else {
         return Verdict::Incomplete("PLY header without 'end_header' yet".into());
     };
@@ -134,6 +150,11 @@ pub fn ply(bytes: &[u8]) -> Verdict {
         }
     }
     let declared: u64 = elements.iter().map(|e| e.1).sum();
+    // Each row takes a byte at least: a count no export reaches is a
+    // malformed header, not a file still growing.
+    if declared > MAX_PLAUSIBLE_BYTES {
+        return Verdict::Complete;
+    }
     if format == "ascii" {
         let lines = body
             .split(|&b| b == b'\n')
@@ -238,6 +259,9 @@ pub fn off(bytes: &[u8]) -> Verdict {
     ) else {
         return Verdict::Complete;
     };
+    if nv.saturating_add(nf) > MAX_PLAUSIBLE_BYTES {
+        return Verdict::Complete;
+    }
     let rest: Vec<&str> = lines.collect();
     let have = rest.len() as u64;
     if have < nv + nf {
@@ -325,6 +349,10 @@ mod tests {
         b.extend_from_slice(&[1u8; 50]);
         assert_eq!(stl(&b), Verdict::Complete);
         assert!(incomplete(stl(&b[..40])));
+        // Random bytes declare an absurd count: not STL, not waited for.
+        let mut random = vec![7u8; 80];
+        random.extend_from_slice(&u32::MAX.to_le_bytes());
+        assert_eq!(stl(&random), Verdict::Complete);
         let ascii = b"solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\n";
         assert!(incomplete(stl(ascii)));
         let mut done = ascii.to_vec();
@@ -338,6 +366,10 @@ mod tests {
                     property float y\nproperty float z\nelement face 1\n\
                     property list uchar int vertex_indices\nend_header\n";
         assert!(incomplete(ply(&head.as_bytes()[..30])));
+        assert_eq!(ply(b"not a ply file"), Verdict::Complete);
+        let huge = "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\n\
+                    property float x\nend_header\n";
+        assert_eq!(ply(huge.as_bytes()), Verdict::Complete);
         let full = format!("{head}0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
         assert_eq!(ply(full.as_bytes()), Verdict::Complete);
         assert!(incomplete(ply(&full.as_bytes()[..full.len() - 9])));

@@ -310,7 +310,15 @@ impl WorkerState {
         }
         if let Some(held) = self.held.take() {
             match classify::record_finding(store, held.job.scan_id, &held.finding) {
-                Ok(status) => self.recorded(store, &held, status),
+                Ok(status) => {
+                    // The log folded back and cut to nothing after every
+                    // scan: a database on a small file system needs little
+                    // more than its own size.
+                    if let Err(e) = store.checkpoint() {
+                        tracing::debug!("checkpoint after scan {}: {e}", held.job.scan_id);
+                    }
+                    self.recorded(store, &held, status)
+                }
                 Err(e @ (StoreError::WrongStatus { .. } | StoreError::NoSuchScan(_))) => {
                     // Recorded already, or the database file was replaced:
                     // never a second result; a file the database does not

@@ -86,12 +86,6 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 /// How long a writer waits for another connection's lock before failing.
 const BUSY_TIMEOUT: Duration = Duration::from_secs(10);
 
-/// Pages the write-ahead log may hold before a commit checkpoints it
-/// (SQLite's default is 1000, 4 MB): a scan's transactions touch a few
-/// dozen pages, so the log is folded back into the database after every
-/// scan or two and never holds much more than one scan's worth.
-pub const WAL_AUTOCHECKPOINT_PAGES: u32 = 16;
-
 /// Bytes the write-ahead log file is cut back to when it is reset after a
 /// checkpoint (SQLite otherwise keeps the file at its largest size).
 pub const JOURNAL_SIZE_LIMIT: u64 = 64 * 1024;
@@ -157,8 +151,6 @@ impl Store {
         // disk long before the data does.
         conn.pragma_update(None, "journal_size_limit", JOURNAL_SIZE_LIMIT as i64)
             .map_err(open_err)?;
-        conn.pragma_update(None, "wal_autocheckpoint", WAL_AUTOCHECKPOINT_PAGES)
-            .map_err(open_err)?;
         conn.pragma_update(None, "foreign_keys", true)
             .map_err(open_err)?;
         schema::migrate(&mut conn, path)?;
@@ -202,10 +194,25 @@ impl Store {
     /// running. Returns whether it completed (`false`: another connection
     /// was reading or writing, so part of the log stays until next time).
     pub fn checkpoint(&self) -> Result<bool, StoreError> {
-        let busy: i64 = self
-            .conn
-            .query_row("PRAGMA wal_checkpoint(TRUNCATE)", [], |r| r.get(0))?;
-        Ok(busy == 0)
+        self.checkpoint_as("TRUNCATE")
+    }
+
+    /// Let a commit fold the write-ahead log back into the database once it
+    /// holds `pages` pages (SQLite's default: 1000, 4 MB). The daemon sets
+    /// a small value, so that its log never holds much more than one
+    /// scan's pages.
+    pub fn set_wal_autocheckpoint(&mut self, pages: u32) -> Result<(), StoreError> {
+        self.conn.pragma_update(None, "wal_autocheckpoint", pages)?;
+        Ok(())
+    }
+
+    fn checkpoint_as(&self, mode: &str) -> Result<bool, StoreError> {
+        let (busy, log, done): (i64, i64, i64) =
+            self.conn
+                .query_row(&format!("PRAGMA wal_checkpoint({mode})"), [], |r| {
+                    Ok((r.get(0)?, r.get(1)?, r.get(2)?))
+                })?;
+        Ok(busy == 0 && log == done)
     }
 
     /// The database file.

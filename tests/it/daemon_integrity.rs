@@ -79,16 +79,45 @@ fn off_scan(g: usize, seed: u64) -> Vec<u8> {
     std::fs::read(&path).unwrap()
 }
 
-/// Keep the worker busy for a while: a large scan dropped in first.
+/// Keep the worker busy for a while: large scans dropped in first (their
+/// jobs take seconds, so the next file waits in the queue).
 fn busy(env: &Env, d: &Daemon) {
-    let large = large_scan(env, 0, 90, 60_000);
-    std::fs::rename(&large, env.export.join("large.ply")).unwrap();
+    for k in 0..4 {
+        let large = large_scan(env, k, 90 + k as u64, 100_000);
+        std::fs::rename(&large, env.export.join(format!("large{k}.ply"))).unwrap();
+    }
     assert!(
         wait_until(Duration::from_secs(60), || rows(&env.db)
             .iter()
             .any(|r| r.status == ScanStatus::Running)),
         "{}",
         d.log_text()
+    );
+}
+
+/// Stop the daemon (SIGSTOP) once the row of `path` with `hash` (any
+/// content when `None`) is pending, and check it still is: its job has
+/// not read the file. The caller changes the file, then continues it
+/// (SIGCONT).
+fn stop_while_pending(env: &Env, d: &Daemon, path: &Path, hash: Option<&str>) {
+    let shown = path.display().to_string();
+    let pending = || {
+        rows(&env.db).iter().any(|r| {
+            r.path == shown
+                && hash.is_none_or(|h| r.content_hash == h)
+                && r.status == ScanStatus::Pending
+        })
+    };
+    assert!(
+        wait_until(Duration::from_secs(30), pending),
+        "{}",
+        d.log_text()
+    );
+    d.signal(libc::SIGSTOP);
+    assert!(
+        pending(),
+        "claimed before the daemon stopped: {:#?}",
+        rows(&env.db)
     );
 }
 
@@ -174,18 +203,13 @@ fn a_slice_folder_that_grows_while_queued_is_identified_once_whole() {
     }
     std::fs::rename(&building, &folder).unwrap();
     let shown = folder.display().to_string();
-    assert!(
-        wait_until(Duration::from_secs(30), || rows(&env.db)
-            .iter()
-            .any(|r| r.path == shown && r.status == ScanStatus::Pending)),
-        "{}",
-        d.log_text()
-    );
+    stop_while_pending(&env, &d, &folder, None);
     for s in &slices[half..] {
         let staged_slice = env.root.join("slice.part");
         std::fs::copy(s, &staged_slice).unwrap();
         std::fs::rename(&staged_slice, folder.join(s.file_name().unwrap())).unwrap();
     }
+    d.signal(libc::SIGCONT);
     let last = assert_final_content_once(&env, &d, &folder, false);
     let total: u64 = slices
         .iter()
