@@ -456,6 +456,48 @@ impl Classifier {
         self.identify_path(path).map(|(outcome, _)| outcome)
     }
 
+    /// Identify the scan at `path` only if what is read there is the
+    /// content `expected` (a content hash): the file, or every slice of a
+    /// folder, is read once and hashed as read, and exactly those bytes
+    /// are identified. Other content comes back as [`Read::Other`],
+    /// unidentified; so does a file that cannot be read or parsed when it
+    /// no longer holds `expected` (it changed meanwhile: its error is not
+    /// the queued content's).
+    fn identify_content(&self, path: &Path, expected: &str) -> Result<Read, ClassifyError> {
+        if self.references.is_empty() {
+            return Err(ClassifyError::EmptyLibrary);
+        }
+        let name = pipeline::specimen_name(path);
+        let _span = tracing::info_span!("scan", scan = %name).entered();
+        let loaded = match pipeline::load_hashed(path, &self.settings) {
+            Ok(loaded) => loaded,
+            Err(e) => {
+                return match crate::hash::content_hash_file(path) {
+                    Ok((hash, size)) if hash != expected => {
+                        Ok(Read::Other(crate::hash::Content { hash, size }))
+                    }
+                    _ => Err(e.into()),
+                }
+            }
+        };
+        match loaded.content.clone() {
+            Some(content) if content.hash == expected => {}
+            Some(content) => return Ok(Read::Other(content)),
+            None => {
+                return Err(ClassifyError::Pipeline(PipelineError::Load(
+                    crate::mesh::io::LoadError::Invalid {
+                        path: path.to_path_buf(),
+                        message: "read without its content hash".into(),
+                    },
+                )))
+            }
+        }
+        let surface = pipeline::prepare_loaded(loaded, path, &self.settings)?;
+        let load_ms = surface.timings.load;
+        let outcome = self.compare_prepared(&name, &surface, load_ms);
+        Ok(Read::Identified(Box::new((outcome, surface))))
+    }
+
     /// [`classify_file`](Self::classify_file), with the prepared scan.
     fn identify_path(&self, path: &Path) -> Result<(ScanOutcome, PreparedSurface), ClassifyError> {
         if self.references.is_empty() {
@@ -650,6 +692,14 @@ impl Classifier {
     }
 }
 
+/// What [`Classifier::identify_content`] read.
+enum Read {
+    /// The expected content, identified (and the prepared scan).
+    Identified(Box<(ScanOutcome, PreparedSurface)>),
+    /// Other content than expected: not identified.
+    Other(crate::hash::Content),
+}
+
 /// What identifying a job came to, before it is recorded: held by the
 /// daemon's worker until the database takes it.
 #[derive(Debug, Clone)]
@@ -658,6 +708,10 @@ pub enum Finding {
     Identified(ScanOutcome),
     /// Why the file cannot be identified, to record as `error`.
     Failed(String),
+    /// The file no longer held the queued content when it was read: this
+    /// content (not identified) is queued instead, and the job's row is
+    /// recorded as `superseded`.
+    Superseded(crate::hash::Content),
 }
 
 /// Identify the file of a claimed job (no database access): the outcome
@@ -666,8 +720,10 @@ pub enum Finding {
 /// scan is at hand; `None` when not asked for or not identified).
 pub fn identify_job(classifier: &Classifier, job: &Job, scene: bool) -> (Finding, Option<Scene>) {
     let started = Instant::now();
-    match classifier.identify_path(Path::new(&job.path)) {
-        Ok((mut outcome, surface)) => {
+    match classifier.identify_content(Path::new(&job.path), &job.content_hash) {
+        Ok(Read::Other(content)) => (Finding::Superseded(content), None),
+        Ok(Read::Identified(found)) => {
+            let (mut outcome, surface) = *found;
             outcome
                 .timings_ms
                 .insert("total".into(), started.elapsed().as_secs_f64() * 1e3);
@@ -702,6 +758,10 @@ pub fn record_finding(
         Finding::Failed(message) => {
             store.fail(scan_id, message)?;
             Ok(ScanStatus::Error)
+        }
+        Finding::Superseded(content) => {
+            store.supersede(scan_id, &content.hash, content.size)?;
+            Ok(ScanStatus::Superseded)
         }
     }
 }
@@ -833,13 +893,30 @@ pub fn identify_file(
         // The record of a duplicate carries its earlier scan's result.
         store::Enqueued::Existing(id, _) | store::Enqueued::Duplicate { id, .. } => id,
     };
-    if let Some(job) = store.claim(id)? {
-        run_job(store, classifier, &job)?;
+    let mut id = id;
+    // A file that changes between hashing and reading is identified as
+    // read: its job is superseded by the content read, taken next (a file
+    // rewritten all the time ends after a few rounds, superseded).
+    for _ in 0..SUPERSEDED_ROUNDS {
+        if let Some(job) = store.claim(id)? {
+            run_job(store, classifier, &job)?;
+        }
+        let record = store
+            .scan(id, NEAREST)?
+            .ok_or_else(|| IdentifyFileError::Vanished(path.to_path_buf()))?;
+        match record.superseded_by {
+            Some(next) if record.status == ScanStatus::Superseded => id = next,
+            _ => return Ok(record),
+        }
     }
     store
         .scan(id, NEAREST)?
         .ok_or_else(|| IdentifyFileError::Vanished(path.to_path_buf()))
 }
+
+/// How often [`identify_file`] follows a file that changed while it was
+/// read before it reports the last row as it stands.
+const SUPERSEDED_ROUNDS: usize = 4;
 
 #[cfg(test)]
 mod tests {

@@ -53,6 +53,11 @@ pub struct Watch {
     pub ignore: Vec<String>,
     /// Where unusable files are moved (absent: left in place).
     pub quarantine: Option<PathBuf>,
+    /// How long a settled file whose own format says it is incomplete (a
+    /// binary STL shorter than its triangle count needs, a PLY or OFF
+    /// short of its declared elements, a slice folder with a numbering
+    /// gap) waits for the rest before it is recorded as an error.
+    pub incomplete_seconds: f64,
 }
 
 impl Default for Watch {
@@ -63,6 +68,7 @@ impl Default for Watch {
             settle_seconds: 2.0,
             ignore: vec!["*.part".into(), "*.tmp".into(), ".*".into()],
             quarantine: None,
+            incomplete_seconds: 600.0,
         }
     }
 }
@@ -192,6 +198,12 @@ impl Config {
             return Err(format!(
                 "watch.settle_seconds must be a non-negative number, not {}",
                 self.watch.settle_seconds
+            ));
+        }
+        if !(self.watch.incomplete_seconds.is_finite() && self.watch.incomplete_seconds >= 0.0) {
+            return Err(format!(
+                "watch.incomplete_seconds must be a non-negative number, not {}",
+                self.watch.incomplete_seconds
             ));
         }
         if self.clean.target_vertices < 100 {

@@ -14,6 +14,135 @@ pub fn content_hash(bytes: &[u8]) -> String {
     hex(&Sha256::digest(bytes))
 }
 
+/// The identity of content that was read: its hash (as
+/// [`content_hash_file`] gives it) and its size in bytes.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Content {
+    /// 64 lower-case hexadecimal digits.
+    pub hash: String,
+    /// Bytes (for a slice folder, of all its slices).
+    pub size: u64,
+}
+
+impl Content {
+    /// The identity of `bytes`, a whole file.
+    pub fn of(bytes: &[u8]) -> Content {
+        Content {
+            hash: content_hash(bytes),
+            size: bytes.len() as u64,
+        }
+    }
+}
+
+/// A SHA-256 being computed over bytes as they are read, shared between
+/// a [`HashingReader`] buried in a reader chain and whoever finishes it.
+#[derive(Debug, Clone, Default)]
+pub struct SharedHash(std::sync::Arc<std::sync::Mutex<(Sha256, u64)>>);
+
+impl SharedHash {
+    /// A hash of nothing yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    fn update(&self, bytes: &[u8]) {
+        let mut state = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        state.0.update(bytes);
+        state.1 += bytes.len() as u64;
+    }
+
+    /// The content of every byte read so far.
+    pub fn content(&self) -> Content {
+        let state = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        Content {
+            hash: hex(&state.0.clone().finalize()),
+            size: state.1,
+        }
+    }
+}
+
+/// A reader that hashes every byte it hands on, so that what a parser
+/// reads from a file (streamed, never held whole) and the content hash
+/// are of the same bytes.
+#[derive(Debug)]
+pub struct HashingReader<R> {
+    inner: R,
+    hash: Option<SharedHash>,
+}
+
+impl<R> HashingReader<R> {
+    /// `inner`, hashed into `hash` as it is read.
+    pub fn new(inner: R, hash: SharedHash) -> Self {
+        Self::maybe(inner, Some(hash))
+    }
+
+    /// `inner`, hashed into `hash` when there is one (readers that hash
+    /// only when asked share one code path).
+    pub(crate) fn maybe(inner: R, hash: Option<SharedHash>) -> Self {
+        HashingReader { inner, hash }
+    }
+}
+
+impl<R: Read> Read for HashingReader<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        if let Some(hash) = &self.hash {
+            hash.update(buf.get(..n).unwrap_or(&[]));
+        }
+        Ok(n)
+    }
+}
+
+/// The hash of a slice folder ([`content_hash_file`] of a folder) computed
+/// from slices that a reader holds in memory one at a time, in natural
+/// name order.
+#[derive(Debug, Clone)]
+pub struct FolderHash {
+    hasher: Sha256,
+    total: u64,
+}
+
+impl Default for FolderHash {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl FolderHash {
+    /// The hash of a folder with no slices yet.
+    pub fn new() -> Self {
+        let mut hasher = Sha256::new();
+        hasher.update(FOLDER_PREFIX);
+        FolderHash { hasher, total: 0 }
+    }
+
+    /// Add the next slice (in natural name order): its file name and bytes.
+    pub fn slice(&mut self, name: &str, bytes: &[u8]) {
+        folder_entry(&mut self.hasher, name, bytes.len() as u64);
+        self.hasher.update(bytes);
+        self.total += bytes.len() as u64;
+    }
+
+    /// The folder's content.
+    pub fn finish(self) -> Content {
+        Content {
+            hash: hex(&self.hasher.finalize()),
+            size: self.total,
+        }
+    }
+}
+
+/// What starts a folder's hash: keeps it apart from any file whose bytes
+/// happen to spell the same stream.
+const FOLDER_PREFIX: &[u8] = b"morphoid slice folder\0";
+
+/// The part of a folder's hash before a slice's bytes: its name and size.
+fn folder_entry(hasher: &mut Sha256, name: &str, size: u64) {
+    hasher.update((name.len() as u64).to_le_bytes());
+    hasher.update(name.as_bytes());
+    hasher.update(size.to_le_bytes());
+}
+
 /// SHA-256 of everything `reader` yields, read in blocks (a large scan is
 /// never held in memory whole). Returns the hash and the number of bytes.
 fn content_hash_reader<R: Read>(mut reader: R) -> std::io::Result<(String, u64)> {
@@ -51,17 +180,13 @@ pub fn content_hash_file(path: &Path) -> std::io::Result<(String, u64)> {
 /// renamed, changed, added or removed slice changes the hash.
 fn content_hash_folder(dir: &Path) -> std::io::Result<(String, u64)> {
     let mut hasher = Sha256::new();
-    // Keeps a folder's hash apart from any file whose bytes happen to
-    // spell the same stream.
-    hasher.update(b"morphoid slice folder\0");
+    hasher.update(FOLDER_PREFIX);
     let mut total = 0u64;
     for path in crate::volume::slice_paths(dir)? {
         let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
         let name = name.unwrap_or_default();
         let size = std::fs::metadata(&path)?.len();
-        hasher.update((name.len() as u64).to_le_bytes());
-        hasher.update(name.as_bytes());
-        hasher.update(size.to_le_bytes());
+        folder_entry(&mut hasher, &name, size);
         let mut file = std::fs::File::open(&path)?.take(size);
         let n = std::io::copy(&mut file, &mut hasher)?;
         if n != size {
@@ -136,5 +261,25 @@ mod tests {
         assert_ne!(content_hash_file(&b).unwrap().0, ha, "renamed slice");
         std::fs::write(b.join("s11.tif"), [1u8; 3]).unwrap();
         assert_ne!(content_hash_file(&b).unwrap().0, ha);
+        // Slices hashed from memory, in order, give the folder's hash.
+        let mut folder = FolderHash::new();
+        for p in crate::volume::slice_paths(&b).unwrap() {
+            let name = p.file_name().unwrap().to_string_lossy().into_owned();
+            folder.slice(&name, &std::fs::read(&p).unwrap());
+        }
+        let (hb, nb) = content_hash_file(&b).unwrap();
+        assert_eq!(folder.finish(), Content { hash: hb, size: nb });
+    }
+
+    #[test]
+    fn a_hashing_reader_hashes_what_it_hands_on() {
+        let data: Vec<u8> = (0..100_000u32).map(|i| (i % 253) as u8).collect();
+        let hash = SharedHash::new();
+        let mut reader = HashingReader::new(&data[..], hash.clone());
+        let mut head = [0u8; 1000];
+        reader.read_exact(&mut head).unwrap();
+        assert_eq!(hash.content(), Content::of(&data[..1000]));
+        std::io::copy(&mut reader, &mut std::io::sink()).unwrap();
+        assert_eq!(hash.content(), Content::of(&data));
     }
 }

@@ -32,6 +32,7 @@ pub mod atomic_write;
 pub mod classify;
 pub mod clean;
 pub mod collection;
+pub mod completeness;
 pub mod config;
 pub mod conformal;
 pub mod cp;

@@ -101,17 +101,76 @@ pub fn specimen_name(path: &Path) -> String {
 /// `.nii.gz` is a volume: it is segmented into a surface first
 /// ([`volume::surface_from_path`]), and its report is kept.
 pub fn prepare_file(path: &Path, settings: &Settings) -> Result<PreparedSurface, PipelineError> {
+    let loaded = load(path, settings, false)?;
+    prepare_loaded(loaded, path, settings)
+}
+
+/// A scan as read, before cleaning: the surface (from a volume, with its
+/// report) and, when asked for, the content of exactly the bytes read.
+#[derive(Debug, Clone)]
+pub struct LoadedScan {
+    /// The surface as read (or made from the volume).
+    pub mesh: Mesh,
+    /// What was done to a volume; `None` for a surface file.
+    pub volume: Option<VolumeReport>,
+    /// The content read ([`load_hashed`]; `None` from [`prepare_file`]'s
+    /// path, which does not hash).
+    pub content: Option<crate::hash::Content>,
+    /// Milliseconds spent reading.
+    pub load_ms: f64,
+}
+
+/// The first step of [`prepare_file`], hashing as it reads: the file (or
+/// every slice of a folder) is read once, and the surface and
+/// [`LoadedScan::content`] are of the same bytes, however the file changes
+/// meanwhile. What the daemon identifies is thus the content it records.
+pub fn load_hashed(path: &Path, settings: &Settings) -> Result<LoadedScan, PipelineError> {
+    load(path, settings, true)
+}
+
+fn load(path: &Path, settings: &Settings, hashed: bool) -> Result<LoadedScan, PipelineError> {
     let name = specimen_name(path);
     let t = Instant::now();
-    let (mesh, volume_report) = if volume::is_volume_path(path) {
+    let (mesh, volume, content) = if volume::is_volume_path(path) {
         let _s = tracing::debug_span!("volume", scan = %name).entered();
-        let s = volume::surface_from_path(path, &settings.volume)?;
-        (s.mesh, Some(s.report))
+        if hashed {
+            let (s, content) = volume::surface_from_path_hashed(path, &settings.volume)?;
+            (s.mesh, Some(s.report), Some(content))
+        } else {
+            let s = volume::surface_from_path(path, &settings.volume)?;
+            (s.mesh, Some(s.report), None)
+        }
     } else {
         let _s = tracing::debug_span!("load", scan = %name).entered();
-        (io::load(path)?.mesh, None)
+        if hashed {
+            let (m, content) = io::load_hashed(path)?;
+            (m.mesh, None, Some(content))
+        } else {
+            (io::load(path)?.mesh, None, None)
+        }
     };
-    let load_ms = ms(t);
+    Ok(LoadedScan {
+        mesh,
+        volume,
+        content,
+        load_ms: ms(t),
+    })
+}
+
+/// The rest of [`prepare_file`]: clean and prepare a scan read from `path`
+/// (which names it and its errors).
+pub fn prepare_loaded(
+    loaded: LoadedScan,
+    path: &Path,
+    settings: &Settings,
+) -> Result<PreparedSurface, PipelineError> {
+    let name = specimen_name(path);
+    let LoadedScan {
+        mesh,
+        volume: volume_report,
+        load_ms,
+        ..
+    } = loaded;
     prepare_mesh(&mesh, &name, settings)
         .map(|mut p| {
             p.timings.load = load_ms;

@@ -354,6 +354,7 @@ mod tests {
             duplicate_of: None,
             files_error: None,
             calibrating: false,
+            superseded_by: None,
         }
     }
 

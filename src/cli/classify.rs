@@ -193,6 +193,11 @@ fn status_summary(r: &ScanRecord) -> String {
                 .unwrap_or_default();
             format!("{}: duplicate of scan {id} ({path})", r.path)
         }
+        ScanStatus::Superseded => format!(
+            "{}: changed while it was read; superseded by scan {}",
+            r.path,
+            r.superseded_by.unwrap_or_default()
+        ),
         s => format!("{}: {}", r.path, s.as_str()),
     }
 }

@@ -23,6 +23,12 @@ use std::time::Duration;
 /// (and is retried): short, as the control loop shares the connection.
 const BUSY_TIMEOUT: Duration = Duration::from_secs(2);
 
+/// Pages the log may hold before a commit folds it back: a scan's
+/// transactions touch a few dozen pages, so the log stays near one scan's
+/// worth (a database on a small file system needs little more than its
+/// own size); the worker also checkpoints after every scan.
+const WAL_AUTOCHECKPOINT_PAGES: u32 = 16;
+
 /// The database connection, opened on demand.
 #[derive(Debug)]
 pub struct Db {
@@ -87,6 +93,7 @@ impl Db {
         if self.store.is_none() {
             let mut store = Store::open(&self.path)?;
             store.set_busy_timeout(BUSY_TIMEOUT)?;
+            store.set_wal_autocheckpoint(WAL_AUTOCHECKPOINT_PAGES)?;
             store.set_result_files(self.result_files);
             self.identity = identity_of(&self.path);
             self.generation += 1;
@@ -103,6 +110,18 @@ impl Db {
     /// opens the file afresh; returns whether it did.
     pub fn failed(&mut self, e: &StoreError) -> bool {
         let storage = e.is_storage_fault();
+        if e.is_disk_full() {
+            self.follow_file();
+            // The log may be what fills the disk: folded into the
+            // database and cut to nothing, its space is free for the
+            // retry. On a disk with no room even for that, the retry
+            // (on a new connection) tries again.
+            match self.store.as_ref().map(Store::checkpoint) {
+                Some(Ok(done)) => tracing::debug!("disk full: log checkpointed (complete: {done})"),
+                Some(Err(c)) => tracing::debug!("disk full: checkpoint failed: {c}"),
+                None => {}
+            }
+        }
         if storage {
             self.store = None;
             self.health.fault(Part::Database, &error_chain(e));
@@ -116,6 +135,25 @@ impl Db {
     pub fn take_new_file(&mut self) -> bool {
         self.follow_file();
         std::mem::take(&mut self.new_file)
+    }
+
+    /// Fold the write-ahead log into the database and cut it to nothing
+    /// (the periodic bound on its size; see [`Store::checkpoint`]).
+    /// Nothing when no connection is open; a failure is handled as any
+    /// other storage failure.
+    pub fn checkpoint(&mut self) {
+        // Never on a connection to a file replaced meanwhile: its log's
+        // name is the new file's.
+        self.follow_file();
+        let Some(store) = &self.store else {
+            return;
+        };
+        match store.checkpoint() {
+            Ok(done) => tracing::trace!("checkpoint (complete: {done})"),
+            Err(e) => {
+                self.failed(&e);
+            }
+        }
     }
 
     /// An operation worked: the database is healthy.

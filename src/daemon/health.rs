@@ -36,7 +36,16 @@ impl Part {
 struct Fault {
     message: String,
     since: Instant,
+    /// The latest failure: the fault clears only after [`CLEAR_AFTER`]
+    /// without one.
+    last: Instant,
 }
+
+/// How long a faulty part must work without failing before it counts as
+/// available again: a disk that is nearly full lets one write through
+/// after a checkpoint frees the log and then fails again; that is one
+/// fault, not several.
+const CLEAR_AFTER: Duration = Duration::from_secs(3);
 
 /// The faults of the storage, shared by the control loop and the worker.
 #[derive(Debug, Clone, Default)]
@@ -53,21 +62,42 @@ impl Health {
     /// `part` failed with `message`: logged (ERROR) when it was fine until
     /// now; a further failure while faulty is not logged again.
     pub fn fault(&self, part: Part, message: &str) {
-        if let std::collections::btree_map::Entry::Vacant(slot) = self.faults().entry(part) {
-            tracing::error!(
-                "{} unavailable: {message}; work is kept and retried until it recovers",
-                part.name()
-            );
-            slot.insert(Fault {
-                message: message.to_string(),
-                since: Instant::now(),
-            });
+        match self.faults().entry(part) {
+            std::collections::btree_map::Entry::Vacant(slot) => {
+                tracing::error!(
+                    "{} unavailable: {message}; work is kept and retried until it recovers",
+                    part.name()
+                );
+                slot.insert(Fault {
+                    message: message.to_string(),
+                    since: Instant::now(),
+                    last: Instant::now(),
+                });
+            }
+            std::collections::btree_map::Entry::Occupied(mut f) => {
+                f.get_mut().last = Instant::now()
+            }
         }
     }
 
-    /// `part` worked: logged (INFO) when it was faulty until now.
+    /// `part` worked: logged (INFO) when it was faulty until now (the
+    /// database: and has not failed for [`CLEAR_AFTER`]; until then it stays
+    /// faulty, and the worker's next look, at most 5 s on, clears it).
     pub fn clear(&self, part: Part) {
-        if let Some(f) = self.faults().remove(&part) {
+        let quiet = match part {
+            Part::Database => CLEAR_AFTER,
+            // Cleared only by a write that works, which may be the last.
+            Part::Results => Duration::ZERO,
+        };
+        self.clear_after(part, quiet);
+    }
+
+    fn clear_after(&self, part: Part, quiet: Duration) {
+        let mut faults = self.faults();
+        if faults.get(&part).is_some_and(|f| f.last.elapsed() < quiet) {
+            return;
+        }
+        if let Some(f) = faults.remove(&part) {
             tracing::info!(
                 "{} available again after {:.0} s",
                 part.name(),
@@ -160,7 +190,10 @@ mod tests {
         h.fault(Part::Database, "disk full");
         h.fault(Part::Database, "still full");
         assert_eq!(h.summary().unwrap(), "degraded: database: disk full");
+        // Working right after a failure does not clear it yet.
         h.clear(Part::Database);
+        assert!(h.summary().is_some());
+        h.clear_after(Part::Database, Duration::ZERO);
         assert_eq!(h.summary(), None);
     }
 }

@@ -8,6 +8,7 @@
 
 use super::glob;
 use super::settle::Stamp;
+use crate::completeness::Verdict;
 use crate::hash::content_hash_file;
 use crate::mesh::io::Format;
 use crate::store::{Enqueued, Store, StoreError};
@@ -274,6 +275,33 @@ pub enum IntakeError {
         /// The store error.
         source: StoreError,
     },
+}
+
+/// What a settled file came to at intake.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Taken {
+    /// Complete (or its format cannot tell): its content hash and size.
+    Ready(String, u64),
+    /// Its own format says more is to come: why.
+    Incomplete(String),
+}
+
+/// Check a settled file's completeness by its format
+/// ([`crate::completeness::check_path`]) and, when nothing is missing, hash
+/// it (blocking: it reads the whole file, so callers on the async thread
+/// run it with `spawn_blocking`).
+pub fn take(path: &Path) -> Result<Taken, IntakeError> {
+    let read_err = |source| IntakeError::Read {
+        path: path.to_path_buf(),
+        source,
+    };
+    match crate::completeness::check_path(path).map_err(read_err)? {
+        Verdict::Incomplete(problem) => Ok(Taken::Incomplete(problem)),
+        Verdict::Complete | Verdict::Unknown => {
+            let (hash, size) = self::hash(path)?;
+            Ok(Taken::Ready(hash, size))
+        }
+    }
 }
 
 /// Hash a settled file (blocking: it reads the whole file, so callers on

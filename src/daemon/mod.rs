@@ -60,6 +60,9 @@ const JOB_HANG_LIMIT: Duration = Duration::from_secs(30 * 60);
 const STOP_GRACE: Duration = Duration::from_secs(7);
 /// How often the STATUS line is recomputed (sent only when it changes).
 const STATUS_INTERVAL: Duration = Duration::from_secs(2);
+/// How often the database's write-ahead log is checkpointed and cut to
+/// nothing, beside SQLite's own checkpoints after commits.
+const CHECKPOINT_INTERVAL: Duration = Duration::from_secs(30);
 
 /// The stop grace period: `$MORPHOID_STOP_GRACE` or [`STOP_GRACE`].
 fn stop_grace() -> Duration {
@@ -259,6 +262,9 @@ struct Daemon<'a> {
     /// Settled files that could not be queued (the database failed):
     /// queued as soon as it works again, never dropped.
     unqueued: Vec<PathBuf>,
+    /// Settled files whose format says they are not complete yet, since
+    /// when (they wait up to `watch.incomplete_seconds`).
+    incomplete: std::collections::HashMap<PathBuf, Instant>,
     intake_backoff: Backoff,
     worker: Worker,
     folder: FolderWatch,
@@ -274,6 +280,7 @@ struct Daemon<'a> {
     hang_logged: bool,
     last_status: String,
     last_status_at: Option<Instant>,
+    last_checkpoint: Instant,
 }
 
 impl<'a> Daemon<'a> {
@@ -324,6 +331,7 @@ impl<'a> Daemon<'a> {
             db,
             health,
             unqueued: Vec::new(),
+            incomplete: std::collections::HashMap::new(),
             intake_backoff: Backoff::default(),
             worker,
             folder,
@@ -337,6 +345,7 @@ impl<'a> Daemon<'a> {
             hang_logged: false,
             last_status: String::new(),
             last_status_at: None,
+            last_checkpoint: Instant::now(),
         };
         // Files that arrived while the daemon was down.
         let ready = daemon.folder.rescan(false);
@@ -352,7 +361,7 @@ impl<'a> Daemon<'a> {
         let mut failed = false;
         for path in ready {
             let p = path.clone();
-            let hashed = match tokio::task::spawn_blocking(move || intake::hash(&p)).await {
+            let taken = match tokio::task::spawn_blocking(move || intake::take(&p)).await {
                 Ok(h) => h,
                 Err(e) => {
                     tracing::error!("{}: hashing failed: {e}", path.display());
@@ -360,12 +369,68 @@ impl<'a> Daemon<'a> {
                     continue;
                 }
             };
+            // A content hash and size, and the error to record for it (a
+            // file that stayed incomplete too long).
+            let hashed = match taken {
+                Err(e) => Err(e),
+                Ok(intake::Taken::Ready(hash, size)) => {
+                    if self.incomplete.remove(&path).is_some() {
+                        tracing::info!("{}: complete now", path.display());
+                    }
+                    Ok((hash, size, None))
+                }
+                Ok(intake::Taken::Incomplete(problem)) => {
+                    let since = *self.incomplete.entry(path.clone()).or_insert_with(|| {
+                        tracing::info!(
+                            "{}: not complete yet ({problem}); waiting for the rest",
+                            path.display()
+                        );
+                        Instant::now()
+                    });
+                    let limit = Duration::from_secs_f64(self.config.watch.incomplete_seconds);
+                    if since.elapsed() < limit {
+                        self.folder.defer(&path);
+                        continue;
+                    }
+                    self.incomplete.remove(&path);
+                    let message = format!(
+                        "{}: incomplete after waiting {:.0} s: {problem}",
+                        path.display(),
+                        limit.as_secs_f64()
+                    );
+                    let p = path.clone();
+                    match tokio::task::spawn_blocking(move || intake::hash(&p)).await {
+                        Ok(Ok((hash, size))) => Ok((hash, size, Some(message))),
+                        Ok(Err(e)) => Err(e),
+                        Err(_) => {
+                            self.folder.release(&path);
+                            continue;
+                        }
+                    }
+                }
+            };
             let queued = match hashed {
                 Err(e) => (Err(e), false),
-                Ok((hash, size)) => {
+                Ok((hash, size, error)) => {
                     let mut db = db::lock(&self.db);
                     let out = match db.store() {
-                        Ok((store, _)) => intake::enqueue(store, &path, &hash, size),
+                        Ok((store, _)) => {
+                            intake::enqueue(store, &path, &hash, size).and_then(|q| {
+                                match (&q, &error) {
+                                    (Enqueued::New(id), Some(message)) => {
+                                        tracing::error!("{message}");
+                                        store.fail(*id, message).map_err(|source| {
+                                            intake::IntakeError::Queue {
+                                                path: path.clone(),
+                                                source,
+                                            }
+                                        })?;
+                                        Ok(Enqueued::Existing(*id, crate::store::ScanStatus::Error))
+                                    }
+                                    _ => Ok(q),
+                                }
+                            })
+                        }
                         Err(source) => Err(intake::IntakeError::Queue {
                             path: path.clone(),
                             source,
@@ -539,6 +604,13 @@ impl<'a> Daemon<'a> {
             if !hung && self.last_ping.elapsed() >= every {
                 notify(&[NotifyState::Watchdog]);
                 self.last_ping = Instant::now();
+            }
+        }
+        if self.last_checkpoint.elapsed() >= CHECKPOINT_INTERVAL {
+            // Not while the worker uses the connection: next tick then.
+            if let Ok(mut db) = self.db.try_lock() {
+                db.checkpoint();
+                self.last_checkpoint = Instant::now();
             }
         }
         if self

@@ -98,6 +98,16 @@ impl Settler {
         self.entries.remove(path);
     }
 
+    /// Look at `path` again as if it had just changed: taken once it has
+    /// stayed the same for another settle time (its format says it is not
+    /// complete yet, so it is checked again, not read on every tick).
+    pub fn defer(&mut self, path: &Path, now: Instant) {
+        if let Some(e) = self.entries.get_mut(path) {
+            e.taken = false;
+            e.stable_since = now;
+        }
+    }
+
     /// Allow `path` to be taken again at its next settled observation
     /// (after a transient failure to read it).
     pub fn release(&mut self, path: &Path) {

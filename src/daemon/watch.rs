@@ -298,6 +298,12 @@ impl FolderWatch {
         self.settler.release(path);
     }
 
+    /// Take `path` again only after another settle time (it is not
+    /// complete yet by its format).
+    pub fn defer(&mut self, path: &Path) {
+        self.settler.defer(path, Instant::now());
+    }
+
     /// The export folder.
     pub fn dir(&self) -> &Path {
         &self.filter.dir

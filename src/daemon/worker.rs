@@ -310,7 +310,15 @@ impl WorkerState {
         }
         if let Some(held) = self.held.take() {
             match classify::record_finding(store, held.job.scan_id, &held.finding) {
-                Ok(status) => self.recorded(store, &held, status),
+                Ok(status) => {
+                    // The log folded back and cut to nothing after every
+                    // scan: a database on a small file system needs little
+                    // more than its own size.
+                    if let Err(e) = store.checkpoint() {
+                        tracing::debug!("checkpoint after scan {}: {e}", held.job.scan_id);
+                    }
+                    self.recorded(store, &held, status)
+                }
                 Err(e @ (StoreError::WrongStatus { .. } | StoreError::NoSuchScan(_))) => {
                     // Recorded already, or the database file was replaced:
                     // never a second result; a file the database does not
@@ -352,6 +360,21 @@ impl WorkerState {
         let (job, secs) = (&held.job, held.secs);
         match (&held.finding, status) {
             (_, ScanStatus::Ok) => log_result(store, job.scan_id, &job.path, secs),
+            (Finding::Superseded(content), _) => {
+                let newer = store
+                    .scan(job.scan_id, 0)
+                    .ok()
+                    .flatten()
+                    .and_then(|r| r.superseded_by);
+                tracing::info!(
+                    "{}: changed since it was queued as scan {}; not identified, the content \
+                     read ({} bytes) is scan {}",
+                    job.path,
+                    job.scan_id,
+                    content.size,
+                    newer.map_or_else(|| "?".to_string(), |id| id.to_string())
+                );
+            }
             (Finding::Failed(message), _) => {
                 tracing::warn!("{}: error after {secs:.1} s: {message}", job.path);
                 if let Some(q) = &self.setup.quarantine {

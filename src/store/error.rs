@@ -81,6 +81,15 @@ pub enum StoreError {
 }
 
 impl StoreError {
+    /// Whether SQLite reported the disk full (`SQLITE_FULL`).
+    pub fn is_disk_full(&self) -> bool {
+        let source = match self {
+            StoreError::Open { source, .. } | StoreError::Sqlite(source) => source,
+            _ => return false,
+        };
+        source.sqlite_error_code() == Some(rusqlite::ErrorCode::DiskFull)
+    }
+
     /// Whether the storage failed rather than the request: the disk is
     /// full, an I/O error, the file or its folder is read-only, another
     /// connection holds the lock, the file cannot be opened (deleted,

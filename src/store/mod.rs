@@ -86,6 +86,10 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 /// How long a writer waits for another connection's lock before failing.
 const BUSY_TIMEOUT: Duration = Duration::from_secs(10);
 
+/// Bytes the write-ahead log file is cut back to when it is reset after a
+/// checkpoint (SQLite otherwise keeps the file at its largest size).
+pub const JOURNAL_SIZE_LIMIT: u64 = 64 * 1024;
+
 /// How many nearest references a [`ScanRecord`] carries by default.
 pub const DEFAULT_NEAREST: usize = 5;
 
@@ -143,6 +147,10 @@ impl Store {
         }
         conn.pragma_update(None, "synchronous", "FULL")
             .map_err(open_err)?;
+        // A bounded log: on a small file system an unbounded one fills the
+        // disk long before the data does.
+        conn.pragma_update(None, "journal_size_limit", JOURNAL_SIZE_LIMIT as i64)
+            .map_err(open_err)?;
         conn.pragma_update(None, "foreign_keys", true)
             .map_err(open_err)?;
         schema::migrate(&mut conn, path)?;
@@ -178,6 +186,33 @@ impl Store {
             .ok_or_else(|| StoreError::Corrupt(format!("{} is not UTF-8", target.display())))?;
         self.conn.execute("VACUUM INTO ?1", [target])?;
         Ok(())
+    }
+
+    /// Fold the whole write-ahead log into the database and cut the log
+    /// file to zero bytes (`wal_checkpoint(TRUNCATE)`): what frees the
+    /// log's space when the disk is full, and keeps it small in normal
+    /// running. Returns whether it completed (`false`: another connection
+    /// was reading or writing, so part of the log stays until next time).
+    pub fn checkpoint(&self) -> Result<bool, StoreError> {
+        self.checkpoint_as("TRUNCATE")
+    }
+
+    /// Let a commit fold the write-ahead log back into the database once it
+    /// holds `pages` pages (SQLite's default: 1000, 4 MB). The daemon sets
+    /// a small value, so that its log never holds much more than one
+    /// scan's pages.
+    pub fn set_wal_autocheckpoint(&mut self, pages: u32) -> Result<(), StoreError> {
+        self.conn.pragma_update(None, "wal_autocheckpoint", pages)?;
+        Ok(())
+    }
+
+    fn checkpoint_as(&self, mode: &str) -> Result<bool, StoreError> {
+        let (busy, log, done): (i64, i64, i64) =
+            self.conn
+                .query_row(&format!("PRAGMA wal_checkpoint({mode})"), [], |r| {
+                    Ok((r.get(0)?, r.get(1)?, r.get(2)?))
+                })?;
+        Ok(busy == 0 && log == done)
     }
 
     /// The database file.

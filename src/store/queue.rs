@@ -24,57 +24,10 @@ impl Store {
         content_hash: &str,
         size: u64,
     ) -> Result<Enqueued, StoreError> {
-        let size = i64::try_from(size).map_err(|_| StoreError::OutOfRange("scan.size"))?;
         let tx = self
             .conn
             .transaction_with_behavior(TransactionBehavior::Immediate)?;
-        let known: Option<(i64, String, String)> = tx
-            .query_row(
-                "SELECT id, status, path FROM scan
-                 WHERE content_hash = ?1 AND status <> 'duplicate'",
-                [content_hash],
-                |r| Ok((r.get("id")?, r.get("status")?, r.get("path")?)),
-            )
-            .optional()?;
-        let out = match known {
-            Some((id, status, known_path)) if known_path == path => {
-                Enqueued::Existing(id, parse_status(&status)?)
-            }
-            Some((of, _, _)) => {
-                let again: Option<i64> = tx
-                    .query_row(
-                        "SELECT id FROM scan
-                         WHERE content_hash = ?1 AND path = ?2 AND status = 'duplicate'",
-                        params![content_hash, path],
-                        |r| r.get("id"),
-                    )
-                    .optional()?;
-                match again {
-                    Some(id) => Enqueued::Existing(id, ScanStatus::Duplicate),
-                    None => {
-                        let now = now_ms();
-                        tx.execute(
-                            "INSERT INTO scan (path, content_hash, size, status, created_at,
-                                               finished_at, duplicate_of, files_due)
-                             VALUES (?1, ?2, ?3, 'duplicate', ?4, ?4, ?5, ?6)",
-                            params![path, content_hash, size, now, of, self.result_files],
-                        )?;
-                        Enqueued::Duplicate {
-                            id: tx.last_insert_rowid(),
-                            of,
-                        }
-                    }
-                }
-            }
-            None => {
-                tx.execute(
-                    "INSERT INTO scan (path, content_hash, size, status, created_at)
-                     VALUES (?1, ?2, ?3, 'pending', ?4)",
-                    params![path, content_hash, size, now_ms()],
-                )?;
-                Enqueued::New(tx.last_insert_rowid())
-            }
-        };
+        let out = enqueue_in(&tx, path, content_hash, size, self.result_files)?;
         tx.commit()?;
         Ok(out)
     }
@@ -182,6 +135,46 @@ impl Store {
         )?;
         tx.commit()?;
         Ok(())
+    }
+
+    /// Record that when the running scan `scan_id` was read, its file held
+    /// other content (`content_hash`, `size` bytes) than the one queued:
+    /// the queued content is not identified. In one transaction the content
+    /// read is queued at the scan's path (as [`Store::enqueue`] would: a
+    /// new pending row, the row it already has, or a `duplicate`), and the
+    /// scan ends `superseded`, pointing at that row. Returns what the
+    /// queueing did.
+    pub fn supersede(
+        &mut self,
+        scan_id: i64,
+        content_hash: &str,
+        size: u64,
+    ) -> Result<Enqueued, StoreError> {
+        let tx = self
+            .conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)?;
+        require_status(&tx, scan_id, ScanStatus::Running, "supersede", "running")?;
+        let (path, queued): (String, String) = tx.query_row(
+            "SELECT path, content_hash FROM scan WHERE id = ?1",
+            [scan_id],
+            |r| Ok((r.get("path")?, r.get("content_hash")?)),
+        )?;
+        if queued == content_hash {
+            return Err(StoreError::WrongStatus {
+                scan_id,
+                status: ScanStatus::Running,
+                operation: "supersede with its own content",
+                expected: "other content",
+            });
+        }
+        let newer = enqueue_in(&tx, &path, content_hash, size, self.result_files)?;
+        tx.execute(
+            "UPDATE scan SET status = 'superseded', superseded_by = ?2, finished_at = ?3
+             WHERE id = ?1",
+            params![scan_id, newer.scan_id(), now_ms()],
+        )?;
+        tx.commit()?;
+        Ok(newer)
     }
 
     /// Give a running scan back to the queue without a result (a clean
@@ -306,6 +299,67 @@ impl Store {
         )?;
         Ok(())
     }
+}
+
+/// [`Store::enqueue`] inside the transaction `tx`.
+fn enqueue_in(
+    tx: &Connection,
+    path: &str,
+    content_hash: &str,
+    size: u64,
+    result_files: bool,
+) -> Result<Enqueued, StoreError> {
+    let size = i64::try_from(size).map_err(|_| StoreError::OutOfRange("scan.size"))?;
+    // A superseded row never stands for its content: that content was
+    // not identified there.
+    let known: Option<(i64, String, String)> = tx
+        .query_row(
+            "SELECT id, status, path FROM scan
+             WHERE content_hash = ?1 AND status NOT IN ('duplicate', 'superseded')",
+            [content_hash],
+            |r| Ok((r.get("id")?, r.get("status")?, r.get("path")?)),
+        )
+        .optional()?;
+    let out = match known {
+        Some((id, status, known_path)) if known_path == path => {
+            Enqueued::Existing(id, parse_status(&status)?)
+        }
+        Some((of, _, _)) => {
+            let again: Option<i64> = tx
+                .query_row(
+                    "SELECT id FROM scan
+                         WHERE content_hash = ?1 AND path = ?2 AND status = 'duplicate'",
+                    params![content_hash, path],
+                    |r| r.get("id"),
+                )
+                .optional()?;
+            match again {
+                Some(id) => Enqueued::Existing(id, ScanStatus::Duplicate),
+                None => {
+                    let now = now_ms();
+                    tx.execute(
+                        "INSERT INTO scan (path, content_hash, size, status, created_at,
+                                               finished_at, duplicate_of, files_due)
+                             VALUES (?1, ?2, ?3, 'duplicate', ?4, ?4, ?5, ?6)",
+                        params![path, content_hash, size, now, of, result_files],
+                    )?;
+                    Enqueued::Duplicate {
+                        id: tx.last_insert_rowid(),
+                        of,
+                    }
+                }
+            }
+        }
+        None => {
+            tx.execute(
+                "INSERT INTO scan (path, content_hash, size, status, created_at)
+                     VALUES (?1, ?2, ?3, 'pending', ?4)",
+                params![path, content_hash, size, now_ms()],
+            )?;
+            Enqueued::New(tx.last_insert_rowid())
+        }
+    };
+    Ok(out)
 }
 
 /// A claimed scan row ([`JOB_COLUMNS`]) as a job.

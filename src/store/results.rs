@@ -13,7 +13,7 @@ use std::collections::BTreeMap;
 /// The `scan` columns [`scan_from_row`] reads.
 const SCAN_COLUMNS: &str = "id, path, content_hash, size, status, error, attempts, \
      created_at, started_at, finished_at, timings, cleaning, duplicate_of, files_error, \
-     calibrating";
+     calibrating, superseded_by";
 
 impl Store {
     /// The scan with this id, with its result and `nearest_count` nearest
@@ -23,7 +23,12 @@ impl Store {
         scan_id: i64,
         nearest_count: usize,
     ) -> Result<Option<ScanRecord>, StoreError> {
-        scan_where(&self.conn, "id", Value::Integer(scan_id), nearest_count)
+        scan_where(
+            &self.conn,
+            "id = ?1",
+            Value::Integer(scan_id),
+            nearest_count,
+        )
     }
 
     /// The scan of this content, if any.
@@ -32,9 +37,10 @@ impl Store {
         content_hash: &str,
         nearest_count: usize,
     ) -> Result<Option<ScanRecord>, StoreError> {
+        // The content's own row, not a duplicate or superseded one.
         scan_where(
             &self.conn,
-            "content_hash",
+            "content_hash = ?1 AND status NOT IN ('duplicate', 'superseded')",
             Value::Text(content_hash.to_string()),
             nearest_count,
         )
@@ -78,6 +84,7 @@ impl Store {
                 ScanStatus::Ok => counts.ok = n,
                 ScanStatus::Error => counts.error = n,
                 ScanStatus::Duplicate => counts.duplicate = n,
+                ScanStatus::Superseded => counts.superseded = n,
             }
         }
         Ok(counts)
@@ -88,7 +95,7 @@ impl Store {
     /// "scans today" of a status line.
     pub fn finished_since(&self, since_ms: i64) -> Result<u64, StoreError> {
         let n: i64 = self.conn.query_row(
-            "SELECT count(*) FROM scan WHERE finished_at >= ?1",
+            "SELECT count(*) FROM scan WHERE finished_at >= ?1 AND status <> 'superseded'",
             [since_ms],
             |r| r.get(0),
         )?;
@@ -96,15 +103,15 @@ impl Store {
     }
 }
 
-/// The scan whose `column` (a unique column) is `key`, with its result.
+/// The scan that `condition` (on `?1` = `key`) selects, with its result.
 fn scan_where(
     conn: &Connection,
-    column: &str,
+    condition: &str,
     key: Value,
     nearest_count: usize,
 ) -> Result<Option<ScanRecord>, StoreError> {
     let mut stmt = conn.prepare_cached(&format!(
-        "SELECT {SCAN_COLUMNS} FROM scan WHERE {column} = ?1"
+        "SELECT {SCAN_COLUMNS} FROM scan WHERE {condition}"
     ))?;
     let mut rows = stmt.query([key])?;
     let Some(row) = rows.next()? else {
@@ -153,6 +160,7 @@ fn scan_from_row(r: &Row<'_>) -> Result<ScanRecord, StoreError> {
         }),
         files_error: r.get("files_error")?,
         calibrating: r.get("calibrating")?,
+        superseded_by: r.get("superseded_by")?,
     })
 }
 

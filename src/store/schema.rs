@@ -20,6 +20,7 @@ pub const MIGRATIONS: &[&str] = &[
     MIGRATION_3,
     MIGRATION_4,
     MIGRATION_5,
+    MIGRATION_6,
 ];
 
 /// The schema version this build writes and understands.
@@ -174,6 +175,60 @@ const MIGRATION_5: &str = r#"
 ALTER TABLE scan ADD COLUMN files_error TEXT;
 ALTER TABLE scan ADD COLUMN calibrating INTEGER NOT NULL DEFAULT 0
     CHECK (calibrating IN (0, 1));
+"#;
+
+/// Migration 6: the status `superseded` (issue 30): a queued scan whose
+/// file held other content when its job read it is not identified; its
+/// row ends `superseded`, pointing (`superseded_by`) at the row of the
+/// content that was read. A superseded row does not count as the
+/// content's identified row, so the same content arriving again is queued.
+/// The table is rebuilt for the new CHECK constraints. Also drops the
+/// index of distances by reference: nothing reads distances by reference,
+/// and with one entry per reference it made each scan's transaction touch
+/// a page per reference (most of a scan's write-ahead log).
+const MIGRATION_6: &str = r#"
+CREATE TABLE scan_new (
+    id            INTEGER PRIMARY KEY AUTOINCREMENT,
+    path          TEXT NOT NULL,
+    content_hash  TEXT NOT NULL,
+    size          INTEGER NOT NULL CHECK (size >= 0),
+    status        TEXT NOT NULL DEFAULT 'pending'
+                  CHECK (status IN ('pending', 'running', 'ok', 'error', 'duplicate',
+                                    'superseded')),
+    error         TEXT,
+    attempts      INTEGER NOT NULL DEFAULT 0,
+    created_at    INTEGER NOT NULL,
+    started_at    INTEGER,
+    finished_at   INTEGER,
+    timings       TEXT CHECK (timings IS NULL OR json_valid(timings)),
+    cleaning      TEXT CHECK (cleaning IS NULL OR json_valid(cleaning)),
+    duplicate_of  INTEGER REFERENCES scan (id),
+    files_due     INTEGER NOT NULL DEFAULT 0 CHECK (files_due IN (0, 1)),
+    files_error   TEXT,
+    calibrating   INTEGER NOT NULL DEFAULT 0 CHECK (calibrating IN (0, 1)),
+    superseded_by INTEGER REFERENCES scan (id),
+    CHECK ((status IN ('ok', 'error', 'duplicate', 'superseded')) = (finished_at IS NOT NULL)),
+    CHECK ((status = 'error') = (error IS NOT NULL)),
+    CHECK ((status = 'duplicate') = (duplicate_of IS NOT NULL)),
+    CHECK ((status = 'superseded') = (superseded_by IS NOT NULL))
+);
+INSERT INTO scan_new (id, path, content_hash, size, status, error, attempts, created_at,
+                      started_at, finished_at, timings, cleaning, duplicate_of, files_due,
+                      files_error, calibrating)
+    SELECT id, path, content_hash, size, status, error, attempts, created_at,
+           started_at, finished_at, timings, cleaning, duplicate_of, files_due,
+           files_error, calibrating FROM scan;
+DROP TABLE scan;
+ALTER TABLE scan_new RENAME TO scan;
+CREATE UNIQUE INDEX scan_content ON scan (content_hash)
+    WHERE status NOT IN ('duplicate', 'superseded');
+CREATE UNIQUE INDEX scan_duplicate ON scan (content_hash, path) WHERE status = 'duplicate';
+CREATE INDEX scan_status ON scan (status, id);
+CREATE INDEX scan_finished_at ON scan (finished_at);
+CREATE INDEX scan_duplicate_of ON scan (duplicate_of) WHERE duplicate_of IS NOT NULL;
+CREATE INDEX scan_superseded_by ON scan (superseded_by) WHERE superseded_by IS NOT NULL;
+CREATE INDEX scan_files_due ON scan (id) WHERE files_due = 1;
+DROP INDEX distance_reference;
 "#;
 
 /// Bring the database on `conn` to [`SCHEMA_VERSION`]: refuse a file of

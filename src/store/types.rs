@@ -9,8 +9,9 @@ use std::fmt;
 /// Taxon per rank of a reference (`None`: unknown, `NA` in `labels.csv`).
 pub type Labels = BTreeMap<String, Option<String>>;
 
-/// Where a scan is in its life: `pending` → `running` → `ok` | `error`;
-/// a file with the content of an earlier scan is `duplicate` from the start.
+/// Where a scan is in its life: `pending` → `running` → `ok` | `error` |
+/// `superseded`; a file with the content of an earlier scan is
+/// `duplicate` from the start.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ScanStatus {
@@ -25,6 +26,10 @@ pub enum ScanStatus {
     /// The file's content is an earlier scan's: it is not identified
     /// again, its row points at that scan and shares its result.
     Duplicate,
+    /// When its job read the file, the file held other content than the
+    /// one queued: that content was not identified; the row points at the
+    /// row of the content read.
+    Superseded,
 }
 
 impl ScanStatus {
@@ -36,6 +41,7 @@ impl ScanStatus {
             ScanStatus::Ok => "ok",
             ScanStatus::Error => "error",
             ScanStatus::Duplicate => "duplicate",
+            ScanStatus::Superseded => "superseded",
         }
     }
 
@@ -47,6 +53,7 @@ impl ScanStatus {
             "ok" => Some(ScanStatus::Ok),
             "error" => Some(ScanStatus::Error),
             "duplicate" => Some(ScanStatus::Duplicate),
+            "superseded" => Some(ScanStatus::Superseded),
             _ => None,
         }
     }
@@ -217,6 +224,8 @@ pub struct ScanRecord {
     /// The scan was identified while the library's calibration was still
     /// running: its ranks carry no confidence for that reason.
     pub calibrating: bool,
+    /// For a `superseded` scan: the row of the content its job read.
+    pub superseded_by: Option<i64>,
 }
 
 impl ScanRecord {
@@ -290,7 +299,9 @@ impl Serialize for RanksJson<'_> {
 /// (`no_close_match`: [`ScanRecord::no_close_match`]) (plus `"landmarks": [{"label", "x",
 /// "y", "z"}, …]` and `"landmarks_reference"` when landmarks were carried
 /// onto the scan), `{"scan", "status": "error",
-/// "error"}` for an error, `{"scan", "status"}` while pending or running;
+/// "error"}` for an error, `{"scan", "status", "superseded_by"}` (the row
+/// of the content read instead) for a superseded scan, `{"scan",
+/// "status"}` while pending or running;
 /// each with the scan's `id` too; `"files_error"` when its result files
 /// could not be written, and `"calibrating": true` for an `ok` scan
 /// identified before the library's calibration was ready. A `duplicate` adds `"duplicate_of":
@@ -327,6 +338,9 @@ impl Serialize for ScanRecord {
             ScanStatus::Error => {
                 map.serialize_entry("error", self.error.as_deref().unwrap_or(""))?;
             }
+            ScanStatus::Superseded => {
+                map.serialize_entry("superseded_by", &self.superseded_by)?;
+            }
             ScanStatus::Pending | ScanStatus::Running | ScanStatus::Duplicate => {}
         }
         if let Some(e) = &self.files_error {
@@ -349,4 +363,6 @@ pub struct StatusCounts {
     pub error: u64,
     /// Files with the content of an earlier scan.
     pub duplicate: u64,
+    /// Queued contents that the file no longer held when read.
+    pub superseded: u64,
 }

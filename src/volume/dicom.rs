@@ -12,6 +12,7 @@
 
 use super::source::{SliceSource, VolumeFormat, VolumeInfo};
 use super::VolumeError;
+use crate::hash::{Content, FolderHash};
 use dicom_core::value::{PrimitiveValue, Value};
 use dicom_dictionary_std::tags;
 use dicom_object::{InMemDicomObject, OpenFileOptions, Tag};
@@ -105,10 +106,12 @@ fn invalid(path: &Path, problem: String) -> VolumeError {
     }
 }
 
-/// The DICOM file at `path`, up to (`header_only`) or including its pixel
-/// data; a file that ends early is reported as truncated.
+/// The DICOM file `bytes` (of the file `path`, which names errors), up to
+/// (`header_only`) or including its pixel data; a file that ends early is
+/// reported as truncated.
 fn open_object(
     path: &Path,
+    bytes: &[u8],
     header_only: bool,
 ) -> Result<dicom_object::DefaultDicomObject, VolumeError> {
     let opts = OpenFileOptions::new();
@@ -117,7 +120,7 @@ fn open_object(
     } else {
         opts
     };
-    opts.open_file(path).map_err(|source| {
+    opts.from_reader(bytes).map_err(|source| {
         if ends_early(&source) {
             invalid(
                 path,
@@ -146,10 +149,19 @@ fn ends_early(e: &(dyn std::error::Error + 'static)) -> bool {
     false
 }
 
-/// The header of the DICOM file at `path`: its transfer syntax checked,
-/// the pixel description and geometry read.
-fn read_header(path: &Path) -> Result<SliceHeader, VolumeError> {
-    let file = open_object(path, true)?;
+/// The bytes of the DICOM file `path`, read once: what is parsed is what
+/// is hashed.
+fn read_file(path: &Path) -> Result<Vec<u8>, VolumeError> {
+    std::fs::read(path).map_err(|source| VolumeError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// The header of the DICOM file `bytes` (of `path`): its transfer syntax
+/// checked, the pixel description and geometry read.
+fn read_header(path: &Path, bytes: &[u8]) -> Result<SliceHeader, VolumeError> {
+    let file = open_object(path, bytes, true)?;
     let syntax = file.meta().transfer_syntax().to_string();
     if syntax == BIG_ENDIAN_SYNTAX {
         return Err(invalid(
@@ -345,16 +357,34 @@ pub(crate) struct DicomSeries {
     info: VolumeInfo,
     slices: Vec<SliceHeader>,
     next: usize,
+    /// When hashed: the folder's content (of the files as their headers
+    /// were read, in name order), and each file's own hash by path, which
+    /// its second reading (for the pixels) must match.
+    hashed: Option<(Content, Vec<(PathBuf, String)>)>,
 }
 
 impl DicomSeries {
     /// Read and check the headers of the DICOM `files` of `dir` (in name
-    /// order) and order the slices.
-    pub(crate) fn open(dir: &Path, files: Vec<PathBuf>) -> Result<DicomSeries, VolumeError> {
-        let headers: Vec<SliceHeader> = files
-            .iter()
-            .map(|p| read_header(p))
-            .collect::<Result<_, _>>()?;
+    /// order) and order the slices. With `hashed`, each file's bytes are
+    /// hashed as read ([`SliceSource::content`]); the pixels are read
+    /// later, by position, from a second reading that must hold the same
+    /// bytes.
+    pub(crate) fn open(
+        dir: &Path,
+        files: Vec<PathBuf>,
+        hashed: bool,
+    ) -> Result<DicomSeries, VolumeError> {
+        let mut folder = hashed.then(FolderHash::new);
+        let mut each = Vec::new();
+        let mut headers = Vec::with_capacity(files.len());
+        for p in &files {
+            let bytes = read_file(p)?;
+            if let Some(f) = &mut folder {
+                f.slice(&name(p), &bytes);
+                each.push((p.clone(), crate::hash::content_hash(&bytes)));
+            }
+            headers.push(read_header(p, &bytes)?);
+        }
         check_one_series(dir, &headers)?;
         let first = &headers[0];
         for h in &headers[1..] {
@@ -406,6 +436,7 @@ impl DicomSeries {
             info,
             slices,
             next: 0,
+            hashed: folder.map(|f| (f.finish(), each)),
         })
     }
 }
@@ -498,7 +529,17 @@ impl SliceSource for DicomSeries {
                 .unwrap_or_default(),
             problem: "read past the last slice".into(),
         })?;
-        let file = open_object(&h.path, false)?;
+        let bytes = read_file(&h.path)?;
+        if let Some((_, each)) = &self.hashed {
+            let first = each.iter().find(|(p, _)| *p == h.path).map(|(_, x)| x);
+            if first != Some(&crate::hash::content_hash(&bytes)) {
+                return Err(invalid(
+                    &h.path,
+                    "the file changed while the series was being read".into(),
+                ));
+            }
+        }
+        let file = open_object(&h.path, &bytes, false)?;
         let value = match element(&file, tags::PIXEL_DATA).map(|e| e.value()) {
             Some(Value::Primitive(v)) => v,
             Some(_) => {
@@ -528,6 +569,10 @@ impl SliceSource for DicomSeries {
         out.clear();
         out.extend(raw[..n].iter().map(|&r| sample_value(r, &h.layout)));
         Ok(())
+    }
+
+    fn content(&mut self) -> Result<Option<Content>, VolumeError> {
+        Ok(self.hashed.take().map(|(content, _)| content))
     }
 }
 
@@ -675,7 +720,7 @@ mod tests {
     fn read_all(dir: &Path) -> Result<(VolumeInfo, Vec<Vec<f32>>), VolumeError> {
         let (files, format) = super::super::stack::slice_files(dir)?;
         assert_eq!(format, VolumeFormat::Dicom);
-        let mut series = DicomSeries::open(dir, files)?;
+        let mut series = DicomSeries::open(dir, files, false)?;
         let info = series.info().clone();
         let mut slices = Vec::new();
         for _ in 0..info.dims[2] {

@@ -34,6 +34,7 @@ pub use threshold::{
     contrast, enamel_threshold, foreground_threshold, otsu, Histogram, Thresholds, MIN_CONTRAST,
 };
 
+use crate::hash::Content;
 use crate::mesh::{surface_area, Mesh};
 use source::SliceSource;
 use std::path::{Path, PathBuf};
@@ -170,27 +171,34 @@ fn volume_file_format(path: &Path) -> Option<VolumeFormat> {
     }
 }
 
-fn open(path: &Path) -> Result<Box<dyn SliceSource>, VolumeError> {
+/// The reader of the volume at `path`; with `hashed`, one that hashes the
+/// bytes it reads.
+fn open(path: &Path, hashed: bool) -> Result<Box<dyn SliceSource>, VolumeError> {
+    let hash = hashed.then(crate::hash::SharedHash::new);
     Ok(match volume_file_format(path) {
-        Some(VolumeFormat::Nrrd) => Box::new(nrrd::open(path)?),
-        Some(_) => Box::new(nifti::open(path)?),
+        Some(VolumeFormat::Nrrd) => Box::new(nrrd::open(path, hash)?),
+        Some(_) => Box::new(nifti::open(path, hash)?),
         None => {
             let (files, format) = stack::slice_files(path)?;
             if format == VolumeFormat::Dicom {
-                Box::new(dicom::DicomSeries::open(path, files)?)
+                Box::new(dicom::DicomSeries::open(path, files, hashed)?)
             } else {
-                Box::new(stack::SliceFolder::open(files, format)?)
+                Box::new(stack::SliceFolder::open(files, format, hashed)?)
             }
         }
     })
 }
 
+/// The working grid of a volume as read, and the content read when hashed.
+type WorkingGrid = (Grid, VolumeInfo, usize, Option<Content>);
+
 /// Read the volume at `path` slice by slice into the working grid.
 fn read_working_grid(
     path: &Path,
     opts: &VolumeOptions,
-) -> Result<(Grid, VolumeInfo, usize), VolumeError> {
-    let mut source = open(path)?;
+    hashed: bool,
+) -> Result<WorkingGrid, VolumeError> {
+    let mut source = open(path, hashed)?;
     let info = source.info().clone();
     if info.dims[2] < 2 {
         return Err(VolumeError::Invalid {
@@ -215,7 +223,8 @@ fn read_working_grid(
         }
         reducer.push(&slice);
     }
-    Ok((reducer.finish(), info, factor))
+    let content = source.content()?;
+    Ok((reducer.finish(), info, factor, content))
 }
 
 /// Why a working grid gave no surface (the caller names the file).
@@ -368,14 +377,37 @@ struct GridSurfaceReport {
 /// Read the volume at `path` and make its surface (the crown over enamel
 /// where the scan shows enamel, else the closed surface).
 pub fn surface_from_path(path: &Path, opts: &VolumeOptions) -> Result<VolumeSurface, VolumeError> {
+    surface_from_path_as(path, opts, false).map(|(surface, _)| surface)
+}
+
+/// [`surface_from_path`], and the content of exactly the bytes that were
+/// read (each slice file or the volume file read once, hashed as read:
+/// [`crate::hash::content_hash_file`] of what the surface is made from).
+pub fn surface_from_path_hashed(
+    path: &Path,
+    opts: &VolumeOptions,
+) -> Result<(VolumeSurface, Content), VolumeError> {
+    let (surface, content) = surface_from_path_as(path, opts, true)?;
+    let content = content.ok_or_else(|| VolumeError::Invalid {
+        path: path.to_path_buf(),
+        problem: "the reader did not hash what it read".into(),
+    })?;
+    Ok((surface, content))
+}
+
+fn surface_from_path_as(
+    path: &Path,
+    opts: &VolumeOptions,
+    hashed: bool,
+) -> Result<(VolumeSurface, Option<Content>), VolumeError> {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     let t = Instant::now();
-    let (grid, info, factor) = {
+    let (grid, info, factor, content) = {
         let _s = tracing::debug_span!("volume_read", scan = %name).entered();
-        read_working_grid(path, opts)?
+        read_working_grid(path, opts, hashed)?
     };
     let read_ms = ms(t);
     let (mesh, th, seg, r) = {
@@ -394,7 +426,7 @@ pub fn surface_from_path(path: &Path, opts: &VolumeOptions) -> Result<VolumeSurf
             seg.dropped_voxels
         );
     }
-    Ok(VolumeSurface {
+    let surface = VolumeSurface {
         mesh,
         report: VolumeReport {
             input: info,
@@ -414,7 +446,8 @@ pub fn surface_from_path(path: &Path, opts: &VolumeOptions) -> Result<VolumeSurf
                 crown: r.crown_ms,
             },
         },
-    })
+    };
+    Ok((surface, content))
 }
 
 fn ms(t: Instant) -> f64 {

@@ -4,12 +4,13 @@
 
 use super::source::{RawSlices, SampleType, VolumeFormat, VolumeInfo};
 use super::VolumeError;
+use crate::hash::{HashingReader, SharedHash};
 use std::io::{BufReader, Read};
 use std::path::Path;
 
 /// Read the header of the NIfTI-1 file `path` and position at the first
-/// slice.
-pub(crate) fn open(path: &Path) -> Result<RawSlices, VolumeError> {
+/// slice; with `hash`, every byte of the file read is hashed into it.
+pub(crate) fn open(path: &Path, hash: Option<SharedHash>) -> Result<RawSlices, VolumeError> {
     let invalid = |problem: String| VolumeError::Invalid {
         path: path.to_path_buf(),
         problem,
@@ -27,7 +28,10 @@ pub(crate) fn open(path: &Path) -> Result<RawSlices, VolumeError> {
             }
         }
     };
-    let file = BufReader::new(std::fs::File::open(path).map_err(io)?);
+    let file = BufReader::new(HashingReader::maybe(
+        std::fs::File::open(path).map_err(io)?,
+        hash.clone(),
+    ));
     let gz = path.to_string_lossy().to_ascii_lowercase().ends_with(".gz");
     let mut reader: Box<dyn Read> = if gz {
         Box::new(flate2::bufread::MultiGzDecoder::new(file))
@@ -116,5 +120,5 @@ pub(crate) fn open(path: &Path) -> Result<RawSlices, VolumeError> {
         unit: unit.into(),
         bits: (kind.bytes() * 8) as u16,
     };
-    Ok(RawSlices::new(info, path, kind, little, reader))
+    Ok(RawSlices::new(info, path, kind, little, reader, hash))
 }

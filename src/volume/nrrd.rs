@@ -3,6 +3,7 @@
 
 use super::source::{RawSlices, SampleType, VolumeFormat, VolumeInfo};
 use super::VolumeError;
+use crate::hash::{HashingReader, SharedHash};
 use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 
@@ -25,8 +26,8 @@ fn sample_type(name: &str) -> Option<SampleType> {
 }
 
 /// Read the header of the NRRD file `path` and position at the first
-/// slice.
-pub(crate) fn open(path: &Path) -> Result<RawSlices, VolumeError> {
+/// slice; with `hash`, every byte of the file read is hashed into it.
+pub(crate) fn open(path: &Path, hash: Option<SharedHash>) -> Result<RawSlices, VolumeError> {
     let invalid = |problem: String| VolumeError::Invalid {
         path: path.to_path_buf(),
         problem,
@@ -36,7 +37,7 @@ pub(crate) fn open(path: &Path) -> Result<RawSlices, VolumeError> {
         source,
     };
     let file = std::fs::File::open(path).map_err(io)?;
-    let mut reader = BufReader::new(file);
+    let mut reader = BufReader::new(HashingReader::maybe(file, hash.clone()));
     let mut line = String::new();
     reader.read_line(&mut line).map_err(io)?;
     if !line.starts_with("NRRD000") {
@@ -154,5 +155,5 @@ pub(crate) fn open(path: &Path) -> Result<RawSlices, VolumeError> {
         unit,
         bits: (kind.bytes() * 8) as u16,
     };
-    Ok(RawSlices::new(info, path, kind, little, reader))
+    Ok(RawSlices::new(info, path, kind, little, reader, hash))
 }

@@ -2,6 +2,7 @@
 //! slices one after another, as `f32` grey values.
 
 use super::VolumeError;
+use crate::hash::{Content, SharedHash};
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
@@ -44,6 +45,10 @@ pub(crate) trait SliceSource {
     fn info(&self) -> &VolumeInfo;
     /// Read the next slice (`dims[0] * dims[1]` values, x fastest) into `out`.
     fn next_slice(&mut self, out: &mut Vec<f32>) -> Result<(), VolumeError>;
+    /// After the last slice: the content of every byte that was read
+    /// (the rest of a file is read to its end first), when the source was
+    /// opened to hash; `None` otherwise.
+    fn content(&mut self) -> Result<Option<Content>, VolumeError>;
 }
 
 /// How samples are stored in a raw volume file.
@@ -104,17 +109,21 @@ pub(crate) struct RawSlices {
     little: bool,
     reader: Box<dyn Read>,
     bytes: Vec<u8>,
+    /// The hash of the file's bytes as they are read, when asked for.
+    hash: Option<SharedHash>,
 }
 
 impl RawSlices {
     /// The slices that `reader` (of the file `path`, its header read)
-    /// holds: samples of `kind`, little- or big-endian.
+    /// holds: samples of `kind`, little- or big-endian; `hash` is what the
+    /// file's bytes are hashed into below `reader` (if anything).
     pub(crate) fn new(
         info: VolumeInfo,
         path: &Path,
         kind: SampleType,
         little: bool,
         reader: Box<dyn Read>,
+        hash: Option<SharedHash>,
     ) -> Self {
         Self {
             info,
@@ -123,6 +132,7 @@ impl RawSlices {
             little,
             reader,
             bytes: Vec::new(),
+            hash,
         }
     }
 }
@@ -151,5 +161,19 @@ impl SliceSource for RawSlices {
         })?;
         decode_samples(&self.bytes, self.kind, self.little, out);
         Ok(())
+    }
+
+    fn content(&mut self) -> Result<Option<Content>, VolumeError> {
+        let Some(hash) = &self.hash else {
+            return Ok(None);
+        };
+        // The rest of the file is part of its content: read to the end.
+        std::io::copy(&mut self.reader, &mut std::io::sink()).map_err(|source| {
+            VolumeError::Io {
+                path: self.path.clone(),
+                source,
+            }
+        })?;
+        Ok(Some(hash.content()))
     }
 }

@@ -6,6 +6,7 @@
 
 use super::source::{SliceSource, VolumeFormat, VolumeInfo};
 use super::VolumeError;
+use crate::hash::{Content, FolderHash};
 use std::cmp::Ordering;
 use std::path::{Path, PathBuf};
 
@@ -166,27 +167,36 @@ fn name(p: &Path) -> String {
 }
 
 /// One decoded slice: width, height, bits per sample, values.
-fn read_image(
+type Slice = (usize, usize, u16, Vec<f32>);
+
+/// The bytes of the slice file `path`, read once: what is decoded is what
+/// is hashed.
+fn read_slice_file(path: &Path) -> Result<Vec<u8>, VolumeError> {
+    std::fs::read(path).map_err(|source| VolumeError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Decode the slice `bytes` (of the file `path`, which names errors).
+pub(crate) fn decode_slice(
     path: &Path,
+    bytes: &[u8],
     format: VolumeFormat,
-) -> Result<(usize, usize, u16, Vec<f32>), VolumeError> {
+) -> Result<Slice, VolumeError> {
     match format {
-        VolumeFormat::Tiff => read_tiff(path),
-        _ => read_other(path),
+        VolumeFormat::Tiff => read_tiff(path, bytes),
+        _ => read_other(path, bytes),
     }
 }
 
-fn read_tiff(path: &Path) -> Result<(usize, usize, u16, Vec<f32>), VolumeError> {
+fn read_tiff(path: &Path, bytes: &[u8]) -> Result<Slice, VolumeError> {
     use tiff::decoder::{Decoder, DecodingResult};
     let err = |source: tiff::TiffError| VolumeError::Tiff {
         path: path.to_path_buf(),
         source,
     };
-    let file = std::fs::File::open(path).map_err(|source| VolumeError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let mut dec = Decoder::new(std::io::BufReader::new(file)).map_err(err)?;
+    let mut dec = Decoder::new(std::io::Cursor::new(bytes)).map_err(err)?;
     let (w, h) = dec.dimensions().map_err(err)?;
     let colour = dec.colortype().map_err(err)?;
     let channels = match colour {
@@ -232,12 +242,12 @@ fn read_tiff(path: &Path) -> Result<(usize, usize, u16, Vec<f32>), VolumeError> 
     Ok((w, h, bits, values))
 }
 
-fn read_other(path: &Path) -> Result<(usize, usize, u16, Vec<f32>), VolumeError> {
-    let img = image::ImageReader::open(path)
-        .map_err(|source| VolumeError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?
+fn read_other(path: &Path, bytes: &[u8]) -> Result<Slice, VolumeError> {
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes));
+    if let Ok(format) = image::ImageFormat::from_path(path) {
+        reader.set_format(format);
+    }
+    let img = reader
         .with_guessed_format()
         .map_err(|source| VolumeError::Io {
             path: path.to_path_buf(),
@@ -284,16 +294,25 @@ pub(crate) struct SliceFolder {
     files: Vec<PathBuf>,
     next: usize,
     first: Option<Vec<f32>>,
+    /// The folder's hash over the slices read so far, when asked for.
+    hash: Option<FolderHash>,
 }
 
 impl SliceFolder {
     /// Open the checked slice `files` of a folder (from [`slice_files`]):
-    /// read the first for the size.
+    /// read the first for the size. With `hashed`, each slice's bytes as
+    /// read are hashed ([`SliceSource::content`]).
     pub(crate) fn open(
         files: Vec<PathBuf>,
         format: VolumeFormat,
+        hashed: bool,
     ) -> Result<SliceFolder, VolumeError> {
-        let (w, h, bits, first) = read_image(&files[0], format)?;
+        let mut hash = hashed.then(FolderHash::new);
+        let bytes = read_slice_file(&files[0])?;
+        if let Some(h) = &mut hash {
+            h.slice(&name(&files[0]), &bytes);
+        }
+        let (w, h, bits, first) = decode_slice(&files[0], &bytes, format)?;
         Ok(SliceFolder {
             info: VolumeInfo {
                 format,
@@ -305,6 +324,7 @@ impl SliceFolder {
             files,
             next: 0,
             first: Some(first),
+            hash,
         })
     }
 }
@@ -325,7 +345,11 @@ impl SliceSource for SliceFolder {
             path: self.files.last().cloned().unwrap_or_default(),
             problem: "read past the last slice".into(),
         })?;
-        let (w, h, _, values) = read_image(path, self.info.format)?;
+        let bytes = read_slice_file(path)?;
+        if let Some(hash) = &mut self.hash {
+            hash.slice(&name(path), &bytes);
+        }
+        let (w, h, _, values) = decode_slice(path, &bytes, self.info.format)?;
         if [w, h] != [self.info.dims[0], self.info.dims[1]] {
             return Err(VolumeError::Invalid {
                 path: path.clone(),
@@ -339,6 +363,10 @@ impl SliceSource for SliceFolder {
         }
         *out = values;
         Ok(())
+    }
+
+    fn content(&mut self) -> Result<Option<Content>, VolumeError> {
+        Ok(self.hash.take().map(FolderHash::finish))
     }
 }
 
@@ -362,7 +390,7 @@ mod bad_input_tests {
 
     fn open_folder(dir: &Path) -> SliceFolder {
         let (files, format) = slice_files(dir).unwrap();
-        SliceFolder::open(files, format).unwrap()
+        SliceFolder::open(files, format, false).unwrap()
     }
 
     fn write_png(dir: &Path, name: &str, w: u32, h: u32) {

@@ -128,6 +128,43 @@ fn a_full_disk_under_the_database_loses_and_repeats_nothing() {
     drop(mnt);
 }
 
+/// Issue 30: a database on a 400 kB file system. Its log stays small
+/// (checkpointed after every scan or two and cut back), so six scans fit;
+/// filled up by another file meanwhile, the daemon retries (the log
+/// checkpointed and cut to nothing on SQLITE_FULL) and, once the space is
+/// free again, records every scan exactly once within a minute.
+#[test]
+fn a_nearly_full_small_disk_recovers_once_space_is_free() {
+    if !have_root("a_nearly_full_small_disk_recovers_once_space_is_free") {
+        return;
+    }
+    let mut env = env(0.5, "", "");
+    let mnt = Mount::tmpfs(&env.root.join("dbfs"), "400k");
+    let db = env.root.join("dbfs/db.sqlite");
+    move_database(&mut env, db.clone());
+    let d = Daemon::start(&env);
+    let mut names: Vec<String> = (0..3).map(|i| drop_scan(&env, i)).collect();
+    assert!(
+        wait_until(Duration::from_secs(60), || finished(&env.db) >= 1),
+        "{}",
+        d.log_text()
+    );
+    let filler = fill(&env.root.join("dbfs"), "filler");
+    names.extend((3..6).map(|i| drop_scan(&env, i)));
+    std::thread::sleep(FAULT);
+    std::fs::remove_file(&filler).unwrap();
+    let freed = std::time::Instant::now();
+    assert_exactly_once(&env, &d, &names, Duration::from_secs(60));
+    let wal = std::fs::metadata(env.root.join("dbfs/db.sqlite-wal")).map_or(0, |m| m.len());
+    println!(
+        "6/6 recorded {:.1} s after the space was freed; log {wal} bytes, database {} bytes",
+        freed.elapsed().as_secs_f64() - 2.0,
+        std::fs::metadata(&db).unwrap().len()
+    );
+    drop(d);
+    drop(mnt);
+}
+
 #[test]
 fn io_errors_under_the_database_and_the_results_folder_are_survived() {
     if !have_root("io_errors_under_the_database_and_the_results_folder_are_survived") {

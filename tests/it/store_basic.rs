@@ -879,3 +879,60 @@ fn a_version_4_database_opens_and_gains_the_new_columns() {
         Some("cannot write")
     );
 }
+
+/// Issue 30: a job whose file held other content when read ends
+/// `superseded`, pointing at the row of the content read (queued then, or
+/// the row it already had); the superseded content may be queued again.
+#[test]
+fn a_superseded_scan_points_at_the_content_read() {
+    use morphoid::store::{Enqueued, ScanStatus, Store};
+    let dir = tempfile::tempdir().unwrap();
+    let mut store = Store::open(&dir.path().join("db.sqlite")).unwrap();
+    let Enqueued::New(a) = store.enqueue("e/x.ply", "h1", 10).unwrap() else {
+        panic!("not new")
+    };
+    let job = store.claim_next().unwrap().unwrap();
+    assert_eq!(job.scan_id, a);
+    // Its own content is no reason to supersede it.
+    assert!(store.supersede(a, "h1", 10).is_err());
+    let Enqueued::New(b) = store.supersede(a, "h2", 20).unwrap() else {
+        panic!("the content read is queued")
+    };
+    let old = store.scan(a, 0).unwrap().unwrap();
+    assert_eq!(
+        (old.status, old.superseded_by, old.content_hash.as_str()),
+        (ScanStatus::Superseded, Some(b), "h1")
+    );
+    assert!(old.finished_at_ms.is_some());
+    let json = serde_json::to_value(&old).unwrap();
+    assert_eq!(json["superseded_by"], b);
+    let new = store.scan(b, 0).unwrap().unwrap();
+    assert_eq!(
+        (
+            new.status,
+            new.path.as_str(),
+            new.content_hash.as_str(),
+            new.size
+        ),
+        (ScanStatus::Pending, "e/x.ply", "h2", 20)
+    );
+    // The content read was queued already: pointed at, not queued again.
+    let Enqueued::New(c) = store.enqueue("e/x.ply", "h3", 30).unwrap() else {
+        panic!("not new")
+    };
+    let job = store.claim_next().unwrap().unwrap();
+    assert_eq!(job.scan_id, b);
+    assert_eq!(
+        store.supersede(b, "h3", 30).unwrap(),
+        Enqueued::Existing(c, ScanStatus::Pending)
+    );
+    // A superseded content is not identified: arriving again, it is queued.
+    assert!(matches!(
+        store.enqueue("e/x.ply", "h1", 10).unwrap(),
+        Enqueued::New(_)
+    ));
+    assert!(store.scan_by_hash("h1", 0).unwrap().unwrap().status == ScanStatus::Pending);
+    let counts = store.counts().unwrap();
+    assert_eq!((counts.superseded, counts.pending), (2, 2));
+    store.check_integrity().unwrap();
+}

@@ -98,6 +98,7 @@ fn check_database(path: &Path) -> (u64, u64) {
             ScanStatus::Error => assert_eq!(rec.error, Some(format!("bad scan {seed}"))),
             ScanStatus::Pending | ScanStatus::Running => {}
             ScanStatus::Duplicate => panic!("{}: no duplicates were written", rec.path),
+            ScanStatus::Superseded => panic!("{}: no content changed", rec.path),
         }
     }
     (counts.ok, counts.error)

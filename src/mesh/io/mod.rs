@@ -22,6 +22,7 @@ pub use write::{encode, save, save_as, write_obj, write_off, write_ply, write_pl
 pub use write::{write_stl, write_stl_ascii, EncodeError, Encoding, SaveError};
 
 use super::Mesh;
+use crate::hash::{Content, HashingReader, SharedHash};
 use std::path::{Path, PathBuf};
 
 /// Largest file the readers accept (bytes); bigger files are refused before
@@ -127,6 +128,23 @@ pub(crate) type ParseResult<T> = Result<T, String>;
 /// Read a mesh, choosing the reader from the file extension
 /// (case-insensitive: `.obj`, `.ply`, `.stl`, `.off`).
 pub fn load(path: &Path) -> Result<LoadedMesh, LoadError> {
+    load_from(path, None)
+}
+
+/// [`load`], and the content of exactly the bytes that were parsed
+/// ([`crate::hash::content_hash_file`] of the file as it was read): the
+/// file is read once, so the mesh and the hash are of the same content
+/// even while another program rewrites it. A file that changed while it
+/// was being read is an I/O error (`InvalidData`).
+pub fn load_hashed(path: &Path) -> Result<(LoadedMesh, Content), LoadError> {
+    let hash = SharedHash::new();
+    let mesh = load_from(path, Some(&hash))?;
+    Ok((mesh, hash.content()))
+}
+
+/// [`load`], hashing every byte read into `hash` when given.
+fn load_from(path: &Path, hash: Option<&SharedHash>) -> Result<LoadedMesh, LoadError> {
+    use std::io::Read as _;
     let format = Format::from_path(path).ok_or_else(|| LoadError::UnknownFormat {
         path: path.to_path_buf(),
     })?;
@@ -134,35 +152,54 @@ pub fn load(path: &Path) -> Result<LoadedMesh, LoadError> {
         path: path.to_path_buf(),
         source,
     };
-    let size = std::fs::metadata(path).map_err(io_err)?.len();
+    let file = std::fs::File::open(path).map_err(io_err)?;
+    let size = file.metadata().map_err(io_err)?.len();
     if size > MAX_FILE_BYTES {
         return Err(LoadError::Invalid {
             path: path.to_path_buf(),
             message: format!("file is {size} bytes, more than the limit of {MAX_FILE_BYTES}"),
         });
     }
-    if format == Format::Stl {
-        // Big exports are binary STL: read record by record.
-        match stl::read_binary_file(path, size) {
-            Ok(Some(mesh)) => {
-                let mesh = validate(mesh).map_err(|message| LoadError::Invalid {
+    let hashing = HashingReader::maybe(file, hash.cloned());
+    let mut reader = std::io::BufReader::with_capacity(stl::READ_BUFFER, hashing);
+    let mut head = [0u8; 84];
+    let mut bytes = Vec::new();
+    if format == Format::Stl && size >= 84 {
+        reader.read_exact(&mut head).map_err(io_err)?;
+        if let Some(n) = stl::binary_count(&head, size) {
+            // Big exports are binary STL: read record by record.
+            let mesh = stl::read_binary_records(&mut reader, n).map_err(|e| match e {
+                stl::BinaryFileError::Io(source) => io_err(source),
+                stl::BinaryFileError::Invalid(message) => LoadError::Invalid {
                     path: path.to_path_buf(),
                     message,
-                })?;
-                return Ok(LoadedMesh { mesh, format });
+                },
+            })?;
+            // Anything after the records is read (and hashed) too: a file
+            // that grew meanwhile is not the content that was parsed.
+            let rest = std::io::copy(&mut reader, &mut std::io::sink()).map_err(io_err)?;
+            if rest > 0 {
+                return Err(io_err(changed_while_read()));
             }
-            Ok(None) => {}
-            Err(stl::BinaryFileError::Io(source)) => return Err(io_err(source)),
-            Err(stl::BinaryFileError::Invalid(message)) => {
-                return Err(LoadError::Invalid {
-                    path: path.to_path_buf(),
-                    message,
-                })
-            }
+            let mesh = validate(mesh).map_err(|message| LoadError::Invalid {
+                path: path.to_path_buf(),
+                message,
+            })?;
+            return Ok(LoadedMesh { mesh, format });
         }
+        bytes.extend_from_slice(&head);
     }
-    let bytes = std::fs::read(path).map_err(io_err)?;
+    bytes.reserve(usize::try_from(size).unwrap_or(0));
+    reader.read_to_end(&mut bytes).map_err(io_err)?;
     load_bytes(&bytes, format, path)
+}
+
+/// The error of a file whose size changed while it was read.
+fn changed_while_read() -> std::io::Error {
+    std::io::Error::new(
+        std::io::ErrorKind::InvalidData,
+        "the file changed while it was being read",
+    )
 }
 
 /// Parse a mesh held in memory. `name` only labels error messages.

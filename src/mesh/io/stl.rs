@@ -12,7 +12,6 @@ use super::text::{shorten, Tokens};
 use super::{push_fan, ParseResult};
 use crate::mesh::Mesh;
 use rustc_hash::FxHashMap as HashMap;
-use std::path::Path;
 
 /// Parse an STL file.
 pub(crate) fn read_stl(bytes: &[u8]) -> ParseResult<Mesh> {
@@ -73,36 +72,37 @@ fn read_binary(bytes: &[u8], n: usize) -> ParseResult<Mesh> {
 /// Bytes of one binary STL triangle record.
 const RECORD: usize = 50;
 
-/// Read a binary STL file of `size` bytes record by record, without
-/// holding the file in memory (a µCT export can be hundreds of megabytes).
-/// `Ok(None)` when the size does not match a binary STL (the caller reads
-/// it as ASCII); `Err` carries the I/O error or the message of a bad
-/// record, with the file name attached by the caller.
-pub(crate) fn read_binary_file(path: &Path, size: u64) -> Result<Option<Mesh>, BinaryFileError> {
-    use std::io::Read;
-    let mut file = std::io::BufReader::with_capacity(
-        RECORD * 4096,
-        std::fs::File::open(path).map_err(BinaryFileError::Io)?,
-    );
-    let mut header = [0u8; 84];
-    if size < 84 {
-        return Ok(None);
-    }
-    file.read_exact(&mut header).map_err(BinaryFileError::Io)?;
+/// The triangle count of a binary STL whose first 84 bytes are `header`,
+/// when `size` (the file's bytes) is exactly `84 + 50·n`; `None` when the
+/// file is not binary STL (the caller reads it as ASCII).
+pub(crate) fn binary_count(header: &[u8; 84], size: u64) -> Option<usize> {
     let n = u32::from_le_bytes([header[80], header[81], header[82], header[83]]) as u64;
-    if 84 + RECORD as u64 * n != size {
-        return Ok(None);
-    }
-    let mut soup = SharedCorners::with_triangles(n as usize);
-    let mut record = [0u8; RECORD];
-    for t in 0..n as usize {
-        file.read_exact(&mut record).map_err(BinaryFileError::Io)?;
-        soup.push(t, &record).map_err(BinaryFileError::Invalid)?;
-    }
-    Ok(Some(soup.into_mesh()))
+    (84 + RECORD as u64 * n == size).then_some(n as usize)
 }
 
-/// Why [`read_binary_file`] failed.
+/// Read the `n` triangle records that follow a binary STL's header from
+/// `reader`, one at a time, without holding the file in memory (a µCT
+/// export can be hundreds of megabytes). `Err` carries the I/O error or
+/// the message of a bad record, with the file name attached by the caller.
+pub(crate) fn read_binary_records<R: std::io::Read>(
+    reader: &mut R,
+    n: usize,
+) -> Result<Mesh, BinaryFileError> {
+    let mut soup = SharedCorners::with_triangles(n);
+    let mut record = [0u8; RECORD];
+    for t in 0..n {
+        reader
+            .read_exact(&mut record)
+            .map_err(BinaryFileError::Io)?;
+        soup.push(t, &record).map_err(BinaryFileError::Invalid)?;
+    }
+    Ok(soup.into_mesh())
+}
+
+/// Bytes a reader of binary STL buffers: many records per read.
+pub(crate) const READ_BUFFER: usize = RECORD * 4096;
+
+/// Why [`read_binary_records`] failed.
 #[derive(Debug)]
 pub(crate) enum BinaryFileError {
     /// Reading failed (or the file shrank while it was read).
