@@ -54,5 +54,6 @@ mod report_pages;
 mod store_basic;
 mod store_crash;
 mod store_landmarks;
+mod volume_mounted;
 mod volume_scans;
 mod volume_teeth;

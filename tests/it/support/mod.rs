@@ -7,4 +7,5 @@ pub mod data;
 pub mod faults;
 pub mod library;
 pub mod lm;
+pub mod mounting;
 pub mod store;
