@@ -26,7 +26,8 @@ pub struct SegmentReport {
     /// with its grey level, size, bounding box and the reason.
     #[serde(default)]
     pub objects: Vec<SegmentObject>,
-    /// Dropped objects too small to list (under 64 samples).
+    /// Dropped objects not listed (under 64 samples, or beyond the 24
+    /// largest).
     #[serde(default)]
     pub small_objects: usize,
     /// Their samples.

@@ -33,6 +33,9 @@ pub const MIN_SPECIMEN_VOXELS: usize = 1000;
 /// [`MIN_SPECIMEN_VOXELS`] up.
 const LISTED_BELOW: usize = 10;
 
+/// At most this many dropped objects are listed, the largest.
+const LISTED_DROPPED: usize = 24;
+
 /// Objects smaller than this are counted, not listed.
 const REPORT_VOXELS: usize = 64;
 
@@ -329,7 +332,7 @@ pub fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen, Speci
                 Some(why) => rejected.push((t, v.stats[l].voxels, why)),
             }
         }
-        views[j] = Some(v);
+        keep_if_lowest(&mut views, j, v);
         if seed.is_some() {
             break;
         }
@@ -349,7 +352,7 @@ pub fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen, Speci
         let v = level_view(values, dims, t);
         let l = v.labels[probe];
         if l == u32::MAX {
-            views[i] = Some(v);
+            keep_if_lowest(&mut views, i, v);
             break;
         }
         let st = &v.stats[l as usize];
@@ -380,7 +383,7 @@ pub fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen, Speci
         if (deep as f64) < MATERIAL_FRACTION * st.voxels as f64 {
             // Only the blur at the edge: an admissible level, not a material.
             lowest_ok = i;
-            views[i] = Some(v);
+            keep_if_lowest(&mut views, i, v);
             continue;
         }
         let why = textured(values, dims, &added, background)
@@ -401,7 +404,7 @@ pub fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen, Speci
         accepted_j = i;
         accepted = grown;
         lowest_ok = i;
-        views[i] = Some(v);
+        keep_if_lowest(&mut views, i, v);
     }
 
     // Between the specimen's material and what surrounds it.
@@ -543,6 +546,15 @@ pub fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen, Speci
             .unwrap_or_else(|| level_view(values, dims, levels[last]));
         report_below(&mut report, values, dims, &v, &around, probe, None);
     }
+    // The largest dropped objects are listed, the rest counted (foam bright
+    // enough to reach the specimen's level would crowd the list).
+    let mut dropped = report.objects.split_off(1);
+    dropped.sort_by_key(|o| std::cmp::Reverse(o.voxels));
+    for o in dropped.split_off(dropped.len().min(LISTED_DROPPED)) {
+        report.small_objects += 1;
+        report.small_voxels += o.voxels;
+    }
+    report.objects.extend(dropped);
     let (mask, cavities, filled) = fill_cavities(specimen, dims);
     report.filled_cavities = cavities;
     report.filled_voxels = filled;
@@ -622,6 +634,14 @@ fn report_below(
                 &s,
             );
         }
+    }
+}
+
+/// Keep the objects of level `i` only if it is the lowest (the report
+/// looks at it again); the others would hold memory for nothing.
+fn keep_if_lowest(views: &mut [Option<Level>], i: usize, v: Level) {
+    if i + 1 == views.len() {
+        views[i] = Some(v);
     }
 }
 
