@@ -3,9 +3,11 @@
 //!
 //! Stages, each its own submodule: a reader yields slices one at a time
 //! (`stack`, `dicom`, `nrrd`, `nifti`), `reduce` averages them into blocks on the
-//! fly (memory is the working grid plus one slice), `threshold` finds the
-//! specimen and enamel levels (Otsu), `segment` keeps the largest
-//! component and fills internal cavities, `isosurface` extracts the closed
+//! fly (memory is the working grid plus one slice), `threshold` proposes
+//! levels (multi-level Otsu) and finds the enamel level, `specimen` takes
+//! the densest large object that is not mounting material (foam, a tube,
+//! wax, a pin: `shape` holds the shape rules), `segment` labels components
+//! and fills internal cavities, `isosurface` extracts the closed
 //! surface (marching tetrahedra), and `enamel` cuts the crown where the
 //! surface lies over enamel. Without enamel contrast the closed surface is
 //! returned for the cleaning step's own crown extraction.
@@ -18,7 +20,9 @@ mod nifti;
 mod nrrd;
 mod reduce;
 mod segment;
+mod shape;
 mod source;
+mod specimen;
 mod stack;
 pub mod synth;
 mod threshold;
@@ -27,11 +31,16 @@ pub use enamel::{cut_at_zero_level, largest_part};
 pub use grid::Grid;
 pub use isosurface::isosurface;
 pub use reduce::{reduction_factor, BlockAverage};
-pub use segment::{connected_components, specimen_mask, SegmentReport};
+pub use segment::{connected_components, fill_cavities, specimen_mask, SegmentReport};
+pub use shape::{dilate_cube, erode_cube, local_variation, object_stats, open_cube, ObjectStats};
 pub use source::{VolumeFormat, VolumeInfo};
+pub use specimen::{
+    find_specimen, DropReason, SegmentObject, Specimen, SpecimenError, MIN_SPECIMEN_VOXELS,
+    STANDS_OUT, TEXTURED, THIN_RADIUS, UNEVEN,
+};
 pub use stack::{natural_order, slice_format, slice_paths};
 pub use threshold::{
-    contrast, enamel_threshold, foreground_threshold, otsu, Histogram, Thresholds, MIN_CONTRAST,
+    contrast, enamel_threshold, foreground_threshold, multi_otsu, otsu, Histogram, Thresholds,
 };
 
 use crate::hash::Content;
@@ -230,19 +239,9 @@ fn read_working_grid(
 /// Why a working grid gave no surface (the caller names the file).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 enum SegmentError {
-    /// Every sample has the same value.
-    #[error("the volume is uniform (all background): no specimen to segment")]
-    Uniform,
-    /// The values above the threshold stand out from the rest no more
-    /// than noise does ([`contrast`]).
-    #[error(
-        "no specimen: the brightest values stand only {0:.1} standard deviations of the \
-         background above it, as noise alone does (an all-background volume?)"
-    )]
-    NoContrast(f64),
-    /// Nothing lies above the threshold.
-    #[error("nothing lies above the threshold: no specimen to segment")]
-    Empty,
+    /// No specimen (the error says what was found instead).
+    #[error(transparent)]
+    Specimen(#[from] SpecimenError),
     /// The specimen is too small to give a surface.
     #[error("the specimen has only {0} voxels at the working resolution")]
     TooSmall(usize),
@@ -255,13 +254,11 @@ fn surface_from_grid(
     opts: &VolumeOptions,
 ) -> Result<(Mesh, Thresholds, SegmentReport, GridSurfaceReport), SegmentError> {
     let t = Instant::now();
-    let fg = foreground_threshold(&grid.values).ok_or(SegmentError::Uniform)?;
-    let c = contrast(&grid.values, fg);
-    if c < MIN_CONTRAST {
-        return Err(SegmentError::NoContrast(c));
-    }
-    let mask: Vec<bool> = grid.values.iter().map(|&v| f64::from(v) > fg).collect();
-    let (mask, seg) = specimen_mask(&mask, grid.dims).ok_or(SegmentError::Empty)?;
+    let Specimen {
+        mask,
+        level: fg,
+        report: seg,
+    } = find_specimen(&grid.values, grid.dims)?;
     if seg.kept_voxels < 8 {
         return Err(SegmentError::TooSmall(seg.kept_voxels));
     }
@@ -417,13 +414,24 @@ fn surface_from_path_as(
             problem: e.to_string(),
         })?
     };
-    if seg.dropped_components > 0 {
+    let mut seg = seg;
+    // Bounding boxes in the input's voxels, as a user finds them in the file.
+    for o in &mut seg.objects {
+        o.bbox = [
+            o.bbox[0].map(|v| v * factor),
+            [0, 1, 2].map(|a| ((o.bbox[1][a] + 1) * factor).min(info.dims[a]) - 1),
+        ];
+    }
+    for o in seg.objects.iter().filter(|o| !o.kept) {
         tracing::info!(
-            "{}: kept the largest specimen ({} voxels), dropped {} other component(s) ({} voxels)",
+            "{}: dropped an object of grey {:.1}, {} voxels at the working resolution, \
+             voxels {:?}..{:?}: {}",
             path.display(),
-            seg.kept_voxels,
-            seg.dropped_components,
-            seg.dropped_voxels
+            o.mean,
+            o.voxels,
+            o.bbox[0],
+            o.bbox[1],
+            o.detail
         );
     }
     let surface = VolumeSurface {

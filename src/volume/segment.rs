@@ -1,15 +1,16 @@
-//! Segmentation of the specimen on the working grid: voxels above the
-//! threshold, the largest 6-connected component kept, and the background
-//! not connected to the grid's border (internal cavities) filled.
+//! Segmentation on the working grid: 6-connected components, the largest
+//! kept ([`specimen_mask`], for a plain mask), and the background not
+//! connected to the grid's border (internal cavities) filled. Which object
+//! of a volume is the specimen is `specimen`'s to say.
 
-use std::collections::VecDeque;
+use super::specimen::SegmentObject;
 
 /// What segmentation kept and dropped.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SegmentReport {
-    /// Voxels of the kept component before filling.
+    /// Voxels of the kept specimen before filling.
     pub kept_voxels: usize,
-    /// Other components above the threshold, dropped.
+    /// Other objects above the specimen's threshold, dropped.
     pub dropped_components: usize,
     /// Voxels of the dropped components.
     pub dropped_voxels: usize,
@@ -17,53 +18,74 @@ pub struct SegmentReport {
     pub filled_cavities: usize,
     /// Voxels filled.
     pub filled_voxels: usize,
+    /// The candidate levels examined, highest first (grey values of the
+    /// file).
+    #[serde(default)]
+    pub levels: Vec<f64>,
+    /// The objects found: the specimen first, then those dropped, each
+    /// with its grey level, size, bounding box and the reason.
+    #[serde(default)]
+    pub objects: Vec<SegmentObject>,
+    /// Dropped objects not listed (under 64 samples, or beyond the 24
+    /// largest).
+    #[serde(default)]
+    pub small_objects: usize,
+    /// Their samples.
+    #[serde(default)]
+    pub small_voxels: usize,
 }
 
 /// 6-connected components of the `true` voxels of `mask` on a grid of
 /// `dims`: a label per voxel (`u32::MAX` for `false`) and each label's size.
 pub fn connected_components(mask: &[bool], dims: [usize; 3]) -> (Vec<u32>, Vec<usize>) {
+    let [nx, ny, nz] = dims;
+    let plane = nx * ny;
     let mut labels = vec![u32::MAX; mask.len()];
     let mut sizes = Vec::new();
-    let mut queue = VecDeque::new();
+    // Depth-first with an explicit stack: the same components as a
+    // breadth-first search, with less bookkeeping per voxel.
+    let mut stack = Vec::new();
     for start in 0..mask.len() {
         if !mask[start] || labels[start] != u32::MAX {
             continue;
         }
         let label = sizes.len() as u32;
         labels[start] = label;
-        queue.push_back(start);
+        stack.push(start);
         let mut size = 0;
-        while let Some(i) = queue.pop_front() {
+        while let Some(i) = stack.pop() {
             size += 1;
-            for j in neighbours6(i, dims) {
+            let x = i % nx;
+            let yz = i / nx;
+            let (y, z) = (yz % ny, yz / ny);
+            let mut visit = |j: usize| {
                 if mask[j] && labels[j] == u32::MAX {
                     labels[j] = label;
-                    queue.push_back(j);
+                    stack.push(j);
                 }
+            };
+            if x > 0 {
+                visit(i - 1);
+            }
+            if x + 1 < nx {
+                visit(i + 1);
+            }
+            if y > 0 {
+                visit(i - nx);
+            }
+            if y + 1 < ny {
+                visit(i + nx);
+            }
+            if z > 0 {
+                visit(i - plane);
+            }
+            if z + 1 < nz {
+                visit(i + plane);
             }
         }
         sizes.push(size);
     }
     (labels, sizes)
-}
-
-/// The up to six face neighbours of voxel `i`.
-fn neighbours6(i: usize, dims: [usize; 3]) -> impl Iterator<Item = usize> {
-    let [nx, ny, nz] = dims;
-    let x = i % nx;
-    let y = (i / nx) % ny;
-    let z = i / (nx * ny);
-    let plane = nx * ny;
-    [
-        (x > 0).then(|| i - 1),
-        (x + 1 < nx).then(|| i + 1),
-        (y > 0).then(|| i - nx),
-        (y + 1 < ny).then(|| i + nx),
-        (z > 0).then(|| i - plane),
-        (z + 1 < nz).then(|| i + plane),
-    ]
-    .into_iter()
-    .flatten()
 }
 
 fn on_border(i: usize, dims: [usize; 3]) -> bool {
@@ -82,9 +104,23 @@ pub fn specimen_mask(mask: &[bool], dims: [usize; 3]) -> Option<(Vec<bool>, Segm
         .iter()
         .enumerate()
         .max_by_key(|&(i, s)| (*s, usize::MAX - i))?;
-    let mut out: Vec<bool> = labels.iter().map(|&l| l == largest as u32).collect();
-    // Background reachable from the border is outside; the rest is cavity.
-    let background: Vec<bool> = out.iter().map(|&m| !m).collect();
+    let out: Vec<bool> = labels.iter().map(|&l| l == largest as u32).collect();
+    let (out, filled_cavities, filled_voxels) = fill_cavities(out, dims);
+    let report = SegmentReport {
+        kept_voxels: kept,
+        dropped_components: sizes.len() - 1,
+        dropped_voxels: sizes.iter().sum::<usize>() - kept,
+        filled_cavities,
+        filled_voxels,
+        ..Default::default()
+    };
+    Some((out, report))
+}
+
+/// `mask` with the background not connected to the grid's border (internal
+/// cavities: pulp, canals, cracks) filled; how many cavities and voxels.
+pub fn fill_cavities(mut mask: Vec<bool>, dims: [usize; 3]) -> (Vec<bool>, usize, usize) {
+    let background: Vec<bool> = mask.iter().map(|&m| !m).collect();
     let (bg_labels, bg_sizes) = connected_components(&background, dims);
     let mut outside = vec![false; bg_sizes.len()];
     for (i, &l) in bg_labels.iter().enumerate() {
@@ -92,24 +128,19 @@ pub fn specimen_mask(mask: &[bool], dims: [usize; 3]) -> Option<(Vec<bool>, Segm
             outside[l as usize] = true;
         }
     }
-    let mut report = SegmentReport {
-        kept_voxels: kept,
-        dropped_components: sizes.len() - 1,
-        dropped_voxels: sizes.iter().sum::<usize>() - kept,
-        ..Default::default()
-    };
+    let (mut cavities, mut voxels) = (0, 0);
     for (l, &o) in outside.iter().enumerate() {
         if !o {
-            report.filled_cavities += 1;
-            report.filled_voxels += bg_sizes[l];
+            cavities += 1;
+            voxels += bg_sizes[l];
         }
     }
     for (i, &l) in bg_labels.iter().enumerate() {
         if l != u32::MAX && !outside[l as usize] {
-            out[i] = true;
+            mask[i] = true;
         }
     }
-    Some((out, report))
+    (mask, cavities, voxels)
 }
 
 #[cfg(test)]

@@ -1,5 +1,7 @@
 //! Automatic thresholds: Otsu's method on a histogram, applied twice to
-//! tell two materials (air, tooth) from three (air, dentine, enamel).
+//! tell two materials (air, tooth) from three (air, dentine, enamel), and
+//! its multi-level form ([`multi_otsu`]) that proposes the candidate levels
+//! between air, mounting material, dentine and enamel.
 
 /// A histogram of values over `[lo, hi]` in equal bins.
 #[derive(Debug, Clone)]
@@ -30,8 +32,24 @@ impl Histogram {
         self.lo + (b + 1) as f64 * self.width
     }
 
+    /// The number of bins.
+    pub fn bins(&self) -> usize {
+        self.counts.len()
+    }
+
+    /// The mean value of the samples in bins `range` (the bin centres
+    /// weighted by their counts); `None` when they hold no sample.
+    pub fn mean(&self, range: std::ops::Range<usize>) -> Option<f64> {
+        let (mut n, mut s) = (0.0, 0.0);
+        for (i, &c) in self.counts.get(range.clone())?.iter().enumerate() {
+            n += c as f64;
+            s += c as f64 * (self.lo + (range.start + i) as f64 * self.width + 0.5 * self.width);
+        }
+        (n > 0.0).then(|| s / n)
+    }
+
     /// Whether all values were equal (no threshold separates anything).
-    fn is_flat(&self) -> bool {
+    pub fn is_flat(&self) -> bool {
         self.counts.iter().filter(|&&c| c > 0).count() < 2
     }
 }
@@ -75,6 +93,59 @@ pub fn otsu(hist: &Histogram, range: std::ops::Range<usize>) -> Option<(usize, f
         }
     }
     (best.1 >= 0.0).then(|| (range.start + best.0, best.1 / var.max(f64::MIN_POSITIVE)))
+}
+
+/// Otsu's method for `classes` classes: the `classes - 1` bins that end
+/// each class but the last, in increasing order, maximising the variance
+/// between the classes (dynamic programming over the bins, exact). Fewer
+/// distinct bins than classes give repeated thresholds.
+pub fn multi_otsu(hist: &Histogram, classes: usize) -> Vec<usize> {
+    let l = hist.counts.len();
+    let k = classes.clamp(2, l.max(2));
+    // Prefix sums: P[j], S[j] over bins 0..j.
+    let mut p = vec![0.0f64; l + 1];
+    let mut s = vec![0.0f64; l + 1];
+    for (i, &c) in hist.counts.iter().enumerate() {
+        p[i + 1] = p[i] + c as f64;
+        s[i + 1] = s[i] + i as f64 * c as f64;
+    }
+    // Σ over classes of (sum²/count) is the between-class variance up to
+    // constants; a class of bins a..b contributes that of its samples.
+    let gain = |a: usize, b: usize| {
+        let n = p[b] - p[a];
+        if n > 0.0 {
+            (s[b] - s[a]).powi(2) / n
+        } else {
+            0.0
+        }
+    };
+    // best[c][j]: the best split of bins 0..j into c + 1 classes; from[c][j]
+    // where its last class starts.
+    let mut best = vec![vec![f64::MIN; l + 1]; k];
+    let mut from = vec![vec![0usize; l + 1]; k];
+    for (j, b) in best[0].iter_mut().enumerate().skip(1) {
+        *b = gain(0, j);
+    }
+    for c in 1..k {
+        for j in (c + 1)..=l {
+            for i in c..j {
+                let v = best[c - 1][i] + gain(i, j);
+                if v > best[c][j] {
+                    best[c][j] = v;
+                    from[c][j] = i;
+                }
+            }
+        }
+    }
+    let mut cuts = Vec::with_capacity(k - 1);
+    let mut j = l;
+    for c in (1..k).rev() {
+        let i = from[c][j].max(1);
+        cuts.push(i - 1);
+        j = i;
+    }
+    cuts.reverse();
+    cuts
 }
 
 /// The thresholds of a scan: the specimen is above `foreground`; enamel,
@@ -136,9 +207,6 @@ pub fn contrast(values: &[f32], threshold: f64) -> f64 {
     (s1 / n1 - m0) / sd.max(f64::MIN_POSITIVE)
 }
 
-/// [`contrast`] below which a volume is taken for background only.
-pub const MIN_CONTRAST: f64 = 5.0;
-
 /// The threshold between dentine and enamel among the `interior` values of
 /// the specimen (away from its surface, so that the blur between air and
 /// tooth does not count as a material), when they are clearly two
@@ -182,6 +250,27 @@ mod tests {
     }
 
     #[test]
+    fn multi_otsu_separates_four_materials() {
+        // Air, foam, dentine, enamel, in unequal amounts.
+        let v = noisy(
+            &[(0.05, 20000), (0.2, 15000), (0.5, 4000), (0.8, 1500)],
+            0.02,
+        );
+        let hist = Histogram::of(&v, 256);
+        let cuts: Vec<f64> = multi_otsu(&hist, 4).iter().map(|&b| hist.edge(b)).collect();
+        assert_eq!(cuts.len(), 3);
+        for (t, (lo, hi)) in cuts.iter().zip([(0.08, 0.17), (0.25, 0.45), (0.55, 0.75)]) {
+            assert!(*t > lo && *t < hi, "{cuts:?}");
+        }
+        // Two classes: the same threshold as the two-class search.
+        let (t2, _) = otsu(&hist, 0..256).unwrap();
+        assert_eq!(multi_otsu(&hist, 2), vec![t2]);
+        let m = hist.mean(0..hist.bins()).unwrap();
+        let exact = v.iter().map(|&x| f64::from(x)).sum::<f64>() / v.len() as f64;
+        assert!((m - exact).abs() < 0.01, "{m} vs {exact}");
+    }
+
+    #[test]
     fn noise_alone_has_no_contrast_and_a_specimen_has() {
         let noise = noisy(&[(0.1, 20000)], 0.03);
         let t = foreground_threshold(&noise).unwrap();
@@ -189,6 +278,6 @@ mod tests {
         assert!(c > 2.0 && c < 4.0, "{c}");
         let scan = noisy(&[(0.1, 20000), (0.5, 1000)], 0.03);
         let c = contrast(&scan, foreground_threshold(&scan).unwrap());
-        assert!(c > 2.0 * MIN_CONTRAST, "{c}");
+        assert!(c > 10.0, "{c}");
     }
 }

@@ -57,5 +57,6 @@ mod store_basic;
 mod store_crash;
 mod store_landmarks;
 mod store_wal;
+mod volume_mounted;
 mod volume_scans;
 mod volume_teeth;

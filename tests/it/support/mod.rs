@@ -8,4 +8,5 @@ pub mod exports;
 pub mod faults;
 pub mod library;
 pub mod lm;
+pub mod mounting;
 pub mod store;

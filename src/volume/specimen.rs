@@ -1,0 +1,848 @@
+//! Finding the specimen among mounting material: the densest large object.
+//!
+//! Candidate levels come from multi-level Otsu thresholds (3, 4 and 5
+//! classes) and the two-class foreground threshold. At each level the
+//! samples above it are opened by a small cube ([`THIN_RADIUS`]), which
+//! cuts off thin parts (tube walls, straws, pins, strands of foam), and
+//! split into 6-connected objects. From the highest level down, the first
+//! large object that neither spans the field of view nor is textured like
+//! foam is the seed (enamel, or the whole tooth). Going down the levels,
+//! the object containing it grows by its own denser materials (dentine
+//! under enamel) and the search stops where it would take in mounting
+//! material or background: the object spans the field of view (foam in a
+//! tube, the tube, the background) or what it gains is textured (foam). A
+//! level that adds only a thin layer (the blur at the specimen's edge) is
+//! passed over. The final level lies between the specimen's material and
+//! what surrounds it, within the levels that kept the specimen alone.
+
+use super::segment::{connected_components, fill_cavities, SegmentReport};
+use super::shape::{
+    dilate_cube, erode_cube, local_variation, object_stats, open_cube, quantile, ObjectStats,
+};
+use super::threshold::{foreground_threshold, multi_otsu, Histogram};
+
+/// Half-side (working samples) of the cube opening that separates thin
+/// parts: what is thinner than `2 * THIN_RADIUS + 1` samples everywhere is
+/// a thin shell or rod.
+pub const THIN_RADIUS: usize = 2;
+
+/// Samples (working resolution) an object needs to be a specimen.
+pub const MIN_SPECIMEN_VOXELS: usize = 1000;
+
+/// Below the specimen's level, objects are listed from this many times
+/// [`MIN_SPECIMEN_VOXELS`] up.
+const LISTED_BELOW: usize = 10;
+
+/// At most this many dropped objects are listed, the largest.
+const LISTED_DROPPED: usize = 24;
+
+/// Objects smaller than this are counted, not listed.
+const REPORT_VOXELS: usize = 64;
+
+/// Local variation (median neighbour difference over the contrast above
+/// the darkest class) above which a material is textured like foam;
+/// dentine under scanner noise measures 0.02–0.12, foam 0.25 and more.
+pub const TEXTURED: f64 = 0.2;
+
+/// Edge contrast (the specimen's lower quartile less the upper quartile
+/// of its surroundings, over its contrast above the darkest class) under
+/// which an object does not stand out: a tooth measures 0.4 and more
+/// (enamel over dentine too), the brighter patches of foam's texture or of
+/// noise 0.1 and less.
+pub const STANDS_OUT: f64 = 0.25;
+
+/// Robust spread over the contrast above the darkest class above which
+/// the material a lower level adds around the specimen is foam: dentine,
+/// even with cupping, measures under 0.1; foam 0.2 and more.
+pub const UNEVEN: f64 = 0.2;
+
+/// Fraction of the grown object that the samples added at a lower level
+/// must hold more than [`THIN_RADIUS`] deep for the level to add a
+/// material rather than the blur at the specimen's edge.
+const MATERIAL_FRACTION: f64 = 0.05;
+
+/// Why an object found in a volume was not taken as the specimen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DropReason {
+    /// Mounting material or background: below the specimen's level,
+    /// spanning the field of view, or textured like foam.
+    BackgroundClass,
+    /// Thinner than `2 * THIN_RADIUS + 1` samples everywhere: a tube or
+    /// straw wall, a pin.
+    ThinShell,
+    /// Fewer than [`MIN_SPECIMEN_VOXELS`] samples.
+    TooSmall,
+    /// A large object, but another one is larger (wax, clay, a second
+    /// specimen).
+    NotDensestLarge,
+}
+
+/// One object found in a volume, kept or dropped.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SegmentObject {
+    /// Whether it is the specimen.
+    pub kept: bool,
+    /// Why it was dropped (`None` when kept).
+    pub reason: Option<DropReason>,
+    /// What was seen, in words.
+    pub detail: String,
+    /// The threshold it was found above (grey values of the file).
+    pub level: f64,
+    /// Its mean grey value.
+    pub mean: f64,
+    /// Its samples at the working resolution.
+    pub voxels: usize,
+    /// First and last voxel along x, y, z, inclusive (working samples
+    /// here; the volume report gives them in the input's voxels).
+    pub bbox: [[usize; 3]; 2],
+}
+
+/// The specimen found in a working grid.
+#[derive(Debug, Clone)]
+pub struct Specimen {
+    /// The specimen's samples, cavities filled.
+    pub mask: Vec<bool>,
+    /// The threshold it was cut at.
+    pub level: f64,
+    /// What was kept, dropped and filled.
+    pub report: SegmentReport,
+}
+
+/// Why no specimen was found.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SpecimenError {
+    /// Every sample has the same value.
+    #[error("the volume is uniform (all background): no specimen to segment")]
+    Uniform,
+    /// Nothing is large and dense and not mounting material (the text says
+    /// what was found instead).
+    #[error("no specimen found: {0}")]
+    NotFound(String),
+}
+
+/// The objects above one level.
+struct Level {
+    level: f64,
+    mask: Vec<bool>,
+    opened: Vec<bool>,
+    labels: Vec<u32>,
+    stats: Vec<ObjectStats>,
+    /// For each object, the axis along which it spans the field of view
+    /// together with everything touching it before the opening (foam
+    /// through the tube wall it fills).
+    joined_span: Vec<Option<usize>>,
+}
+
+fn level_view(values: &[f32], dims: [usize; 3], level: f64) -> Level {
+    let mask: Vec<bool> = values.iter().map(|&v| f64::from(v) > level).collect();
+    let opened = open_cube(&mask, dims, THIN_RADIUS);
+    let (labels, sizes) = connected_components(&opened, dims);
+    let stats = object_stats(&labels, sizes.len(), values, dims);
+    let (raw_labels, raw_sizes) = connected_components(&mask, dims);
+    let raw_span: Vec<Option<usize>> = object_stats(&raw_labels, raw_sizes.len(), values, dims)
+        .iter()
+        .map(|s| s.spanned_axis(dims))
+        .collect();
+    let mut joined_span = vec![None; sizes.len()];
+    let mut seen = vec![false; sizes.len()];
+    for (i, &l) in labels.iter().enumerate() {
+        if l != u32::MAX && !seen[l as usize] {
+            seen[l as usize] = true;
+            joined_span[l as usize] = raw_span[raw_labels[i] as usize];
+        }
+    }
+    Level {
+        level,
+        mask,
+        opened,
+        labels,
+        stats,
+        joined_span,
+    }
+}
+
+impl Level {
+    /// The axis along which object `l` spans the field of view, alone or
+    /// with what touches it.
+    fn spans(&self, l: u32, dims: [usize; 3]) -> Option<(usize, bool)> {
+        let s = &self.stats[l as usize];
+        s.spanned_axis(dims)
+            .map(|a| (a, false))
+            .or(self.joined_span[l as usize].map(|a| (a, true)))
+    }
+}
+
+fn span_detail((axis, joined): (usize, bool)) -> String {
+    if joined {
+        format!(
+            "spans the field of view along {} with the thin parts touching it",
+            AXES[axis]
+        )
+    } else {
+        format!("spans the field of view along {}", AXES[axis])
+    }
+}
+
+const AXES: [&str; 3] = ["x", "y", "z"];
+
+/// Why object `l` of `view` cannot be the specimen, if it cannot.
+fn mount_like(
+    values: &[f32],
+    dims: [usize; 3],
+    region: &[bool],
+    view: &Level,
+    l: u32,
+    background: f64,
+) -> Option<String> {
+    if let Some(span) = view.spans(l, dims) {
+        return Some(span_detail(span));
+    }
+    if let (Some(inner), Some(outer)) = inner_and_ring(values, dims, region) {
+        let edge = (inner - outer) / (inner - background).max(f64::MIN_POSITIVE);
+        if edge < STANDS_OUT {
+            return Some(format!(
+                "does not stand out from what surrounds it (edge contrast {edge:.2} of its \
+                 contrast, under {STANDS_OUT}): texture of foam or noise"
+            ));
+        }
+    }
+    textured(values, dims, region, background).map(|v| {
+        format!("textured like foam (local variation {v:.2} of its contrast, over {TEXTURED})")
+    })
+}
+
+/// The local variation of `region`'s deep samples over their contrast
+/// above `background`, when it exceeds [`TEXTURED`].
+fn textured(values: &[f32], dims: [usize; 3], region: &[bool], background: f64) -> Option<f64> {
+    let deep = erode_cube(region, dims, THIN_RADIUS);
+    let (variation, mean) = local_variation(values, &deep, dims)?;
+    let contrast = mean - background;
+    let ratio = if contrast > 0.0 {
+        variation / contrast
+    } else {
+        f64::INFINITY
+    };
+    (ratio > TEXTURED).then_some(ratio)
+}
+
+/// The robust spread (interquartile range / 1.349) of `region`'s deep
+/// samples over their contrast above `background`, when it exceeds
+/// [`UNEVEN`]: a material added around the specimen that varies this much
+/// is foam, not dentine.
+fn uneven(values: &[f32], dims: [usize; 3], region: &[bool], background: f64) -> Option<f64> {
+    let deep: Vec<f32> = erode_cube(region, dims, THIN_RADIUS)
+        .iter()
+        .zip(values)
+        .filter_map(|(&b, &v)| b.then_some(v))
+        .collect();
+    if deep.len() < 16 {
+        return None;
+    }
+    let mean = deep.iter().map(|&v| f64::from(v)).sum::<f64>() / deep.len() as f64;
+    let q1 = quantile(deep.clone(), 0.25)?;
+    let q3 = quantile(deep, 0.75)?;
+    let contrast = mean - background;
+    let ratio = if contrast > 0.0 {
+        (q3 - q1) / 1.349 / contrast
+    } else {
+        f64::INFINITY
+    };
+    (ratio > UNEVEN).then_some(ratio)
+}
+
+/// The lower quartile of `region`'s deep samples and the upper quartile
+/// of the ring 2 to 4 samples outside it: the specimen's material and what
+/// surrounds it, each away from the blur at the edge.
+fn inner_and_ring(values: &[f32], dims: [usize; 3], region: &[bool]) -> (Option<f64>, Option<f64>) {
+    let inner: Vec<f32> = erode_cube(region, dims, THIN_RADIUS)
+        .iter()
+        .zip(values)
+        .filter_map(|(&b, &v)| b.then_some(v))
+        .collect();
+    let near = dilate_cube(region, dims, 1);
+    let ring: Vec<f32> = dilate_cube(region, dims, 4)
+        .iter()
+        .zip(&near)
+        .zip(values)
+        .filter_map(|((&far, &n), &v)| (far && !n).then_some(v))
+        .collect();
+    (quantile(inner, 0.25), quantile(ring, 0.75))
+}
+
+fn select(labels: &[u32], label: u32) -> Vec<bool> {
+    labels.iter().map(|&l| l == label).collect()
+}
+
+fn bbox(s: &ObjectStats) -> [[usize; 3]; 2] {
+    [s.min, s.max]
+}
+
+/// The candidate levels, highest first, at least 1 % of the value range
+/// apart, and the mean of the darkest class.
+fn candidate_levels(values: &[f32]) -> Option<(Vec<f64>, f64)> {
+    const BINS: usize = 512;
+    let hist = Histogram::of(values, BINS);
+    if hist.is_flat() {
+        return None;
+    }
+    let mut levels: Vec<f64> = (3..=5)
+        .flat_map(|k| multi_otsu(&hist, k))
+        .map(|b| hist.edge(b))
+        .collect();
+    levels.extend(foreground_threshold(values));
+    let cuts = multi_otsu(&hist, 4);
+    let background = hist.mean(0..cuts[0] + 1)?;
+    let (lo, hi) = values
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+    let range = f64::from(hi) - f64::from(lo);
+    levels.sort_by(|a, b| b.total_cmp(a));
+    let mut out: Vec<f64> = Vec::new();
+    for t in levels {
+        if out.last().is_none_or(|&p| p - t > 0.01 * range) {
+            out.push(t);
+        }
+    }
+    Some((out, background))
+}
+
+/// The specimen in `values` on a grid of `dims` (see the module
+/// documentation), or why there is none.
+pub fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen, SpecimenError> {
+    let (levels, background) = candidate_levels(values).ok_or(SpecimenError::Uniform)?;
+    let mut views: Vec<Option<Level>> = (0..levels.len()).map(|_| None).collect();
+    let mut rejected: Vec<(f64, usize, String)> = Vec::new();
+
+    // The seed: at the highest level, the largest object that can be one.
+    let mut seed = None;
+    for (j, &t) in levels.iter().enumerate() {
+        let v = level_view(values, dims, t);
+        let mut order: Vec<usize> = (0..v.stats.len())
+            .filter(|&l| v.stats[l].voxels >= MIN_SPECIMEN_VOXELS)
+            .collect();
+        order.sort_by_key(|&l| std::cmp::Reverse(v.stats[l].voxels));
+        for l in order {
+            let region = select(&v.labels, l as u32);
+            match mount_like(values, dims, &region, &v, l as u32, background) {
+                None => {
+                    seed = Some((j, l as u32, region));
+                    break;
+                }
+                Some(why) => rejected.push((t, v.stats[l].voxels, why)),
+            }
+        }
+        keep_if_lowest(&mut views, j, v);
+        if seed.is_some() {
+            break;
+        }
+    }
+    let Some((seed_j, _, seed_region)) = seed else {
+        return Err(SpecimenError::NotFound(not_found_reason(
+            values, dims, &levels, &rejected,
+        )));
+    };
+
+    // Down the levels while the object grows by its own material.
+    let probe = seed_region.iter().position(|&b| b).unwrap_or(0);
+    let (mut accepted_j, mut accepted) = (seed_j, seed_region);
+    let mut lowest_ok = seed_j;
+    let mut stop: Option<(usize, u32, String)> = None;
+    for (i, &t) in levels.iter().enumerate().skip(seed_j + 1) {
+        let v = level_view(values, dims, t);
+        let l = v.labels[probe];
+        if l == u32::MAX {
+            keep_if_lowest(&mut views, i, v);
+            break;
+        }
+        let st = &v.stats[l as usize];
+        if let Some(span) = v.spans(l, dims) {
+            stop = Some((
+                i,
+                l,
+                format!("{}: mounting material or background", span_detail(span)),
+            ));
+            views[i] = Some(v);
+            break;
+        }
+        let grown = select(&v.labels, l);
+        // What this level adds: samples no higher than the accepted level
+        // (brighter ones are the specimen's own, cut off by the opening
+        // before).
+        let below = levels[accepted_j];
+        let added: Vec<bool> = grown
+            .iter()
+            .zip(&accepted)
+            .zip(values)
+            .map(|((&g, &a), &x)| g && !a && f64::from(x) <= below)
+            .collect();
+        let deep = erode_cube(&added, dims, THIN_RADIUS)
+            .iter()
+            .filter(|&&b| b)
+            .count();
+        if (deep as f64) < MATERIAL_FRACTION * st.voxels as f64 {
+            // Only the blur at the edge: an admissible level, not a material.
+            lowest_ok = i;
+            keep_if_lowest(&mut views, i, v);
+            continue;
+        }
+        let why = textured(values, dims, &added, background)
+            .map(|r| format!("local variation {r:.2} of its contrast, over {TEXTURED}"))
+            .or_else(|| {
+                uneven(values, dims, &added, background)
+                    .map(|r| format!("spread {r:.2} of its contrast, over {UNEVEN}"))
+            });
+        if let Some(why) = why {
+            stop = Some((
+                i,
+                l,
+                format!("what lies around the specimen is textured like foam ({why})"),
+            ));
+            views[i] = Some(v);
+            break;
+        }
+        accepted_j = i;
+        accepted = grown;
+        lowest_ok = i;
+        keep_if_lowest(&mut views, i, v);
+    }
+
+    // Between the specimen's material and what surrounds it.
+    let (top, bottom) = (levels[accepted_j], levels[lowest_ok]);
+    let level = match inner_and_ring(values, dims, &accepted) {
+        (Some(a), Some(b)) => (0.5 * (a + b)).clamp(bottom, top),
+        _ => top,
+    };
+    let view = level_view(values, dims, level);
+    let spec_label = view.labels[probe];
+    if spec_label == u32::MAX {
+        // Cannot happen (the opened masks are nested); said plainly if it does.
+        return Err(SpecimenError::NotFound(
+            "the specimen vanished at its own level".into(),
+        ));
+    }
+    let mut report = SegmentReport {
+        levels: levels.clone(),
+        ..Default::default()
+    };
+    let core = select(&view.labels, spec_label);
+    let mut specimen: Vec<bool> = dilate_cube(&core, dims, THIN_RADIUS)
+        .iter()
+        .zip(&view.mask)
+        .map(|(&d, &m)| d && m)
+        .collect();
+
+    // Thin parts: what the opening cut off and its dilation does not give
+    // back. Small ones on the specimen are its own (cusp tips, noise);
+    // long ones are tubes, walls and pins.
+    let thick_back = dilate_cube(&view.opened, dims, THIN_RADIUS);
+    let residue: Vec<bool> = view
+        .mask
+        .iter()
+        .zip(&thick_back)
+        .map(|(&m, &t)| m && !t)
+        .collect();
+    let (res_labels, res_sizes) = connected_components(&residue, dims);
+    let res_stats = object_stats(&res_labels, res_sizes.len(), values, dims);
+    let mut touches = vec![false; res_sizes.len()];
+    for (i, &l) in res_labels.iter().enumerate() {
+        if l != u32::MAX && !touches[l as usize] && neighbours_any(i, dims, &specimen) {
+            touches[l as usize] = true;
+        }
+    }
+    // A thin part on the specimen that stays within its reach (a cusp tip,
+    // a root apex, an enamel edge) is its own; one that leads away from it
+    // (a pin, a tube wall it touches) is not.
+    let reach = 4 * THIN_RADIUS + 1;
+    let core_box = &view.stats[spec_label as usize];
+    let joins: Vec<bool> = res_stats
+        .iter()
+        .zip(&touches)
+        .map(|(s, &t)| {
+            t && (0..3)
+                .all(|a| s.min[a] + reach >= core_box.min[a] && s.max[a] <= core_box.max[a] + reach)
+        })
+        .collect();
+    for (i, &l) in res_labels.iter().enumerate() {
+        if l != u32::MAX && joins[l as usize] {
+            specimen[i] = true;
+        }
+    }
+    let kept_voxels = specimen.iter().filter(|&&b| b).count();
+    let spec_stats = &view.stats[spec_label as usize];
+    let kept_mean = mean_of(values, &specimen);
+    report.objects.push(SegmentObject {
+        kept: true,
+        reason: None,
+        detail: "the densest large object".into(),
+        level,
+        mean: kept_mean,
+        voxels: kept_voxels,
+        bbox: bbox_of(&specimen, dims).unwrap_or(bbox(spec_stats)),
+    });
+    report.kept_voxels = kept_voxels;
+
+    // The other objects at the specimen's level.
+    for (l, s) in view.stats.iter().enumerate() {
+        if l as u32 == spec_label {
+            continue;
+        }
+        report.dropped_components += 1;
+        report.dropped_voxels += s.voxels;
+        let (reason, detail) = if s.voxels < MIN_SPECIMEN_VOXELS {
+            (
+                DropReason::TooSmall,
+                format!("under {MIN_SPECIMEN_VOXELS} samples"),
+            )
+        } else {
+            let region = select(&view.labels, l as u32);
+            match mount_like(values, dims, &region, &view, l as u32, background) {
+                Some(why) => (DropReason::BackgroundClass, why),
+                None => (
+                    DropReason::NotDensestLarge,
+                    "smaller than the specimen".into(),
+                ),
+            }
+        };
+        push_object(&mut report, reason, detail, level, s);
+    }
+    for (l, s) in res_stats.iter().enumerate() {
+        if joins[l] {
+            continue;
+        }
+        report.dropped_components += 1;
+        report.dropped_voxels += s.voxels;
+        push_object(
+            &mut report,
+            DropReason::ThinShell,
+            thin_detail(s, dims),
+            level,
+            s,
+        );
+    }
+
+    // Below the specimen: what stopped the search, and everything at the
+    // lowest level (the foam as a whole, the tube).
+    // Past the blur at the specimen's edge.
+    let around = dilate_cube(&specimen, dims, THIN_RADIUS + 1);
+    let last = levels.len() - 1;
+    if let Some((i, l, why)) = &stop {
+        let v = views[*i]
+            .take()
+            .unwrap_or_else(|| level_view(values, dims, levels[*i]));
+        report_below(
+            &mut report,
+            values,
+            dims,
+            &v,
+            &around,
+            probe,
+            Some((*l, why.clone())),
+        );
+    }
+    if stop.as_ref().is_none_or(|(i, _, _)| *i != last) && level > levels[last] {
+        let v = views[last]
+            .take()
+            .unwrap_or_else(|| level_view(values, dims, levels[last]));
+        report_below(&mut report, values, dims, &v, &around, probe, None);
+    }
+    // The largest dropped objects are listed, the rest counted (foam bright
+    // enough to reach the specimen's level would crowd the list).
+    let mut dropped = report.objects.split_off(1);
+    dropped.sort_by_key(|o| std::cmp::Reverse(o.voxels));
+    for o in dropped.split_off(dropped.len().min(LISTED_DROPPED)) {
+        report.small_objects += 1;
+        report.small_voxels += o.voxels;
+    }
+    report.objects.extend(dropped);
+    let (mask, cavities, filled) = fill_cavities(specimen, dims);
+    report.filled_cavities = cavities;
+    report.filled_voxels = filled;
+    Ok(Specimen {
+        mask,
+        level,
+        report,
+    })
+}
+
+/// The objects of `v` (a level below the specimen's) outside `around`
+/// (the specimen and its edge): `container` is the one holding the
+/// specimen (else the one holding sample `probe`) and why it was not taken
+/// with it.
+fn report_below(
+    report: &mut SegmentReport,
+    values: &[f32],
+    dims: [usize; 3],
+    v: &Level,
+    around: &[bool],
+    probe: usize,
+    container: Option<(u32, String)>,
+) {
+    let below = "below the specimen's level: mounting material or background";
+    let holder = container
+        .as_ref()
+        .map(|c| c.0)
+        .or((v.labels[probe] != u32::MAX).then_some(v.labels[probe]));
+    // Below the specimen's level only what is large counts: the foam as a
+    // whole, the tube; its crumbs would only crowd the list.
+    let large = LISTED_BELOW * MIN_SPECIMEN_VOXELS;
+    for (k, s) in v.stats.iter().enumerate() {
+        if Some(k as u32) != holder && s.voxels < large {
+            continue;
+        }
+        if Some(k as u32) == holder {
+            let rest: Vec<bool> = v
+                .labels
+                .iter()
+                .zip(around)
+                .map(|(&x, &a)| x == k as u32 && !a)
+                .collect();
+            if let Some(s) = stats_of(values, &rest, dims).filter(|s| s.voxels >= large) {
+                let why = match &container {
+                    Some((_, why)) => why.clone(),
+                    None => match v.spans(k as u32, dims) {
+                        Some(span) => format!("{below}; {}", span_detail(span)),
+                        None => below.into(),
+                    },
+                };
+                push_object(report, DropReason::BackgroundClass, why, v.level, &s);
+            }
+        } else {
+            let why = match v.spans(k as u32, dims) {
+                Some(span) => format!("{below}; {}", span_detail(span)),
+                None => below.into(),
+            };
+            push_object(report, DropReason::BackgroundClass, why, v.level, s);
+        }
+    }
+    let back = dilate_cube(&v.opened, dims, THIN_RADIUS);
+    let thin: Vec<bool> = v
+        .mask
+        .iter()
+        .zip(&back)
+        .zip(around)
+        .map(|((&m, &b), &a)| m && !b && !a)
+        .collect();
+    let (tl, ts) = connected_components(&thin, dims);
+    for s in object_stats(&tl, ts.len(), values, dims) {
+        if s.voxels >= large {
+            push_object(
+                report,
+                DropReason::ThinShell,
+                thin_detail(&s, dims),
+                v.level,
+                &s,
+            );
+        }
+    }
+}
+
+/// Keep the objects of level `i` only if it is the lowest (the report
+/// looks at it again); the others would hold memory for nothing.
+fn keep_if_lowest(views: &mut [Option<Level>], i: usize, v: Level) {
+    if i + 1 == views.len() {
+        views[i] = Some(v);
+    }
+}
+
+fn push_object(
+    report: &mut SegmentReport,
+    reason: DropReason,
+    detail: String,
+    level: f64,
+    s: &ObjectStats,
+) {
+    if s.voxels < REPORT_VOXELS {
+        report.small_objects += 1;
+        report.small_voxels += s.voxels;
+        return;
+    }
+    let reason = if s.voxels < MIN_SPECIMEN_VOXELS {
+        DropReason::TooSmall
+    } else {
+        reason
+    };
+    report.objects.push(SegmentObject {
+        kept: false,
+        reason: Some(reason),
+        detail,
+        level,
+        mean: s.mean,
+        voxels: s.voxels,
+        bbox: bbox(s),
+    });
+}
+
+fn thin_detail(s: &ObjectStats, dims: [usize; 3]) -> String {
+    let thin = 2 * THIN_RADIUS + 1;
+    match s.spanned_axis(dims) {
+        Some(a) => format!(
+            "thinner than {thin} samples, spanning the field of view along {}: a tube or \
+             straw wall",
+            AXES[a]
+        ),
+        None => format!("thinner than {thin} samples everywhere: a wall, straw or pin"),
+    }
+}
+
+fn neighbours_any(i: usize, dims: [usize; 3], set: &[bool]) -> bool {
+    let [nx, ny, nz] = dims;
+    let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
+    let plane = nx * ny;
+    (x > 0 && set[i - 1])
+        || (x + 1 < nx && set[i + 1])
+        || (y > 0 && set[i - nx])
+        || (y + 1 < ny && set[i + nx])
+        || (z > 0 && set[i - plane])
+        || (z + 1 < nz && set[i + plane])
+}
+
+fn mean_of(values: &[f32], mask: &[bool]) -> f64 {
+    let (n, s) = mask
+        .iter()
+        .zip(values)
+        .filter(|(&m, _)| m)
+        .fold((0usize, 0.0f64), |(n, s), (_, &v)| {
+            (n + 1, s + f64::from(v))
+        });
+    s / n.max(1) as f64
+}
+
+fn bbox_of(mask: &[bool], dims: [usize; 3]) -> Option<[[usize; 3]; 2]> {
+    stats_of(&vec![0.0; mask.len()], mask, dims).map(|s| bbox(&s))
+}
+
+fn stats_of(values: &[f32], mask: &[bool], dims: [usize; 3]) -> Option<ObjectStats> {
+    let labels: Vec<u32> = mask.iter().map(|&m| if m { 0 } else { u32::MAX }).collect();
+    object_stats(&labels, 1, values, dims)
+        .pop()
+        .filter(|s| s.voxels > 0)
+}
+
+/// What was found instead of a specimen, for the error message.
+fn not_found_reason(
+    values: &[f32],
+    dims: [usize; 3],
+    levels: &[f64],
+    rejected: &[(f64, usize, String)],
+) -> String {
+    let mut parts: Vec<String> = Vec::new();
+    let mut seen: Vec<&str> = Vec::new();
+    for (t, n, why) in rejected {
+        let kind = why.split(':').next().unwrap_or(why);
+        if seen.contains(&kind) || parts.len() >= 3 {
+            continue;
+        }
+        seen.push(kind);
+        parts.push(format!("above {t:.6}, an object of {n} samples that {why}"));
+    }
+    // Thin shells at the lowest level (a tube with nothing in it).
+    if let Some(&t) = levels.last() {
+        let v = level_view(values, dims, t);
+        let back = dilate_cube(&v.opened, dims, THIN_RADIUS);
+        let thin: Vec<bool> = v.mask.iter().zip(&back).map(|(&m, &b)| m && !b).collect();
+        let (tl, ts) = connected_components(&thin, dims);
+        let stats = object_stats(&tl, ts.len(), values, dims);
+        if let Some(s) = stats.iter().max_by_key(|s| s.voxels) {
+            if s.voxels >= MIN_SPECIMEN_VOXELS {
+                parts.push(format!(
+                    "above {t:.6}, a thin shell of {} samples ({})",
+                    s.voxels,
+                    thin_detail(s, dims)
+                ));
+            }
+        }
+    }
+    if parts.is_empty() {
+        format!(
+            "nothing of {MIN_SPECIMEN_VOXELS} samples or more at the working resolution stands \
+             out at any level (an all-background volume?)"
+        )
+    } else {
+        format!(
+            "nothing dense and large enough that is not mounting material or background: {}",
+            parts.join("; ")
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// A ball of dentine with an enamel cap, in textured foam filling a
+    /// thin tube along z, with noise.
+    fn mounted(n: usize, tooth: bool, seed: u64) -> (Vec<f32>, [usize; 3], Vec<bool>) {
+        let dims = [n, n, n];
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let c = n as f64 / 2.0;
+        let mut values = vec![0.05f32; n * n * n];
+        let mut truth = vec![false; n * n * n];
+        // Foam texture: cells 4 samples wide of random grey.
+        let cells: Vec<f32> = (0..(n / 4 + 1).pow(3))
+            .map(|_| rng.gen_range(0.1..0.3))
+            .collect();
+        let m = n / 4 + 1;
+        for z in 0..n {
+            for y in 0..n {
+                for x in 0..n {
+                    let i = x + n * (y + n * z);
+                    let r = ((x as f64 - c).powi(2) + (y as f64 - c).powi(2)).sqrt();
+                    if r < 0.4 * n as f64 && z < n * 2 / 3 {
+                        values[i] = cells[x / 4 + m * (y / 4 + m * (z / 4))];
+                    }
+                    if (0.4 * n as f64..0.4 * n as f64 + 2.0).contains(&r) {
+                        values[i] = 0.3;
+                    }
+                    let d =
+                        ((x as f64 - c).powi(2) + (y as f64 - c).powi(2) + (z as f64 - c).powi(2))
+                            .sqrt();
+                    if tooth && d < 0.22 * n as f64 {
+                        truth[i] = true;
+                        values[i] = if d > 0.15 * n as f64 && z as f64 > c {
+                            0.85
+                        } else {
+                            0.5
+                        };
+                    }
+                }
+            }
+        }
+        for v in &mut values {
+            *v += rng.gen_range(-0.03..0.03);
+        }
+        (values, dims, truth)
+    }
+
+    #[test]
+    fn the_tooth_is_found_in_foam_and_a_tube_and_both_are_dropped() {
+        let (values, dims, truth) = mounted(48, true, 1);
+        let s = find_specimen(&values, dims).unwrap();
+        let wrong = s.mask.iter().zip(&truth).filter(|(a, b)| a != b).count();
+        let size = truth.iter().filter(|&&b| b).count();
+        assert!(wrong * 10 < size, "{wrong} of {size} wrong: {:?}", s.report);
+        let reasons: Vec<_> = s.report.objects.iter().map(|o| o.reason).collect();
+        assert_eq!(reasons[0], None);
+        assert!(
+            reasons.contains(&Some(DropReason::BackgroundClass)),
+            "{:?}",
+            s.report.objects
+        );
+        assert!(s.level > 0.3 && s.level < 0.5, "{}", s.level);
+    }
+
+    #[test]
+    fn foam_in_a_tube_alone_is_no_specimen() {
+        let (values, dims, _) = mounted(48, false, 2);
+        let e = find_specimen(&values, dims).unwrap_err();
+        assert!(
+            matches!(&e, SpecimenError::NotFound(why) if why.contains("spans the field of view")),
+            "{e}"
+        );
+        assert_eq!(
+            find_specimen(&[1.0; 64], [4, 4, 4]).unwrap_err(),
+            SpecimenError::Uniform
+        );
+    }
+}
