@@ -445,8 +445,7 @@ pub fn exported_tooth(crown: &Mesh, form: &ToothForm) -> Option<ExportedTooth> {
         })
     };
     // The grid, tilted at random against the tooth.
-    let mut rng = ChaCha8Rng::seed_from_u64(form.seed);
-    let tilt = random_rotation(&mut rng);
+    let tilt = morphoid::mesh::synth::RigidMotion::random(form.seed, 0.0).rotation;
 
     let corners: Vec<[f64; 3]> = (0..8)
         .map(|i| {
@@ -618,36 +617,6 @@ pub fn exported_tooth(crown: &Mesh, form: &ToothForm) -> Option<ExportedTooth> {
         rows,
         centre: frame.centre,
     })
-}
-
-/// A uniformly random rotation (rows of its matrix).
-fn random_rotation(rng: &mut ChaCha8Rng) -> [[f64; 3]; 3] {
-    // A random unit quaternion.
-    let (u1, u2, u3): (f64, f64, f64) = (rng.gen(), rng.gen(), rng.gen());
-    let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
-    let (w, x, y, z) = (
-        a * (2.0 * PI * u2).sin(),
-        a * (2.0 * PI * u2).cos(),
-        b * (2.0 * PI * u3).sin(),
-        b * (2.0 * PI * u3).cos(),
-    );
-    [
-        [
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y - w * z),
-            2.0 * (x * z + w * y),
-        ],
-        [
-            2.0 * (x * y + w * z),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z - w * x),
-        ],
-        [
-            2.0 * (x * z - w * y),
-            2.0 * (y * z + w * x),
-            1.0 - 2.0 * (x * x + y * y),
-        ],
-    ]
 }
 
 /// Separable Gaussian blur of `sigma` voxels.
