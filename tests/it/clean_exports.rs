@@ -124,6 +124,11 @@ fn run_kind(kind: Kind, step: usize, through_binary: bool) -> Option<Run> {
             let moved = |x: &Mesh| m.apply(&scale(x, s));
             let path = out_dir.join(format!("{name}.ply"));
             morphoid::mesh::io::write_ply(&path, &moved(&tooth.mesh)).unwrap();
+            if std::env::var_os("MORPHOID_EXPORT_DIR").is_some() {
+                // Kept beside the export, for `clean_exports_from_dir`.
+                let crop = out_dir.join(format!("{name}.crop.ply"));
+                morphoid::mesh::io::write_ply(&crop, &moved(&original)).unwrap();
+            }
             let started = Instant::now();
             let line = |seconds: f64| {
                 format!(
@@ -260,4 +265,62 @@ fn clean_exports_mixed_subset() {
     if let Some(run) = run_kind(MIXED, 4, false) {
         identify(&run);
     }
+}
+
+/// Re-measures the exports a run kept in `MORPHOID_EXPORT_DIR` (each
+/// `NAME.ply` beside its moved crop `NAME.crop.ply`) without building them
+/// again: the quick loop for working on the extraction.
+#[test]
+#[ignore = "needs MORPHOID_EXPORT_FROM: a folder a run kept"]
+fn clean_exports_from_dir() {
+    let Some(dir) = std::env::var_os("MORPHOID_EXPORT_FROM").map(std::path::PathBuf::from) else {
+        return;
+    };
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok()?.file_name().into_string().ok())
+        .filter_map(|f| f.strip_suffix(".crop.ply").map(str::to_string))
+        .collect();
+    names.sort();
+    let settings = morphoid::pipeline::Settings::default();
+    use rayon::prelude::*;
+    let results: Vec<(String, Option<Fit>)> = names
+        .par_iter()
+        .map(|name| {
+            let crop = morphoid::mesh::io::load(&dir.join(format!("{name}.crop.ply")))
+                .unwrap()
+                .mesh;
+            let started = Instant::now();
+            match morphoid::pipeline::prepare_file(&dir.join(format!("{name}.ply")), &settings) {
+                Ok(out) => {
+                    let f = fit(&out.cleaned, &crop);
+                    let c = out.cleaning.crown.clone();
+                    println!(
+                        "{name}: mean {:.4} area {:.3} {:.1} s {:?}",
+                        f.mean,
+                        f.area_ratio,
+                        started.elapsed().as_secs_f64(),
+                        c.map(|c| (c.method, c.cut_height_min, c.cut_height_max, c.neck_bulge))
+                    );
+                    (name.clone(), Some(f))
+                }
+                Err(e) => {
+                    println!("{name}: REFUSED {e}");
+                    (name.clone(), None)
+                }
+            }
+        })
+        .collect();
+    let refused = results.iter().filter(|(_, f)| f.is_none()).count();
+    let on = results
+        .iter()
+        .filter(|(_, f)| {
+            f.as_ref()
+                .is_some_and(|f| f.mean < 0.01 && (0.9..1.1).contains(&f.area_ratio))
+        })
+        .count();
+    println!(
+        "{} exports: {on} on target, {refused} refused",
+        results.len()
+    );
 }

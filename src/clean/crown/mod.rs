@@ -58,12 +58,13 @@ const MIN_CREASE_DEGREES: f64 = 15.0;
 
 /// The lowest the chosen cut may dip, as a fraction of the tooth's length
 /// from the apex: below the whole of its cervical margin a tooth has
-/// roots longer than this. A cut that dips lower ran round a wrong axis
-/// or round the roots, so the scan is refused rather than identified from
-/// a wrong crown. (On whole teeth built from the 116 PNAS crowns the
-/// margin's lowest point lies at 0.48 or higher; the three wrong cuts of
-/// the search before [`END_EXCLUDED`] was raised dipped to 0.07–0.17.)
-const MIN_CUT_HEIGHT: f64 = 0.3;
+/// roots longer than this. A cut that dips lower ran round a wrong axis,
+/// round the furcation or round the roots, so it is no margin (and the
+/// scan is refused rather than identified from a wrong crown when no
+/// other cut is). On two-rooted isosurfaces built from the PNAS crowns
+/// every cut on target had its lowest point at 0.57 or higher, and the
+/// wrong cuts that won dipped to 0.37 and 0.42.
+const MIN_CUT_HEIGHT: f64 = 0.45;
 
 /// The smallest share of the cut's length that must run along crease
 /// edges (turn ≥ 10°): the enamel edge runs all around the tooth.
@@ -646,24 +647,45 @@ fn judge(
     })
 }
 
-/// How much lower (share of the tooth's length) than the neck seen on the
-/// outline a crease loop may cut.
-const BELOW_NECK: f64 = 0.05;
+/// The least overlap (shared crown area over the union's) of a crease
+/// loop's crown with the neck-guided crown for the crease to refine the
+/// margin there rather than be another line: a cut moved by less than the
+/// ±10 % of crown area that a hand crop varies by.
+const MIN_CREASE_OVERLAP: f64 = 0.9;
+
+/// Shared area of the faces kept by both `a` and `b`, over that of the
+/// faces kept by either.
+fn crown_overlap(areas: &[f64], a: &[bool], b: &[bool]) -> f64 {
+    let (mut both, mut either) = (0.0, 0.0);
+    for ((&x, &y), &w) in a.iter().zip(b).zip(areas) {
+        if x && y {
+            both += w;
+        }
+        if x || y {
+            either += w;
+        }
+    }
+    both / either.max(f64::MIN_POSITIVE)
+}
 
 /// The candidate of highest merit, except that where a neck was seen on
-/// the outline, a crease loop cutting well below it is no margin: below
-/// the neck hang the roots, whose furcation and ridges have creases too.
-fn best_candidate(candidates: Vec<Candidate>) -> Option<Candidate> {
+/// the outline, a crease loop is a margin only where its crown is the
+/// neck-guided one's ([`MIN_CREASE_OVERLAP`]): below the neck hang the
+/// roots, whose furcation and ridges have creases too, and round a wrong
+/// axis a crease loop can follow the occlusal crests.
+fn best_candidate(candidates: Vec<Candidate>, areas: &[f64]) -> Option<Candidate> {
     let neck = candidates
         .iter()
         .filter(|c| c.report.neck_bulge > 0.0)
         .max_by(|a, b| a.merit().total_cmp(&b.merit()))
-        .map(|c| c.report.cut_height_mean);
+        .map(|c| c.inside.clone());
     candidates
         .into_iter()
         .filter(|c| {
             c.report.neck_bulge > 0.0
-                || neck.is_none_or(|n| c.report.cut_height_mean >= n - BELOW_NECK)
+                || neck
+                    .as_ref()
+                    .is_none_or(|n| crown_overlap(areas, &c.inside, n) >= MIN_CREASE_OVERLAP)
         })
         .max_by(|a, b| a.merit().total_cmp(&b.merit()))
 }
@@ -729,6 +751,7 @@ pub fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
             .filter_map(|&sign| {
                 let a = axis.map(|x| sign * x);
                 neck_heights(&smoothed.vertices, &Cylinder::new(centre, a))
+                    .inspect(|n| tracing::debug!(bulge = n.bulge, "neck seen"))
                     .filter(|n| n.bulge >= MIN_NECK_BULGE)
                     .map(|n| (a, n))
             })
@@ -740,6 +763,7 @@ pub fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
             .collect();
         for (axis, neck) in searches {
             let Some(first) = margin_loop(&smoothed, &geo, centre, axis, neck.as_ref()) else {
+                tracing::debug!(neck = neck.is_some(), "no winding loop");
                 reasons.push((0.0, "no closed line runs round the surface".to_string()));
                 continue;
             };
@@ -803,7 +827,7 @@ pub fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
             }
         }
     }
-    let best = best_candidate(candidates);
+    let best = best_candidate(candidates, &geo.areas);
     let Some(best) = best else {
         let reason = reasons
             .into_iter()

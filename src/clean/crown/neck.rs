@@ -183,6 +183,7 @@ pub(super) fn neck_heights(points: &[[f64; 3]], cyl: &Cylinder) -> Option<NeckHe
     let mut bulges: Vec<f64> = found.iter().flatten().map(|f| f.1).collect();
     let found: Vec<Option<f64>> = found.iter().map(|f| f.map(|f| f.0)).collect();
     let count = bulges.len();
+    tracing::debug!(sectors = count, axis = ?cyl.axis(), "neck sectors");
     if (count as f64) < MIN_SECTORS_WITH_NECK * SECTORS as f64 {
         return None;
     }
