@@ -513,6 +513,53 @@ fn sample_value(raw: u32, layout: &PixelLayout) -> f32 {
     (if layout.inverted { -v } else { v }) as f32
 }
 
+/// The pixels of the DICOM file `bytes`, whose header `h` describes, as
+/// values (rescaled, inverted where shown white-low) into `out`.
+fn pixels(h: &SliceHeader, bytes: &[u8], out: &mut Vec<f32>) -> Result<(), VolumeError> {
+    let file = open_object(&h.path, bytes, false)?;
+    let value = match element(&file, tags::PIXEL_DATA).map(|e| e.value()) {
+        Some(Value::Primitive(v)) => v,
+        Some(_) => {
+            return Err(invalid(
+                &h.path,
+                "the pixel data is encapsulated (compressed); \
+                     export the series uncompressed to read it"
+                    .into(),
+            ))
+        }
+        None => return Err(invalid(&h.path, "no pixel data".into())),
+    };
+    let mut raw = Vec::new();
+    raw_samples(value, h.layout.bits_allocated, &mut raw);
+    let n = h.rows * h.columns;
+    if raw.len() < n {
+        return Err(invalid(
+            &h.path,
+            format!(
+                "the pixel data holds {} of the {n} samples of a {}×{} slice (truncated file)",
+                raw.len(),
+                h.columns,
+                h.rows
+            ),
+        ));
+    }
+    out.clear();
+    out.extend(raw[..n].iter().map(|&r| sample_value(r, &h.layout)));
+    Ok(())
+}
+
+/// One DICOM file `bytes` (of the file `path`, which names errors) as a
+/// slice: its header checked as a series' files are, then its pixels.
+pub(crate) fn decode_file(
+    path: &Path,
+    bytes: &[u8],
+) -> Result<([usize; 2], Vec<f32>), VolumeError> {
+    let h = read_header(path, bytes)?;
+    let mut values = Vec::new();
+    pixels(&h, bytes, &mut values)?;
+    Ok(([h.columns, h.rows], values))
+}
+
 impl SliceSource for DicomSeries {
     fn info(&self) -> &VolumeInfo {
         &self.info
@@ -539,36 +586,7 @@ impl SliceSource for DicomSeries {
                 ));
             }
         }
-        let file = open_object(&h.path, &bytes, false)?;
-        let value = match element(&file, tags::PIXEL_DATA).map(|e| e.value()) {
-            Some(Value::Primitive(v)) => v,
-            Some(_) => {
-                return Err(invalid(
-                    &h.path,
-                    "the pixel data is encapsulated (compressed); \
-                     export the series uncompressed to read it"
-                        .into(),
-                ))
-            }
-            None => return Err(invalid(&h.path, "no pixel data".into())),
-        };
-        let mut raw = Vec::new();
-        raw_samples(value, h.layout.bits_allocated, &mut raw);
-        let n = h.rows * h.columns;
-        if raw.len() < n {
-            return Err(invalid(
-                &h.path,
-                format!(
-                    "the pixel data holds {} of the {n} samples of a {}×{} slice (truncated file)",
-                    raw.len(),
-                    h.columns,
-                    h.rows
-                ),
-            ));
-        }
-        out.clear();
-        out.extend(raw[..n].iter().map(|&r| sample_value(r, &h.layout)));
-        Ok(())
+        pixels(h, &bytes, out)
     }
 
     fn content(&mut self) -> Result<Option<Content>, VolumeError> {
