@@ -114,6 +114,12 @@ fn open_object(
     bytes: &[u8],
     header_only: bool,
 ) -> Result<dicom_object::DefaultDicomObject, VolumeError> {
+    // dicom-object allocates every declared length before reading it, so
+    // the framing is checked first, and other syntaxes refused unread.
+    let syntax = super::dicom_scan::transfer_syntax_checked(bytes).map_err(|p| invalid(path, p))?;
+    if let Some(syntax) = syntax {
+        check_syntax(path, &syntax)?;
+    }
     let opts = OpenFileOptions::new();
     let opts = if header_only {
         opts.read_until(tags::PIXEL_DATA)
@@ -158,11 +164,9 @@ fn read_file(path: &Path) -> Result<Vec<u8>, VolumeError> {
     })
 }
 
-/// The header of the DICOM file `bytes` (of `path`): its transfer syntax
-/// checked, the pixel description and geometry read.
-fn read_header(path: &Path, bytes: &[u8]) -> Result<SliceHeader, VolumeError> {
-    let file = open_object(path, bytes, true)?;
-    let syntax = file.meta().transfer_syntax().to_string();
+/// Error unless the transfer syntax `syntax` stores plain samples, little
+/// endian (see [`NATIVE_SYNTAXES`]); the error says how to export instead.
+fn check_syntax(path: &Path, syntax: &str) -> Result<(), VolumeError> {
     if syntax == BIG_ENDIAN_SYNTAX {
         return Err(invalid(
             path,
@@ -172,16 +176,24 @@ fn read_header(path: &Path, bytes: &[u8]) -> Result<SliceHeader, VolumeError> {
             ),
         ));
     }
-    if !NATIVE_SYNTAXES.contains(&syntax.as_str()) {
+    if !NATIVE_SYNTAXES.contains(&syntax) {
         return Err(invalid(
             path,
             format!(
                 "compressed transfer syntax {} ({syntax}); export the series uncompressed \
                  (Explicit or Implicit VR Little Endian) to read it",
-                syntax_name(&syntax)
+                syntax_name(syntax)
             ),
         ));
     }
+    Ok(())
+}
+
+/// The header of the DICOM file `bytes` (of `path`): its transfer syntax
+/// checked, the pixel description and geometry read.
+fn read_header(path: &Path, bytes: &[u8]) -> Result<SliceHeader, VolumeError> {
+    let file = open_object(path, bytes, true)?;
+    check_syntax(path, file.meta().transfer_syntax())?;
     let obj: &InMemDicomObject = &file;
     let frames = int(obj, tags::NUMBER_OF_FRAMES).unwrap_or(1);
     if frames > 1 {

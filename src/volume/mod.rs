@@ -13,6 +13,7 @@
 //! returned for the cleaning step's own crown extraction.
 
 mod dicom;
+mod dicom_scan;
 mod enamel;
 mod grid;
 mod isosurface;
