@@ -13,8 +13,11 @@ use morphoid::mesh::Mesh;
 use morphoid::volume::{Grid, VolumeFormat, VolumeOptions};
 use std::path::Path;
 
+/// A target's entry point: whether the input was accepted.
+pub type Target = fn(&[u8]) -> bool;
+
 /// Every target by name, as `cargo fuzz` and the replay test call them.
-pub const TARGETS: &[(&str, fn(&[u8]) -> bool)] = &[
+pub const TARGETS: &[(&str, Target)] = &[
     ("ply", ply),
     ("obj", obj),
     ("stl", stl),

@@ -327,7 +327,9 @@ fn clean_seeds(out: &mut Vec<Seed>) {
 /// The phantom resampled to at most 24³ samples as the volume pipeline
 /// target's grid (8-bit grey values), with and without the enamel cut.
 fn pipeline_seeds(out: &mut Vec<Seed>) {
-    let grid = small_phantom(18);
+    // 20 across and a margin of 2 is 24 samples: the largest grid the
+    // target makes.
+    let grid = small_phantom(20);
     let dims = grid.dims.map(|d| d.min(24));
     let top = grid
         .values
