@@ -21,7 +21,11 @@ targets=${*:-$all}
 if [ ! -d seeds ]; then
     (cd .. && nice -n 10 cargo run --release --example fuzz_seeds -- fuzz/seeds)
 fi
+# Built once, then the binaries are run: a commit would otherwise make
+# each `cargo fuzz run` rebuild the crate (build.rs records the commit).
+export MORPHOID_COMMIT=${MORPHOID_COMMIT:-fuzz}
 nice -n 10 cargo +nightly fuzz build --codegen-units 16
+export bin=target/x86_64-unknown-linux-gnu/release
 mkdir -p logs
 
 run_one() {
@@ -29,8 +33,8 @@ run_one() {
     mkdir -p "corpus/$target" "artifacts/$target" "seeds/$target"
     # Limits: 10 s per input is a hang, 1 GB (resident or one allocation)
     # too much, inputs up to 1 MB.
-    nice -n 19 cargo +nightly fuzz run --codegen-units 16 "$target" \
-        "corpus/$target" "seeds/$target" -- \
+    nice -n 19 "$bin/$target" "corpus/$target" "seeds/$target" \
+        -artifact_prefix="artifacts/$target/" \
         -max_total_time="$time" -rss_limit_mb=1024 -malloc_limit_mb=1024 \
         -timeout=10 -max_len=1048576 -fork=1 -ignore_crashes=1 \
         -ignore_timeouts=1 -ignore_ooms=1 -print_final_stats=1 \
