@@ -114,6 +114,12 @@ fn open_object(
     bytes: &[u8],
     header_only: bool,
 ) -> Result<dicom_object::DefaultDicomObject, VolumeError> {
+    // dicom-object allocates every declared length before reading it, so
+    // the framing is checked first, and other syntaxes refused unread.
+    let syntax = super::dicom_scan::transfer_syntax_checked(bytes).map_err(|p| invalid(path, p))?;
+    if let Some(syntax) = syntax {
+        check_syntax(path, &syntax)?;
+    }
     let opts = OpenFileOptions::new();
     let opts = if header_only {
         opts.read_until(tags::PIXEL_DATA)
@@ -158,11 +164,9 @@ fn read_file(path: &Path) -> Result<Vec<u8>, VolumeError> {
     })
 }
 
-/// The header of the DICOM file `bytes` (of `path`): its transfer syntax
-/// checked, the pixel description and geometry read.
-fn read_header(path: &Path, bytes: &[u8]) -> Result<SliceHeader, VolumeError> {
-    let file = open_object(path, bytes, true)?;
-    let syntax = file.meta().transfer_syntax().to_string();
+/// Error unless the transfer syntax `syntax` stores plain samples, little
+/// endian (see [`NATIVE_SYNTAXES`]); the error says how to export instead.
+fn check_syntax(path: &Path, syntax: &str) -> Result<(), VolumeError> {
     if syntax == BIG_ENDIAN_SYNTAX {
         return Err(invalid(
             path,
@@ -172,16 +176,24 @@ fn read_header(path: &Path, bytes: &[u8]) -> Result<SliceHeader, VolumeError> {
             ),
         ));
     }
-    if !NATIVE_SYNTAXES.contains(&syntax.as_str()) {
+    if !NATIVE_SYNTAXES.contains(&syntax) {
         return Err(invalid(
             path,
             format!(
                 "compressed transfer syntax {} ({syntax}); export the series uncompressed \
                  (Explicit or Implicit VR Little Endian) to read it",
-                syntax_name(&syntax)
+                syntax_name(syntax)
             ),
         ));
     }
+    Ok(())
+}
+
+/// The header of the DICOM file `bytes` (of `path`): its transfer syntax
+/// checked, the pixel description and geometry read.
+fn read_header(path: &Path, bytes: &[u8]) -> Result<SliceHeader, VolumeError> {
+    let file = open_object(path, bytes, true)?;
+    check_syntax(path, file.meta().transfer_syntax())?;
     let obj: &InMemDicomObject = &file;
     let frames = int(obj, tags::NUMBER_OF_FRAMES).unwrap_or(1);
     if frames > 1 {
@@ -513,6 +525,53 @@ fn sample_value(raw: u32, layout: &PixelLayout) -> f32 {
     (if layout.inverted { -v } else { v }) as f32
 }
 
+/// The pixels of the DICOM file `bytes`, whose header `h` describes, as
+/// values (rescaled, inverted where shown white-low) into `out`.
+fn pixels(h: &SliceHeader, bytes: &[u8], out: &mut Vec<f32>) -> Result<(), VolumeError> {
+    let file = open_object(&h.path, bytes, false)?;
+    let value = match element(&file, tags::PIXEL_DATA).map(|e| e.value()) {
+        Some(Value::Primitive(v)) => v,
+        Some(_) => {
+            return Err(invalid(
+                &h.path,
+                "the pixel data is encapsulated (compressed); \
+                     export the series uncompressed to read it"
+                    .into(),
+            ))
+        }
+        None => return Err(invalid(&h.path, "no pixel data".into())),
+    };
+    let mut raw = Vec::new();
+    raw_samples(value, h.layout.bits_allocated, &mut raw);
+    let n = h.rows * h.columns;
+    if raw.len() < n {
+        return Err(invalid(
+            &h.path,
+            format!(
+                "the pixel data holds {} of the {n} samples of a {}×{} slice (truncated file)",
+                raw.len(),
+                h.columns,
+                h.rows
+            ),
+        ));
+    }
+    out.clear();
+    out.extend(raw[..n].iter().map(|&r| sample_value(r, &h.layout)));
+    Ok(())
+}
+
+/// One DICOM file `bytes` (of the file `path`, which names errors) as a
+/// slice: its header checked as a series' files are, then its pixels.
+pub(crate) fn decode_file(
+    path: &Path,
+    bytes: &[u8],
+) -> Result<([usize; 2], Vec<f32>), VolumeError> {
+    let h = read_header(path, bytes)?;
+    let mut values = Vec::new();
+    pixels(&h, bytes, &mut values)?;
+    Ok(([h.columns, h.rows], values))
+}
+
 impl SliceSource for DicomSeries {
     fn info(&self) -> &VolumeInfo {
         &self.info
@@ -539,36 +598,7 @@ impl SliceSource for DicomSeries {
                 ));
             }
         }
-        let file = open_object(&h.path, &bytes, false)?;
-        let value = match element(&file, tags::PIXEL_DATA).map(|e| e.value()) {
-            Some(Value::Primitive(v)) => v,
-            Some(_) => {
-                return Err(invalid(
-                    &h.path,
-                    "the pixel data is encapsulated (compressed); \
-                     export the series uncompressed to read it"
-                        .into(),
-                ))
-            }
-            None => return Err(invalid(&h.path, "no pixel data".into())),
-        };
-        let mut raw = Vec::new();
-        raw_samples(value, h.layout.bits_allocated, &mut raw);
-        let n = h.rows * h.columns;
-        if raw.len() < n {
-            return Err(invalid(
-                &h.path,
-                format!(
-                    "the pixel data holds {} of the {n} samples of a {}×{} slice (truncated file)",
-                    raw.len(),
-                    h.columns,
-                    h.rows
-                ),
-            ));
-        }
-        out.clear();
-        out.extend(raw[..n].iter().map(|&r| sample_value(r, &h.layout)));
-        Ok(())
+        pixels(h, &bytes, out)
     }
 
     fn content(&mut self) -> Result<Option<Content>, VolumeError> {

@@ -13,6 +13,7 @@
 //! returned for the cleaning step's own crown extraction.
 
 mod dicom;
+mod dicom_scan;
 mod enamel;
 mod grid;
 mod isosurface;
@@ -207,7 +208,16 @@ fn read_working_grid(
     opts: &VolumeOptions,
     hashed: bool,
 ) -> Result<WorkingGrid, VolumeError> {
-    let mut source = open(path, hashed)?;
+    reduce_source(open(path, hashed)?, path, opts)
+}
+
+/// Read every slice of `source` (the volume at `path`, which names
+/// errors) into the working grid.
+fn reduce_source(
+    mut source: Box<dyn SliceSource>,
+    path: &Path,
+    opts: &VolumeOptions,
+) -> Result<WorkingGrid, VolumeError> {
     let info = source.info().clone();
     if info.dims[2] < 2 {
         return Err(VolumeError::Invalid {
@@ -236,6 +246,69 @@ fn read_working_grid(
     Ok((reducer.finish(), info, factor, content))
 }
 
+/// Decode one slice file held in memory, as a slice folder or a DICOM
+/// series decodes each of its files: a TIFF, PNG or BMP image, or a
+/// single-frame DICOM file (header checked, rescaled). Returns the width
+/// and height and the values, x fastest; `name` only labels errors. NRRD
+/// and NIfTI hold whole volumes: see [`working_grid_from_bytes`].
+pub fn decode_slice_bytes(
+    bytes: &[u8],
+    format: VolumeFormat,
+    name: &Path,
+) -> Result<([usize; 2], Vec<f32>), VolumeError> {
+    match format {
+        VolumeFormat::Dicom => dicom::decode_file(name, bytes),
+        VolumeFormat::Tiff | VolumeFormat::Png | VolumeFormat::Bmp => {
+            let (w, h, _, values) = stack::decode_slice(name, bytes, format)?;
+            Ok(([w, h], values))
+        }
+        VolumeFormat::Nrrd | VolumeFormat::Nifti => Err(VolumeError::Invalid {
+            path: name.to_path_buf(),
+            problem: format!("{format:?} is a volume file, not a slice"),
+        }),
+    }
+}
+
+/// Read a single-file volume held in memory into the working grid, as
+/// [`surface_from_path`] reads the file `name`: NRRD for `.nrrd`, NIfTI-1
+/// for `.nii` and `.nii.gz` (gzipped). `name` picks the format and labels
+/// errors; it is never opened.
+pub fn working_grid_from_bytes(
+    bytes: &[u8],
+    name: &Path,
+    opts: &VolumeOptions,
+) -> Result<(Grid, VolumeInfo), VolumeError> {
+    let reader = std::io::Cursor::new(bytes.to_vec());
+    let source: Box<dyn SliceSource> = match volume_file_format(name) {
+        Some(VolumeFormat::Nrrd) => Box::new(nrrd::from_reader(name, reader, None)?),
+        Some(_) => Box::new(nifti::from_reader(name, reader, None)?),
+        None => {
+            return Err(VolumeError::Invalid {
+                path: name.to_path_buf(),
+                problem: "not a volume file name (.nrrd, .nii, .nii.gz)".into(),
+            })
+        }
+    };
+    let (grid, info, _, _) = reduce_source(source, name, opts)?;
+    Ok((grid, info))
+}
+
+/// The surface of the specimen in a working grid: the stages of
+/// [`surface_from_path`] after reading (segmentation, isosurface, the
+/// crown cut over enamel). `name` only labels errors.
+pub fn surface_from_grid(
+    grid: &Grid,
+    opts: &VolumeOptions,
+    name: &Path,
+) -> Result<Mesh, VolumeError> {
+    grid_surface(grid, opts)
+        .map(|(mesh, ..)| mesh)
+        .map_err(|e| VolumeError::Invalid {
+            path: name.to_path_buf(),
+            problem: e.to_string(),
+        })
+}
+
 /// Why a working grid gave no surface (the caller names the file).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 enum SegmentError {
@@ -249,7 +322,7 @@ enum SegmentError {
 
 /// The surface of the specimen in `grid` (see the module documentation),
 /// with the thresholds and what segmentation and the crown cut did.
-fn surface_from_grid(
+fn grid_surface(
     grid: &Grid,
     opts: &VolumeOptions,
 ) -> Result<(Mesh, Thresholds, SegmentReport, GridSurfaceReport), SegmentError> {
@@ -350,7 +423,7 @@ fn interior_samples(mask: &[bool], dims: [usize; 3], depth: usize) -> Vec<usize>
     (0..inner.len()).filter(|&i| inner[i]).collect()
 }
 
-/// What [`surface_from_grid`] measured.
+/// What [`grid_surface`] measured.
 #[derive(Debug, Clone, Default, PartialEq)]
 struct GridSurfaceReport {
     /// Triangles of the closed isosurface.
@@ -409,7 +482,7 @@ fn surface_from_path_as(
     let read_ms = ms(t);
     let (mesh, th, seg, r) = {
         let _s = tracing::debug_span!("volume_surface", scan = %name).entered();
-        surface_from_grid(&grid, opts).map_err(|e| VolumeError::Invalid {
+        grid_surface(&grid, opts).map_err(|e| VolumeError::Invalid {
             path: path.to_path_buf(),
             problem: e.to_string(),
         })?

@@ -5,12 +5,28 @@
 use super::source::{RawSlices, SampleType, VolumeFormat, VolumeInfo};
 use super::VolumeError;
 use crate::hash::{HashingReader, SharedHash};
-use std::io::{BufReader, Read};
+use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 
 /// Read the header of the NIfTI-1 file `path` and position at the first
 /// slice; with `hash`, every byte of the file read is hashed into it.
 pub(crate) fn open(path: &Path, hash: Option<SharedHash>) -> Result<RawSlices, VolumeError> {
+    let file = std::fs::File::open(path).map_err(|source| VolumeError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let file = BufReader::new(HashingReader::maybe(file, hash.clone()));
+    from_reader(path, file, hash)
+}
+
+/// Read a NIfTI-1 header from `file` (the file `path`: gzipped when its
+/// name ends in `.gz`; it names errors) and position at the first slice;
+/// `hash` is what the bytes are hashed into below `file` (if anything).
+pub(crate) fn from_reader<R: BufRead + 'static>(
+    path: &Path,
+    file: R,
+    hash: Option<SharedHash>,
+) -> Result<RawSlices, VolumeError> {
     let invalid = |problem: String| VolumeError::Invalid {
         path: path.to_path_buf(),
         problem,
@@ -28,10 +44,6 @@ pub(crate) fn open(path: &Path, hash: Option<SharedHash>) -> Result<RawSlices, V
             }
         }
     };
-    let file = BufReader::new(HashingReader::maybe(
-        std::fs::File::open(path).map_err(io)?,
-        hash.clone(),
-    ));
     let gz = path.to_string_lossy().to_ascii_lowercase().ends_with(".gz");
     let mut reader: Box<dyn Read> = if gz {
         Box::new(flate2::bufread::MultiGzDecoder::new(file))

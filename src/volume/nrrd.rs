@@ -28,6 +28,22 @@ fn sample_type(name: &str) -> Option<SampleType> {
 /// Read the header of the NRRD file `path` and position at the first
 /// slice; with `hash`, every byte of the file read is hashed into it.
 pub(crate) fn open(path: &Path, hash: Option<SharedHash>) -> Result<RawSlices, VolumeError> {
+    let file = std::fs::File::open(path).map_err(|source| VolumeError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let reader = BufReader::new(HashingReader::maybe(file, hash.clone()));
+    from_reader(path, reader, hash)
+}
+
+/// Read an NRRD header from `reader` (the file `path`, which names
+/// errors) and position at the first slice; `hash` is what the bytes are
+/// hashed into below `reader` (if anything).
+pub(crate) fn from_reader<R: BufRead + 'static>(
+    path: &Path,
+    mut reader: R,
+    hash: Option<SharedHash>,
+) -> Result<RawSlices, VolumeError> {
     let invalid = |problem: String| VolumeError::Invalid {
         path: path.to_path_buf(),
         problem,
@@ -36,8 +52,6 @@ pub(crate) fn open(path: &Path, hash: Option<SharedHash>) -> Result<RawSlices, V
         path: path.to_path_buf(),
         source,
     };
-    let file = std::fs::File::open(path).map_err(io)?;
-    let mut reader = BufReader::new(HashingReader::maybe(file, hash.clone()));
     let mut line = String::new();
     reader.read_line(&mut line).map_err(io)?;
     if !line.starts_with("NRRD000") {

@@ -40,6 +40,7 @@ mod daemon_signals;
 mod daemon_unit;
 mod eval_cli;
 mod eval_shard;
+mod fuzz_replay;
 mod io_errors;
 mod io_huge_header;
 mod io_real_data;

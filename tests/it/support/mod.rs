@@ -6,6 +6,7 @@ pub mod daemon;
 pub mod data;
 pub mod exports;
 pub mod faults;
+pub mod fuzz_seeds;
 pub mod library;
 pub mod lm;
 pub mod mounting;
