@@ -58,13 +58,12 @@ const MIN_CREASE_DEGREES: f64 = 15.0;
 
 /// The lowest the chosen cut may dip, as a fraction of the tooth's length
 /// from the apex: below the whole of its cervical margin a tooth has
-/// roots longer than this. A cut that dips lower ran round a wrong axis,
-/// round the furcation or round the roots, so it is no margin (and the
-/// scan is refused rather than identified from a wrong crown when no
-/// other cut is). On two-rooted isosurfaces built from the PNAS crowns
-/// every cut on target had its lowest point at 0.57 or higher, and the
-/// wrong cuts that won dipped to 0.37 and 0.42.
-const MIN_CUT_HEIGHT: f64 = 0.45;
+/// roots longer than this. A cut that dips lower ran round a wrong axis
+/// or round the roots, so the scan is refused rather than identified from
+/// a wrong crown. (On whole teeth built from the 116 PNAS crowns the
+/// margin's lowest point lies at 0.48 or higher; the three wrong cuts of
+/// the search before [`END_EXCLUDED`] was raised dipped to 0.07–0.17.)
+const MIN_CUT_HEIGHT: f64 = 0.3;
 
 /// The smallest share of the cut's length that must run along crease
 /// edges (turn ≥ 10°): the enamel edge runs all around the tooth.
@@ -647,45 +646,24 @@ fn judge(
     })
 }
 
-/// The least overlap (shared crown area over the union's) of a crease
-/// loop's crown with the neck-guided crown for the crease to refine the
-/// margin there rather than be another line: a cut moved by less than the
-/// ±10 % of crown area that a hand crop varies by.
-const MIN_CREASE_OVERLAP: f64 = 0.9;
-
-/// Shared area of the faces kept by both `a` and `b`, over that of the
-/// faces kept by either.
-fn crown_overlap(areas: &[f64], a: &[bool], b: &[bool]) -> f64 {
-    let (mut both, mut either) = (0.0, 0.0);
-    for ((&x, &y), &w) in a.iter().zip(b).zip(areas) {
-        if x && y {
-            both += w;
-        }
-        if x || y {
-            either += w;
-        }
-    }
-    both / either.max(f64::MIN_POSITIVE)
-}
+/// How much lower (share of the tooth's length) than the neck seen on the
+/// outline a crease loop may cut.
+const BELOW_NECK: f64 = 0.05;
 
 /// The candidate of highest merit, except that where a neck was seen on
-/// the outline, a crease loop is a margin only where its crown is the
-/// neck-guided one's ([`MIN_CREASE_OVERLAP`]): below the neck hang the
-/// roots, whose furcation and ridges have creases too, and round a wrong
-/// axis a crease loop can follow the occlusal crests.
-fn best_candidate(candidates: Vec<Candidate>, areas: &[f64]) -> Option<Candidate> {
+/// the outline, a crease loop cutting well below it is no margin: below
+/// the neck hang the roots, whose furcation and ridges have creases too.
+fn best_candidate(candidates: Vec<Candidate>) -> Option<Candidate> {
     let neck = candidates
         .iter()
         .filter(|c| c.report.neck_bulge > 0.0)
         .max_by(|a, b| a.merit().total_cmp(&b.merit()))
-        .map(|c| c.inside.clone());
+        .map(|c| c.report.cut_height_mean);
     candidates
         .into_iter()
         .filter(|c| {
             c.report.neck_bulge > 0.0
-                || neck
-                    .as_ref()
-                    .is_none_or(|n| crown_overlap(areas, &c.inside, n) >= MIN_CREASE_OVERLAP)
+                || neck.is_none_or(|n| c.report.cut_height_mean >= n - BELOW_NECK)
         })
         .max_by(|a, b| a.merit().total_cmp(&b.merit()))
 }
@@ -827,7 +805,7 @@ pub fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
             }
         }
     }
-    let best = best_candidate(candidates, &geo.areas);
+    let best = best_candidate(candidates);
     let Some(best) = best else {
         let reason = reasons
             .into_iter()
