@@ -16,7 +16,10 @@
 //!
 //! `MORPHOID_SOAK_SCANS=2000 cargo bench --bench soak`
 //!
-//! Knobs (environment): `MORPHOID_SOAK_SCANS` (2000), `MORPHOID_SOAK_INTERVAL`
+//! Knobs (environment): `MORPHOID_SOAK_LIBRARY` (`synthetic` for a
+//! synthetic library even where the teeth are beside the project: quicker
+//! scans, the same faults), `MORPHOID_SOAK_PER_GENUS` (references per
+//! genus of the synthetic library, 20), `MORPHOID_SOAK_SCANS` (2000), `MORPHOID_SOAK_INTERVAL`
 //! (mean seconds between arrivals, 1.0), `MORPHOID_SOAK_VERTICES` (scan
 //! size, 400), `MORPHOID_SOAK_TARGET` (`[clean] target_vertices`, 5000),
 //! `MORPHOID_SOAK_SEED` (1), `MORPHOID_SOAK_TMPFS` (size of the file system
@@ -80,12 +83,19 @@ fn main() {
 
     let tmp = tempfile::tempdir().unwrap();
     let root = tmp.path().to_path_buf();
-    let library = match support::data::teeth_dir() {
+    let synthetic = std::env::var("MORPHOID_SOAK_LIBRARY").is_ok_and(|v| v == "synthetic");
+    let per_genus: usize = knob("MORPHOID_SOAK_PER_GENUS", 20);
+    let teeth = if synthetic {
+        None
+    } else {
+        support::data::teeth_dir()
+    };
+    let library = match teeth {
         Some(d) => d,
         None => {
             let dir = root.join("library");
             let spec = LibrarySpec {
-                per_genus: 20,
+                per_genus,
                 target_vertices: target,
                 seed: 3,
                 random_pose: true,

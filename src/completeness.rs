@@ -26,11 +26,22 @@ pub enum Verdict {
 /// have vanished).
 pub fn check_path(path: &Path) -> std::io::Result<Verdict> {
     if path.is_dir() {
-        let names: Vec<Option<u64>> = crate::volume::slice_paths(path)?
-            .iter()
-            .filter(|p| crate::volume::slice_format(p) != Some(crate::volume::VolumeFormat::Dicom))
-            .map(|p| trailing_number(p))
-            .collect();
+        // DICOM files are told apart by their positions, not their names
+        // (series are often named by UID or by an unrelated counter).
+        let (dicom, images): (Vec<_>, Vec<_>) = crate::volume::slice_paths(path)?
+            .into_iter()
+            .partition(|p| {
+                crate::volume::slice_format(p) == Some(crate::volume::VolumeFormat::Dicom)
+            });
+        if !dicom.is_empty() {
+            if let Some(positions) = crate::volume::slice_positions_along_normal(&dicom) {
+                let verdict = dicom_positions(&positions);
+                if verdict != Verdict::Unknown {
+                    return Ok(verdict);
+                }
+            }
+        }
+        let names: Vec<Option<u64>> = images.iter().map(|p| trailing_number(p)).collect();
         return Ok(slice_numbers(&names));
     }
     let Some(format) = Format::from_path(path) else {
@@ -324,11 +335,13 @@ pub fn dicom_positions(positions: &[f64]) -> Verdict {
     }
     match steps.iter().position(|&s| s > 1.5 * usual) {
         Some(i) => Verdict::Incomplete(format!(
-            "DICOM slice positions jump from {} to {} (step {usual}): slices missing",
+            "DICOM slice positions jump from {:.4} to {:.4} (usual step {usual:.4}): \
+             slices missing",
             p[i],
             p[i + 1]
         )),
-        None => Verdict::Complete,
+        // Evenly spaced says nothing of slices still to come at either end.
+        None => Verdict::Unknown,
     }
 }
 
@@ -410,7 +423,7 @@ mod tests {
         );
         assert!(incomplete(slice_numbers(&[Some(1), Some(2), Some(5)])));
         assert_eq!(slice_numbers(&[Some(1), None]), Verdict::Unknown);
-        assert_eq!(dicom_positions(&[0.0, 0.5, 1.0, 1.5]), Verdict::Complete);
+        assert_eq!(dicom_positions(&[0.0, 0.5, 1.0, 1.5]), Verdict::Unknown);
         assert!(incomplete(dicom_positions(&[0.0, 0.5, 1.0, 2.5])));
     }
 }

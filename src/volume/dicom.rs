@@ -228,6 +228,7 @@ fn read_header(path: &Path, bytes: &[u8]) -> Result<SliceHeader, VolumeError> {
             "no Rows/Columns: not an image (a report or index?)".into(),
         ));
     };
+    super::source::check_slice_size(path, columns as u64, rows as u64)?;
     let bits_allocated = int(obj, tags::BITS_ALLOCATED).unwrap_or(0);
     if bits_allocated != 8 && bits_allocated != 16 {
         return Err(invalid(
@@ -252,11 +253,11 @@ fn read_header(path: &Path, bytes: &[u8]) -> Result<SliceHeader, VolumeError> {
         orientation,
         instance: int(obj, tags::INSTANCE_NUMBER),
         pixel_spacing: floats(obj, tags::PIXEL_SPACING)
-            .filter(|v| v.len() == 2 && v.iter().all(|&s| s > 0.0))
+            .filter(|v| v.len() == 2 && v.iter().all(|&s| super::source::plausible_voxel_size(s)))
             .map(|v| [v[0], v[1]]),
         thickness: float(obj, tags::SPACING_BETWEEN_SLICES)
             .or_else(|| float(obj, tags::SLICE_THICKNESS))
-            .filter(|&t| t > 0.0),
+            .filter(|&t| super::source::plausible_voxel_size(t)),
         layout: PixelLayout {
             bits_allocated: bits_allocated as u16,
             bits_stored: bits_stored as u16,
@@ -364,6 +365,26 @@ fn order_slices(dir: &Path, headers: &[SliceHeader]) -> Result<Ordering, VolumeE
     })
 }
 
+/// The positions along their common slice normal of the DICOM `files`
+/// (read from their headers, not their pixels), for telling from the
+/// positions whether slices are missing
+/// ([`crate::completeness::dicom_positions`]). `None` when a file cannot
+/// be read as a DICOM slice or lacks its position or orientation: the
+/// reader then says what is wrong.
+pub fn slice_positions_along_normal(files: &[PathBuf]) -> Option<Vec<f64>> {
+    let mut normal = None;
+    let mut along = Vec::with_capacity(files.len());
+    for p in files {
+        let bytes = std::fs::read(p).ok()?;
+        let h = read_header(p, &bytes).ok()?;
+        if normal.is_none() {
+            normal = Some(slice_normal(h.orientation.as_ref()?)?);
+        }
+        along.push(crate::mesh::dot(h.position?, normal?));
+    }
+    Some(along)
+}
+
 /// An open DICOM series, positioned at the next slice.
 pub(crate) struct DicomSeries {
     info: VolumeInfo,
@@ -430,7 +451,10 @@ impl DicomSeries {
         let Ordering { order, spacing } = order_slices(dir, &headers)?;
         let (voxel_size, unit) = match first.pixel_spacing {
             Some([row, column]) => {
-                let z = spacing.or(first.thickness).unwrap_or(1.0);
+                let z = spacing
+                    .filter(|&s| super::source::plausible_voxel_size(s))
+                    .or(first.thickness)
+                    .unwrap_or(1.0);
                 ([column, row, z], "mm")
             }
             None => ([1.0; 3], "voxel"),

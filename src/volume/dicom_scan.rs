@@ -18,9 +18,11 @@ const IMPLICIT_VR_LE: &str = "1.2.840.10008.1.2";
 const EXPLICIT_VR_LE: &str = "1.2.840.10008.1.2.1";
 const DEFLATED_EXPLICIT_VR_LE: &str = "1.2.840.10008.1.2.1.99";
 
-/// Largest inflated data set of a deflated file (bytes): four times a
-/// 8192 × 8192 16-bit slice.
-const MAX_INFLATED: u64 = 1 << 29;
+/// Largest inflated data set of a deflated file (bytes): an 8192 × 8192
+/// 16-bit slice and room for its header. Parsing holds it a second time,
+/// and the pixels are copied out twice more, so a larger one would cost
+/// over 1 GB.
+const MAX_INFLATED: u64 = 160 << 20;
 
 /// An undefined length.
 const UNDEFINED: u32 = u32::MAX;

@@ -28,6 +28,7 @@ mod stack;
 pub mod synth;
 mod threshold;
 
+pub use dicom::slice_positions_along_normal;
 pub use enamel::{cut_at_zero_level, largest_part};
 pub use grid::Grid;
 pub use isosurface::isosurface;

@@ -105,7 +105,7 @@ pub(crate) fn from_reader<R: BufRead + 'static>(
     };
     let voxel_size = [1, 2, 3].map(|k| {
         let v = f64::from(f32_at(76 + 4 * k)).abs();
-        if v > 0.0 && v.is_finite() {
+        if super::source::plausible_voxel_size(v) {
             v
         } else {
             1.0
@@ -132,5 +132,5 @@ pub(crate) fn from_reader<R: BufRead + 'static>(
         unit: unit.into(),
         bits: (kind.bytes() * 8) as u16,
     };
-    Ok(RawSlices::new(info, path, kind, little, reader, hash))
+    RawSlices::new(info, path, kind, little, reader, hash)
 }

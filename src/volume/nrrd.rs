@@ -113,7 +113,11 @@ pub(crate) fn from_reader<R: BufRead + 'static>(
             "endian" => little = value != "big",
             "spacings" => {
                 for (k, t) in value.split_whitespace().take(3).enumerate() {
-                    spacing[k] = t.parse::<f64>().ok().filter(|v| *v > 0.0).unwrap_or(1.0);
+                    spacing[k] = t
+                        .parse::<f64>()
+                        .ok()
+                        .filter(|&v| super::source::plausible_voxel_size(v))
+                        .unwrap_or(1.0);
                 }
                 unit = "unknown".into();
             }
@@ -132,7 +136,7 @@ pub(crate) fn from_reader<R: BufRead + 'static>(
                     })
                     .collect();
                 for (k, &l) in vectors.iter().take(3).enumerate() {
-                    if l > 0.0 {
+                    if super::source::plausible_voxel_size(l) {
                         spacing[k] = l;
                     }
                 }
@@ -169,5 +173,5 @@ pub(crate) fn from_reader<R: BufRead + 'static>(
         unit,
         bits: (kind.bytes() * 8) as u16,
     };
-    Ok(RawSlices::new(info, path, kind, little, reader, hash))
+    RawSlices::new(info, path, kind, little, reader, hash)
 }

@@ -39,6 +39,52 @@ pub struct VolumeInfo {
     pub bits: u16,
 }
 
+/// The most pixels one slice may have: 8192 × 8192, beyond any µCT
+/// detector. A header may declare far more than its file holds
+/// (compressed data expands); the cap keeps one slice's values (4 bytes a
+/// pixel) within 256 MB.
+pub(crate) const MAX_SLICE_PIXELS: u64 = 1 << 26;
+
+/// The most slices a volume may have.
+pub(crate) const MAX_SLICES: u64 = 1 << 17;
+
+/// Error unless a `w`×`h` slice of the file `path` is within
+/// [`MAX_SLICE_PIXELS`].
+pub(crate) fn check_slice_size(path: &Path, w: u64, h: u64) -> Result<(), VolumeError> {
+    if w.saturating_mul(h) > MAX_SLICE_PIXELS {
+        return Err(VolumeError::Invalid {
+            path: path.to_path_buf(),
+            problem: format!(
+                "the header declares slices of {w}×{h} pixels, more than the \
+                 {MAX_SLICE_PIXELS} a slice may have"
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Error unless the volume `path` of `dims` has slices within
+/// [`MAX_SLICE_PIXELS`] and at most [`MAX_SLICES`] of them.
+pub(crate) fn check_volume_size(path: &Path, dims: [usize; 3]) -> Result<(), VolumeError> {
+    check_slice_size(path, dims[0] as u64, dims[1] as u64)?;
+    if dims[2] as u64 > MAX_SLICES {
+        return Err(VolumeError::Invalid {
+            path: path.to_path_buf(),
+            problem: format!(
+                "the header declares {} slices, more than the {MAX_SLICES} a volume may have",
+                dims[2]
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Whether `v` is usable as a voxel size: positive, finite, and neither
+/// so small nor so large that products of it leave `f64`'s range.
+pub(crate) fn plausible_voxel_size(v: f64) -> bool {
+    v.is_finite() && (1e-9..=1e9).contains(&v)
+}
+
 /// A reader that yields the slices of a volume in order.
 pub(crate) trait SliceSource {
     /// Size and sampling.
@@ -116,7 +162,9 @@ pub(crate) struct RawSlices {
 impl RawSlices {
     /// The slices that `reader` (of the file `path`, its header read)
     /// holds: samples of `kind`, little- or big-endian; `hash` is what the
-    /// file's bytes are hashed into below `reader` (if anything).
+    /// file's bytes are hashed into below `reader` (if anything). Error
+    /// when the header declares a volume too large or an unusable voxel
+    /// size.
     pub(crate) fn new(
         info: VolumeInfo,
         path: &Path,
@@ -124,8 +172,15 @@ impl RawSlices {
         little: bool,
         reader: Box<dyn Read>,
         hash: Option<SharedHash>,
-    ) -> Self {
-        Self {
+    ) -> Result<Self, VolumeError> {
+        check_volume_size(path, info.dims)?;
+        if !info.voxel_size.iter().all(|&v| plausible_voxel_size(v)) {
+            return Err(VolumeError::Invalid {
+                path: path.to_path_buf(),
+                problem: format!("voxel size {:?} is not usable", info.voxel_size),
+            });
+        }
+        Ok(Self {
             info,
             path: path.to_path_buf(),
             kind,
@@ -133,7 +188,7 @@ impl RawSlices {
             reader,
             bytes: Vec::new(),
             hash,
-        }
+        })
     }
 }
 
@@ -145,20 +200,23 @@ impl SliceSource for RawSlices {
     /// One slice of raw samples; a short read is a truncated file.
     fn next_slice(&mut self, out: &mut Vec<f32>) -> Result<(), VolumeError> {
         let dims = self.info.dims;
-        self.bytes.resize(dims[0] * dims[1] * self.kind.bytes(), 0);
-        self.reader.read_exact(&mut self.bytes).map_err(|source| {
-            if source.kind() == std::io::ErrorKind::UnexpectedEof {
-                VolumeError::Invalid {
-                    path: self.path.clone(),
-                    problem: "the data ends before the last slice (truncated file)".into(),
-                }
-            } else {
-                VolumeError::Io {
-                    path: self.path.clone(),
-                    source,
-                }
-            }
-        })?;
+        let n = (dims[0] * dims[1] * self.kind.bytes()) as u64;
+        // Read as the bytes come, not into a buffer of the declared size:
+        // a header may declare far more than the file holds.
+        self.bytes.clear();
+        let got = (&mut self.reader)
+            .take(n)
+            .read_to_end(&mut self.bytes)
+            .map_err(|source| VolumeError::Io {
+                path: self.path.clone(),
+                source,
+            })?;
+        if (got as u64) < n {
+            return Err(VolumeError::Invalid {
+                path: self.path.clone(),
+                problem: "the data ends before the last slice (truncated file)".into(),
+            });
+        }
         decode_samples(&self.bytes, self.kind, self.little, out);
         Ok(())
     }

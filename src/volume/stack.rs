@@ -178,6 +178,9 @@ fn read_slice_file(path: &Path) -> Result<Vec<u8>, VolumeError> {
     })
 }
 
+/// The most one image decoder may allocate: an RGBA slice of 32 M pixels.
+const MAX_DECODE_BYTES: u64 = 128 << 20;
+
 /// Decode the slice `bytes` (of the file `path`, which names errors).
 pub(crate) fn decode_slice(
     path: &Path,
@@ -196,8 +199,14 @@ fn read_tiff(path: &Path, bytes: &[u8]) -> Result<Slice, VolumeError> {
         path: path.to_path_buf(),
         source,
     };
-    let mut dec = Decoder::new(std::io::Cursor::new(bytes)).map_err(err)?;
+    let mut limits = tiff::decoder::Limits::default();
+    limits.decoding_buffer_size = MAX_DECODE_BYTES as usize;
+    limits.intermediate_buffer_size = MAX_DECODE_BYTES as usize;
+    let mut dec = Decoder::new(std::io::Cursor::new(bytes))
+        .map_err(err)?
+        .with_limits(limits);
     let (w, h) = dec.dimensions().map_err(err)?;
+    super::source::check_slice_size(path, w.into(), h.into())?;
     let colour = dec.colortype().map_err(err)?;
     let channels = match colour {
         tiff::ColorType::Gray(_) => 1,
@@ -247,17 +256,24 @@ fn read_other(path: &Path, bytes: &[u8]) -> Result<Slice, VolumeError> {
     if let Ok(format) = image::ImageFormat::from_path(path) {
         reader.set_format(format);
     }
-    let img = reader
+    let mut reader = reader
         .with_guessed_format()
         .map_err(|source| VolumeError::Io {
             path: path.to_path_buf(),
             source,
-        })?
-        .decode()
-        .map_err(|source| VolumeError::Image {
-            path: path.to_path_buf(),
-            source,
         })?;
+    // The decoder's own allocation is capped, and so is the image's size:
+    // the conversions below make up to two more copies of it.
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(MAX_DECODE_BYTES);
+    limits.max_image_width = Some(1 << 16);
+    limits.max_image_height = Some(1 << 16);
+    reader.limits(limits);
+    let img = reader.decode().map_err(|source| VolumeError::Image {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    super::source::check_slice_size(path, img.width().into(), img.height().into())?;
     let (w, h) = (img.width() as usize, img.height() as usize);
     let (bits, values) = match img {
         image::DynamicImage::ImageLuma8(g) => {

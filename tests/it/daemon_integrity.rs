@@ -224,3 +224,71 @@ fn a_slice_folder_that_grows_while_queued_is_identified_once_whole() {
         rows(&env.db)
     );
 }
+
+#[test]
+fn a_dicom_series_with_a_slice_missing_waits_for_it() {
+    // Settle time 0.5 s, the default wait for incomplete files (600 s):
+    // the series is held by its positions, not by the clock.
+    let env = env(0.5, "", "");
+    let d = Daemon::start(&env);
+    let staged = env.root.join("staged");
+    let crown = synth::crown(&CROWN_GENERA[2], 78, 1500);
+    let tooth = synth::whole_tooth(&crown, &synth::WholeToothParams::default(), 78).unwrap();
+    let params = morphoid::volume::synth::PhantomParams {
+        voxels_across: 48,
+        margin: 4,
+        enamel_thickness: 0.06,
+        ..Default::default()
+    };
+    let grid = morphoid::volume::synth::phantom(&tooth, &params);
+    morphoid::volume::synth::write_volume(
+        &grid,
+        &staged,
+        morphoid::volume::synth::SynthFormat::Dicom {
+            bits: 16,
+            signed: false,
+            implicit: false,
+        },
+        &morphoid::volume::synth::StackSpec::default(),
+    )
+    .unwrap();
+    let slices = morphoid::volume::slice_paths(&staged).unwrap();
+    let missing = &slices[slices.len() / 3];
+    let folder = env.export.join("series");
+    let building = env.root.join("building");
+    std::fs::create_dir(&building).unwrap();
+    for s in slices.iter().filter(|s| *s != missing) {
+        std::fs::copy(s, building.join(s.file_name().unwrap())).unwrap();
+    }
+    std::fs::rename(&building, &folder).unwrap();
+    // Held: the positions jump where the slice is missing.
+    let shown = folder.display().to_string();
+    assert!(
+        wait_until(Duration::from_secs(30), || d.log_text().contains(&format!(
+            "{shown}: not complete yet (DICOM slice positions jump"
+        ))),
+        "{}",
+        d.log_text()
+    );
+    std::thread::sleep(Duration::from_secs(3));
+    assert!(
+        rows(&env.db).iter().all(|r| r.path != shown),
+        "queued with a slice missing: {:#?}",
+        rows(&env.db)
+    );
+    let part = env.root.join("slice.part");
+    std::fs::copy(missing, &part).unwrap();
+    std::fs::rename(&part, folder.join(missing.file_name().unwrap())).unwrap();
+    let last = assert_final_content_once(&env, &d, &folder, true);
+    assert!(
+        rows(&env.db).iter().filter(|r| r.path == shown).count() == 1,
+        "one row, of the whole series: {:#?}",
+        rows(&env.db)
+    );
+    assert!(d.log_text().contains(&format!("{shown}: complete now")));
+    let total: u64 = slices
+        .iter()
+        .map(|p| std::fs::metadata(p).unwrap().len())
+        .sum();
+    assert_eq!(last.size, total, "every slice was in the scan");
+}

@@ -522,7 +522,9 @@ fn of_two_specimens_the_largest_is_identified_and_the_other_reported() {
 
 #[test]
 fn daemon_records_a_bad_volume_folder_and_goes_on() {
-    let env = env(2.0, "", AUTO_CROWN);
+    // A series with a gap waits for its missing slices, here 3 s, and is
+    // then recorded as an error.
+    let env = env(2.0, "incomplete_seconds = 3", AUTO_CROWN);
     let d = Daemon::start(&env);
     let staging = env.root.join("staging");
     std::fs::create_dir_all(&staging).unwrap();
@@ -555,7 +557,10 @@ fn daemon_records_a_bad_volume_folder_and_goes_on() {
     );
     assert_eq!(r[0].status, ScanStatus::Error, "{:?}", r[0]);
     let error = r[0].error.as_deref().unwrap_or_default();
-    assert!(error.contains("slices missing between"), "{error}");
+    assert!(
+        error.contains("incomplete after waiting 3 s: DICOM slice positions jump"),
+        "{error}"
+    );
     assert_eq!(r[1].status, ScanStatus::Ok, "{:?}", r[1]);
     assert!(genus_of(&r[1]).is_some(), "{:?}", r[1]);
 }
