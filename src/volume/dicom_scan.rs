@@ -5,8 +5,10 @@
 //! header the parser would read (file meta group, then the data set in
 //! its transfer syntax: sequences and items entered, encapsulated
 //! fragments skipped) and refuses a length longer than the bytes left.
-//! Where the framing is broken in another way it stops and leaves the
-//! error to the parser.
+//! A data set whose framing the walk cannot follow to its end (an item
+//! where none may be, an end before the current position, bytes or an
+//! open sequence left over at the end) is refused too: the parser would
+//! read on from a place the walk did not check.
 
 use dicom_core::dictionary::{DataDictionary, DataDictionaryEntry};
 use dicom_core::{Tag, VR};
@@ -220,6 +222,11 @@ enum Open {
     Item { end: Option<usize> },
 }
 
+/// Why the data set's framing cannot be followed at byte `at` (of the file).
+fn broken(at: usize, why: &str) -> String {
+    format!("the data set's framing is broken at byte {at}: {why} (corrupt or truncated file)")
+}
+
 /// Walk the data set `b` (at byte `offset` of the file, for messages) as
 /// the parser's state machine does: element headers and values; after a
 /// sequence header, item headers; items hold elements, except those of
@@ -249,8 +256,12 @@ fn data_set(b: &[u8], offset: usize, explicit: bool) -> Result<(), String> {
                     open.pop();
                     in_sequence = item;
                 }
-                // The parser stops at an inconsistent end.
-                Some(e) if e < at => return Ok(()),
+                Some(e) if e < at => {
+                    return Err(broken(
+                        offset + at,
+                        &format!("a sequence or item ends at byte {}, before it", offset + e),
+                    ))
+                }
                 _ => break,
             }
         }
@@ -258,7 +269,10 @@ fn data_set(b: &[u8], offset: usize, explicit: bool) -> Result<(), String> {
             let (Some(group), Some(element), Some(len)) =
                 (u16_at(b, at), u16_at(b, at + 2), u32_at(b, at + 4))
             else {
-                return Ok(());
+                return Err(broken(
+                    offset + at,
+                    "the data ends inside a sequence (truncated file)",
+                ));
             };
             at += 8;
             match (group, element) {
@@ -272,7 +286,10 @@ fn data_set(b: &[u8], offset: usize, explicit: bool) -> Result<(), String> {
                     );
                     if fragments {
                         if len == UNDEFINED {
-                            return Ok(());
+                            return Err(broken(
+                                offset + at - 8,
+                                "a pixel data fragment of undefined length",
+                            ));
                         }
                         let h = Header {
                             tag: Tag(group, element),
@@ -296,13 +313,27 @@ fn data_set(b: &[u8], offset: usize, explicit: bool) -> Result<(), String> {
                     open.pop();
                     in_sequence = false;
                 }
-                // The parser refuses anything else where an item belongs.
-                _ => return Ok(()),
+                _ => {
+                    return Err(broken(
+                        offset + at - 8,
+                        &format!("({group:04X},{element:04X}) where an item belongs"),
+                    ))
+                }
             }
             continue;
         }
         let Some(h) = header(at) else {
-            return Ok(());
+            if at == b.len() && open.is_empty() {
+                return Ok(());
+            }
+            return Err(broken(
+                offset + at,
+                if open.is_empty() {
+                    "the data ends inside an element header (truncated file)"
+                } else {
+                    "the data ends inside a sequence (truncated file)"
+                },
+            ));
         };
         at += h.size;
         if h.vr == VR::SQ {
@@ -384,6 +415,29 @@ mod tests {
         b.extend(1_000_000u32.to_le_bytes());
         let e = transfer_syntax_checked(&b).unwrap_err();
         assert!(e.contains("(0008,1150)") && e.contains("1000000"), "{e}");
+    }
+
+    #[test]
+    fn framing_the_walk_cannot_follow_is_refused() {
+        // An element of undefined length (read as a sequence) followed by
+        // something other than an item.
+        let mut b = meta(IMPLICIT_VR_LE);
+        b.extend([0x09, 0x00, 0x10, 0x00]);
+        b.extend(UNDEFINED.to_le_bytes());
+        b.extend([0x28, 0x00, 0x10, 0x00, 2, 0, 0, 0, 64, 0]);
+        let e = transfer_syntax_checked(&b).unwrap_err();
+        assert!(e.contains("(0028,0010) where an item belongs"), "{e}");
+        // A data set that stops inside an element header.
+        let mut c = meta(EXPLICIT_VR_LE);
+        c.extend([0x28, 0x00, 0x10, 0x00, b'U']);
+        let e = transfer_syntax_checked(&c).unwrap_err();
+        assert!(e.contains("inside an element header"), "{e}");
+        // A sequence left open at the end.
+        let mut d = meta(EXPLICIT_VR_LE);
+        d.extend([0x08, 0x00, 0x40, 0x11, b'S', b'Q', 0, 0]);
+        d.extend(UNDEFINED.to_le_bytes());
+        let e = transfer_syntax_checked(&d).unwrap_err();
+        assert!(e.contains("ends inside a sequence"), "{e}");
     }
 
     #[test]
