@@ -15,7 +15,7 @@ use super::VolumeError;
 use crate::hash::{Content, FolderHash};
 use dicom_core::value::{PrimitiveValue, Value};
 use dicom_dictionary_std::tags;
-use dicom_object::{InMemDicomObject, OpenFileOptions, Tag};
+use dicom_object::{InMemDicomObject, Tag};
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
@@ -106,27 +106,43 @@ fn invalid(path: &Path, problem: String) -> VolumeError {
     }
 }
 
-/// The DICOM file `bytes` (of the file `path`, which names errors), up to
-/// (`header_only`) or including its pixel data; a file that ends early is
-/// reported as truncated.
+/// The data set of the DICOM file `bytes` (of the file `path`, which
+/// names errors), up to (`header_only`) or including its pixel data, and
+/// its transfer syntax; a file that ends early is reported as truncated.
 fn open_object(
     path: &Path,
     bytes: &[u8],
     header_only: bool,
-) -> Result<dicom_object::DefaultDicomObject, VolumeError> {
+) -> Result<(InMemDicomObject, String), VolumeError> {
     // dicom-object allocates every declared length before reading it, so
-    // the framing is checked first, and other syntaxes refused unread.
-    let syntax = super::dicom_scan::transfer_syntax_checked(bytes).map_err(|p| invalid(path, p))?;
-    if let Some(syntax) = syntax {
-        check_syntax(path, &syntax)?;
-    }
-    let opts = OpenFileOptions::new();
-    let opts = if header_only {
-        opts.read_until(tags::PIXEL_DATA)
-    } else {
-        opts
+    // the framing is walked first, other syntaxes refused unread, and the
+    // parser given the data set exactly where the walk found it (its own
+    // reading of a malformed file meta group may start elsewhere).
+    let data = super::dicom_scan::data_set_checked(bytes)
+        .map_err(|p| invalid(path, p))?
+        .ok_or_else(|| {
+            invalid(
+                path,
+                "no DICOM file meta group with a transfer syntax (not a DICOM file, \
+                 or its header is corrupt)"
+                    .into(),
+            )
+        })?;
+    check_syntax(path, &data.syntax)?;
+    let body = match data.pixel_data {
+        Some(at) if header_only => &data.bytes[..at],
+        _ => &data.bytes[..],
     };
-    opts.from_reader(bytes).map_err(|source| {
+    use dicom_transfer_syntax_registry::{TransferSyntaxIndex, TransferSyntaxRegistry};
+    let ts_uid = if data.explicit {
+        "1.2.840.10008.1.2.1"
+    } else {
+        "1.2.840.10008.1.2"
+    };
+    let ts = TransferSyntaxRegistry
+        .get(ts_uid)
+        .ok_or_else(|| invalid(path, format!("transfer syntax {ts_uid} is not registered")))?;
+    let obj = InMemDicomObject::read_dataset_with_ts(body, ts).map_err(|source| {
         if ends_early(&source) {
             invalid(
                 path,
@@ -138,7 +154,8 @@ fn open_object(
                 source: Box::new(source),
             }
         }
-    })
+    })?;
+    Ok((obj, data.syntax))
 }
 
 /// Whether a read error comes from the file ending early.
@@ -192,8 +209,7 @@ fn check_syntax(path: &Path, syntax: &str) -> Result<(), VolumeError> {
 /// The header of the DICOM file `bytes` (of `path`): its transfer syntax
 /// checked, the pixel description and geometry read.
 fn read_header(path: &Path, bytes: &[u8]) -> Result<SliceHeader, VolumeError> {
-    let file = open_object(path, bytes, true)?;
-    check_syntax(path, file.meta().transfer_syntax())?;
+    let (file, _) = open_object(path, bytes, true)?;
     let obj: &InMemDicomObject = &file;
     let frames = int(obj, tags::NUMBER_OF_FRAMES).unwrap_or(1);
     if frames > 1 {
@@ -552,7 +568,7 @@ fn sample_value(raw: u32, layout: &PixelLayout) -> f32 {
 /// The pixels of the DICOM file `bytes`, whose header `h` describes, as
 /// values (rescaled, inverted where shown white-low) into `out`.
 fn pixels(h: &SliceHeader, bytes: &[u8], out: &mut Vec<f32>) -> Result<(), VolumeError> {
-    let file = open_object(&h.path, bytes, false)?;
+    let (file, _) = open_object(&h.path, bytes, false)?;
     let value = match element(&file, tags::PIXEL_DATA).map(|e| e.value()) {
         Some(Value::Primitive(v)) => v,
         Some(_) => {

@@ -20,20 +20,43 @@ const IMPLICIT_VR_LE: &str = "1.2.840.10008.1.2";
 const EXPLICIT_VR_LE: &str = "1.2.840.10008.1.2.1";
 const DEFLATED_EXPLICIT_VR_LE: &str = "1.2.840.10008.1.2.1.99";
 
-/// Largest inflated data set of a deflated file (bytes): an 8192 × 8192
-/// 16-bit slice and room for its header. Parsing holds it a second time,
-/// and the pixels are copied out twice more, so a larger one would cost
-/// over 1 GB.
-const MAX_INFLATED: u64 = 160 << 20;
+/// Largest inflated data set of a deflated file (bytes): a 4096 × 4096
+/// 16-bit slice and room for its header. The syntax is rare in CT; a
+/// larger bound lets a 1 MB file cost seconds and hundreds of MB.
+const MAX_INFLATED: u64 = 40 << 20;
 
 /// An undefined length.
 const UNDEFINED: u32 = u32::MAX;
+
+/// A DICOM file's data set, its framing checked: where the walk began is
+/// where the parser is to begin, so that the two read the same elements.
+pub(crate) struct DataSet<'a> {
+    /// The transfer syntax UID of the file meta group.
+    pub syntax: String,
+    /// The data set's bytes (inflated for the deflated syntax); empty for
+    /// syntaxes that are not walked.
+    pub bytes: std::borrow::Cow<'a, [u8]>,
+    /// Whether its elements carry their VR.
+    pub explicit: bool,
+    /// Where the top-level pixel data element starts in `bytes`, if any.
+    pub pixel_data: Option<usize>,
+}
 
 /// Walk the framing of the DICOM file `bytes`: its transfer syntax when
 /// the file meta group can be read (the data set is walked only for the
 /// syntaxes the reader takes), `None` when it cannot (the parser reports
 /// why), or what is wrong when a length runs past the end.
-pub(crate) fn transfer_syntax_checked(bytes: &[u8]) -> Result<Option<String>, String> {
+#[cfg(test)]
+fn transfer_syntax_checked(bytes: &[u8]) -> Result<Option<String>, String> {
+    Ok(data_set_checked(bytes)?.map(|d| d.syntax))
+}
+
+/// The data set of the DICOM file `bytes` with its framing walked: the
+/// transfer syntax when the file meta group can be read (the data set is
+/// walked only for the syntaxes the reader takes), `None` when it cannot,
+/// or what is wrong when a length runs past the end or the framing cannot
+/// be followed.
+pub(crate) fn data_set_checked(bytes: &[u8]) -> Result<Option<DataSet<'_>>, String> {
     let start = if bytes.get(128..132) == Some(b"DICM") {
         132
     } else if bytes.get(..4) == Some(b"DICM") {
@@ -45,9 +68,9 @@ pub(crate) fn transfer_syntax_checked(bytes: &[u8]) -> Result<Option<String>, St
         return Ok(None);
     };
     let rest = &bytes[end..];
-    match syntax.as_str() {
-        IMPLICIT_VR_LE => data_set(rest, end, false)?,
-        EXPLICIT_VR_LE => data_set(rest, end, true)?,
+    let (bytes, explicit, pixel_data) = match syntax.as_str() {
+        IMPLICIT_VR_LE => (rest.into(), false, data_set(rest, end, false)?),
+        EXPLICIT_VR_LE => (rest.into(), true, data_set(rest, end, true)?),
         DEFLATED_EXPLICIT_VR_LE => {
             let mut inflated = Vec::new();
             flate2::read::DeflateDecoder::new(rest)
@@ -59,11 +82,17 @@ pub(crate) fn transfer_syntax_checked(bytes: &[u8]) -> Result<Option<String>, St
                     "the deflated data set inflates to more than {MAX_INFLATED} bytes"
                 ));
             }
-            data_set(&inflated, 0, true)?;
+            let pixel_data = data_set(&inflated, 0, true)?;
+            (inflated.into(), true, pixel_data)
         }
-        _ => {}
-    }
-    Ok(Some(syntax))
+        _ => (std::borrow::Cow::Borrowed(&[][..]), true, None),
+    };
+    Ok(Some(DataSet {
+        syntax,
+        bytes,
+        explicit,
+        pixel_data,
+    }))
 }
 
 fn u16_at(b: &[u8], at: usize) -> Option<u16> {
@@ -161,6 +190,25 @@ fn implicit_header(b: &[u8], at: usize) -> Option<Header> {
 /// `total`); `offset` places `b` in the file for the message.
 fn check(h: &Header, at: usize, total: usize, offset: usize) -> Result<(), String> {
     let left = total - at;
+    // The parser reads a binary VR in whole values and leaves a remainder
+    // unread: it would go on out of step with the framing.
+    let size = match h.vr {
+        VR::US | VR::SS | VR::OW => 2,
+        VR::UL | VR::SL | VR::FL | VR::AT | VR::OL | VR::OF => 4,
+        VR::FD | VR::OD | VR::SV | VR::UV | VR::OV => 8,
+        _ => 1,
+    };
+    if h.len != UNDEFINED && h.len % size != 0 {
+        return Err(format!(
+            "element ({:04X},{:04X}) at byte {} of VR {} holds {} bytes, not a whole number \
+             of {size}-byte values (corrupt file)",
+            h.tag.0,
+            h.tag.1,
+            offset + at - h.size,
+            h.vr.to_string(),
+            h.len
+        ));
+    }
     if h.len as usize > left {
         return Err(format!(
             "element ({:04X},{:04X}) at byte {} declares {} bytes, but only {left} follow \
@@ -232,7 +280,7 @@ fn broken(at: usize, why: &str) -> String {
 /// sequence header, item headers; items hold elements, except those of
 /// encapsulated pixel data, which hold bytes. A sequence or item of
 /// defined length ends where its length says.
-fn data_set(b: &[u8], offset: usize, explicit: bool) -> Result<(), String> {
+fn data_set(b: &[u8], offset: usize, explicit: bool) -> Result<Option<usize>, String> {
     let header = |at| {
         if explicit {
             explicit_header(b, at)
@@ -243,6 +291,7 @@ fn data_set(b: &[u8], offset: usize, explicit: bool) -> Result<(), String> {
     let end_of = |at: usize, len: u32| (len != UNDEFINED).then(|| at.saturating_add(len as usize));
     let mut open: Vec<Open> = Vec::new();
     let mut at = 0;
+    let mut pixel_data = None;
     // Whether an item header (or the sequence's end) comes next.
     let mut in_sequence = false;
     loop {
@@ -324,7 +373,7 @@ fn data_set(b: &[u8], offset: usize, explicit: bool) -> Result<(), String> {
         }
         let Some(h) = header(at) else {
             if at == b.len() && open.is_empty() {
-                return Ok(());
+                return Ok(pixel_data);
             }
             return Err(broken(
                 offset + at,
@@ -335,6 +384,9 @@ fn data_set(b: &[u8], offset: usize, explicit: bool) -> Result<(), String> {
                 },
             ));
         };
+        if h.tag == Tag(0x7FE0, 0x0010) && open.is_empty() && pixel_data.is_none() {
+            pixel_data = Some(at);
+        }
         at += h.size;
         if h.vr == VR::SQ {
             open.push(Open::Sequence {
@@ -415,6 +467,19 @@ mod tests {
         b.extend(1_000_000u32.to_le_bytes());
         let e = transfer_syntax_checked(&b).unwrap_err();
         assert!(e.contains("(0008,1150)") && e.contains("1000000"), "{e}");
+    }
+
+    #[test]
+    fn binary_values_must_be_whole() {
+        // A group length (UL) of 2 bytes: the parser would read no value
+        // and go on two bytes out of step.
+        let mut b = meta(IMPLICIT_VR_LE);
+        b.extend([0x28, 0x00, 0x00, 0x00, 2, 0, 0, 0, 1, 2]);
+        let e = transfer_syntax_checked(&b).unwrap_err();
+        assert!(
+            e.contains("(0028,0000)") && e.contains("VR UL holds 2 bytes"),
+            "{e}"
+        );
     }
 
     #[test]
