@@ -85,14 +85,19 @@ pub fn parse_morphologika(text: &str, path: &Path) -> Result<Vec<NamedLandmarks>
             format!("{d} dimensions; morphoid reads 3D"),
         ));
     }
-    if points.len() != n * k {
+    let Some(total) = n.checked_mul(k) else {
+        return Err(err(
+            section_line.max(1),
+            format!("{n} individuals × {k} landmarks: more points than any file holds"),
+        ));
+    };
+    if points.len() != total {
         let line = points.last().map_or(section_line.max(1), |p| p.1);
         return Err(err(
             line,
             format!(
-                "{} points under [rawpoints]; {n} individuals × {k} landmarks need {}",
+                "{} points under [rawpoints]; {n} individuals × {k} landmarks need {total}",
                 points.len(),
-                n * k
             ),
         ));
     }
