@@ -134,14 +134,12 @@ fn open_object(
         _ => &data.bytes[..],
     };
     use dicom_transfer_syntax_registry::{TransferSyntaxIndex, TransferSyntaxRegistry};
-    let ts_uid = if data.explicit {
-        "1.2.840.10008.1.2.1"
-    } else {
-        "1.2.840.10008.1.2"
-    };
-    let ts = TransferSyntaxRegistry
-        .get(ts_uid)
-        .ok_or_else(|| invalid(path, format!("transfer syntax {ts_uid} is not registered")))?;
+    let ts = TransferSyntaxRegistry.get(data.encoding).ok_or_else(|| {
+        invalid(
+            path,
+            format!("transfer syntax {} is not registered", data.encoding),
+        )
+    })?;
     let obj = InMemDicomObject::read_dataset_with_ts(body, ts).map_err(|source| {
         if ends_early(&source) {
             invalid(

@@ -36,8 +36,9 @@ pub(crate) struct DataSet<'a> {
     /// The data set's bytes (inflated for the deflated syntax); empty for
     /// syntaxes that are not walked.
     pub bytes: std::borrow::Cow<'a, [u8]>,
-    /// Whether its elements carry their VR.
-    pub explicit: bool,
+    /// The transfer syntax `bytes` are encoded in as the parser is to
+    /// read them: the file's, or explicit VR little endian once inflated.
+    pub encoding: &'static str,
     /// Where the top-level pixel data element starts in `bytes`, if any.
     pub pixel_data: Option<usize>,
 }
@@ -68,9 +69,9 @@ pub(crate) fn data_set_checked(bytes: &[u8]) -> Result<Option<DataSet<'_>>, Stri
         return Ok(None);
     };
     let rest = &bytes[end..];
-    let (bytes, explicit, pixel_data) = match syntax.as_str() {
-        IMPLICIT_VR_LE => (rest.into(), false, data_set(rest, end, false)?),
-        EXPLICIT_VR_LE => (rest.into(), true, data_set(rest, end, true)?),
+    let (bytes, encoding, pixel_data) = match syntax.as_str() {
+        IMPLICIT_VR_LE => (rest.into(), IMPLICIT_VR_LE, data_set(rest, end, false)?),
+        EXPLICIT_VR_LE => (rest.into(), EXPLICIT_VR_LE, data_set(rest, end, true)?),
         DEFLATED_EXPLICIT_VR_LE => {
             let mut inflated = Vec::new();
             flate2::read::DeflateDecoder::new(rest)
@@ -83,14 +84,14 @@ pub(crate) fn data_set_checked(bytes: &[u8]) -> Result<Option<DataSet<'_>>, Stri
                 ));
             }
             let pixel_data = data_set(&inflated, 0, true)?;
-            (inflated.into(), true, pixel_data)
+            (inflated.into(), EXPLICIT_VR_LE, pixel_data)
         }
-        _ => (std::borrow::Cow::Borrowed(&[][..]), true, None),
+        _ => (std::borrow::Cow::Borrowed(&[][..]), EXPLICIT_VR_LE, None),
     };
     Ok(Some(DataSet {
         syntax,
         bytes,
-        explicit,
+        encoding,
         pixel_data,
     }))
 }

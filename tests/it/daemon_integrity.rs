@@ -10,8 +10,9 @@ use morphoid::hash::content_hash_file;
 use morphoid::mesh::io;
 use morphoid::mesh::synth::{self, RigidMotion, CROWN_GENERA};
 use morphoid::store::{ScanRecord, ScanStatus};
+use morphoid::volume::synth::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
 use std::io::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// The rows of `path` once its final content has finished: exactly one
@@ -121,6 +122,31 @@ fn stop_while_pending(env: &Env, d: &Daemon, path: &Path, hash: Option<&str>) {
     );
 }
 
+/// A whole tooth of genus `g` as a small volume in `format`, written to
+/// `staged` under the test's root: its slice files in order.
+fn staged_volume(env: &Env, g: usize, seed: u64, format: SynthFormat) -> Vec<PathBuf> {
+    let staged = env.root.join("staged");
+    let crown = synth::crown(&CROWN_GENERA[g], seed, 1500);
+    let tooth = synth::whole_tooth(&crown, &synth::WholeToothParams::default(), seed).unwrap();
+    let params = PhantomParams {
+        voxels_across: 48,
+        margin: 4,
+        enamel_thickness: 0.06,
+        ..Default::default()
+    };
+    let grid = phantom(&tooth, &params);
+    write_volume(&grid, &staged, format, &StackSpec::default()).unwrap();
+    morphoid::volume::slice_paths(&staged).unwrap()
+}
+
+/// The total size of `files` in bytes.
+fn bytes_of(files: &[PathBuf]) -> u64 {
+    files
+        .iter()
+        .map(|p| std::fs::metadata(p).unwrap().len())
+        .sum()
+}
+
 #[test]
 fn a_slow_writer_is_identified_once_as_its_final_content() {
     let env = env(0.5, "", "");
@@ -174,24 +200,7 @@ fn a_file_replaced_while_queued_is_identified_as_its_new_content() {
 fn a_slice_folder_that_grows_while_queued_is_identified_once_whole() {
     let env = env(0.5, "", "");
     let d = Daemon::start(&env);
-    let staged = env.root.join("staged");
-    let crown = synth::crown(&CROWN_GENERA[1], 77, 1500);
-    let tooth = synth::whole_tooth(&crown, &synth::WholeToothParams::default(), 77).unwrap();
-    let params = morphoid::volume::synth::PhantomParams {
-        voxels_across: 48,
-        margin: 4,
-        enamel_thickness: 0.06,
-        ..Default::default()
-    };
-    let grid = morphoid::volume::synth::phantom(&tooth, &params);
-    morphoid::volume::synth::write_volume(
-        &grid,
-        &staged,
-        morphoid::volume::synth::SynthFormat::Tiff8,
-        &morphoid::volume::synth::StackSpec::default(),
-    )
-    .unwrap();
-    let slices = morphoid::volume::slice_paths(&staged).unwrap();
+    let slices = staged_volume(&env, 1, 77, SynthFormat::Tiff8);
     let half = slices.len() / 2;
     busy(&env, &d);
     // Half the slices, queued as they are; the rest while it waits.
@@ -211,11 +220,7 @@ fn a_slice_folder_that_grows_while_queued_is_identified_once_whole() {
     }
     d.signal(libc::SIGCONT);
     let last = assert_final_content_once(&env, &d, &folder, false);
-    let total: u64 = slices
-        .iter()
-        .map(|p| std::fs::metadata(p).unwrap().len())
-        .sum();
-    assert_eq!(last.size, total, "every slice was in the scan");
+    assert_eq!(last.size, bytes_of(&slices), "every slice was in the scan");
     assert!(
         rows(&env.db)
             .iter()
@@ -231,28 +236,16 @@ fn a_dicom_series_with_a_slice_missing_waits_for_it() {
     // the series is held by its positions, not by the clock.
     let env = env(0.5, "", "");
     let d = Daemon::start(&env);
-    let staged = env.root.join("staged");
-    let crown = synth::crown(&CROWN_GENERA[2], 78, 1500);
-    let tooth = synth::whole_tooth(&crown, &synth::WholeToothParams::default(), 78).unwrap();
-    let params = morphoid::volume::synth::PhantomParams {
-        voxels_across: 48,
-        margin: 4,
-        enamel_thickness: 0.06,
-        ..Default::default()
-    };
-    let grid = morphoid::volume::synth::phantom(&tooth, &params);
-    morphoid::volume::synth::write_volume(
-        &grid,
-        &staged,
-        morphoid::volume::synth::SynthFormat::Dicom {
+    let slices = staged_volume(
+        &env,
+        2,
+        78,
+        SynthFormat::Dicom {
             bits: 16,
             signed: false,
             implicit: false,
         },
-        &morphoid::volume::synth::StackSpec::default(),
-    )
-    .unwrap();
-    let slices = morphoid::volume::slice_paths(&staged).unwrap();
+    );
     let missing = &slices[slices.len() / 3];
     let folder = env.export.join("series");
     let building = env.root.join("building");
@@ -286,9 +279,5 @@ fn a_dicom_series_with_a_slice_missing_waits_for_it() {
         rows(&env.db)
     );
     assert!(d.log_text().contains(&format!("{shown}: complete now")));
-    let total: u64 = slices
-        .iter()
-        .map(|p| std::fs::metadata(p).unwrap().len())
-        .sum();
-    assert_eq!(last.size, total, "every slice was in the scan");
+    assert_eq!(last.size, bytes_of(&slices), "every slice was in the scan");
 }

@@ -87,7 +87,8 @@ impl WindingGraph {
     fn sources_with_winding_loop(&self, sources: &[u32]) -> Vec<u32> {
         let mut uf = crate::clean::union_find::UnionFind::new(self.neighbours.len() * LAYERS);
         for (v, list) in self.neighbours.iter().enumerate() {
-            for &(w, _, step) in list {
+            // Each edge is listed from both ends: one of them is enough.
+            for &(w, _, step) in list.iter().filter(|n| n.0 as usize > v) {
                 for layer in 0..LAYERS as i64 {
                     let l = layer + i64::from(step);
                     if (0..LAYERS as i64).contains(&l) {
