@@ -656,8 +656,10 @@ impl<'a> Daemon<'a> {
             sleep(Duration::from_millis(50)).await;
         }
         if !self.worker.is_finished() {
+            // The lock first, then the marker: the worker marks a claim
+            // current before it lets go of the lock.
+            let mut db = db::lock(&self.db);
             if let Some(id) = self.worker.progress().current() {
-                let mut db = db::lock(&self.db);
                 let abandoned = db.store().and_then(|(store, _)| store.abandon(id));
                 match abandoned {
                     Ok(()) => {

@@ -271,10 +271,13 @@ impl WorkerState {
                 return Step::Fault;
             }
         };
-        guard.worked();
-        drop(guard);
+        // Marked current before the lock is released: a stop takes the
+        // lock before it reads the marker, so a committed claim is always
+        // seen (and abandoned) by it.
         self.progress.started_ms.store(now_ms(), Ordering::SeqCst);
         self.progress.current.store(job.scan_id, Ordering::SeqCst);
+        guard.worked();
+        drop(guard);
         let started = Instant::now();
         let (finding, scene) =
             classify::identify_job(&self.setup.classifier, &job, self.setup.files.is_some());
@@ -334,6 +337,11 @@ impl WorkerState {
         }
         if self.files_backoff.ready() && self.write_due_files(store)? {
             return Ok(Next::Worked);
+        }
+        // A stop asked for while this thread waited for the lock: no new
+        // claim (the stop would not see it).
+        if self.progress.stop.load(Ordering::SeqCst) {
+            return Ok(Next::Idle);
         }
         let Some(job) = store.claim_next()? else {
             return Ok(Next::Idle);
