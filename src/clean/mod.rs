@@ -42,6 +42,7 @@ mod manifold;
 mod orient;
 mod resample;
 mod union_find;
+mod voxelize;
 mod weld;
 
 pub use closest::{point_to_surface_distances, TriangleGrid};
@@ -228,6 +229,16 @@ fn validate(mesh: &Mesh) -> Result<(), CleanError> {
 /// hole filling, disk test and outward orientation, with counts added to
 /// `report`.
 fn make_disk(m: &Mesh, report: &mut CleanReport, crown: CrownMode) -> Result<Mesh, CleanError> {
+    make_disk_of(m, report, crown, false)
+}
+
+/// [`make_disk`], told whether `m` was re-voxelized already.
+fn make_disk_of(
+    m: &Mesh,
+    report: &mut CleanReport,
+    crown: CrownMode,
+    revoxelized: bool,
+) -> Result<Mesh, CleanError> {
     let min = 3;
     let (m3, d1) = components::largest_component_by_area(m);
     let (m4, ne) = manifold::repair_nonmanifold_edges(&m3);
@@ -257,9 +268,34 @@ fn make_disk(m: &Mesh, report: &mut CleanReport, crown: CrownMode) -> Result<Mes
         // The repairs run again on the coarser surface, which the margin
         // search then takes.
         report.predecimated_faces = report.predecimated_faces.max(m8.faces.len());
-        return make_disk(&coarser, report, crown);
+        return make_disk_of(&coarser, report, crown, revoxelized);
     }
-    let m8 = cut_whole_tooth(m8, report, crown)?;
+    let m8 = match cut_whole_tooth(&m8, report, crown) {
+        Ok(cut) => cut,
+        // A tooth is a ball: handles are the tunnels a thresholded export
+        // leaves where voxels touch along an edge, and a margin loop
+        // through one does not cut the surface in two. The same solid
+        // without them goes through these steps once more.
+        Err(e) if crown == CrownMode::Auto && !revoxelized && has_handles(&m8) => {
+            let Some(solid) = voxelize::revoxelized(&holes::fill_all_holes(&m8).0, REVOXEL_SAMPLES)
+            else {
+                return Err(e);
+            };
+            tracing::debug!(
+                faces = solid.faces.len(),
+                "whole tooth with handles re-voxelized"
+            );
+            let disk = make_disk_of(&solid, report, crown, true).map_err(|inner| {
+                tracing::debug!("re-voxelized: {inner}");
+                e
+            })?;
+            if let Some(c) = report.crown.as_mut() {
+                c.revoxelized = true;
+            }
+            return Ok(disk);
+        }
+        Err(e) => return Err(e),
+    };
     let (m9, filled) = holes::fill_holes_except_longest(&m8);
     report.filled_holes += filled;
     let chi = euler_characteristic(&m9);
@@ -302,7 +338,16 @@ fn decimate_if_dense(m: &Mesh, opts: &CleanOptions, report: &mut CleanReport) ->
     let (kept, dropped) = components::largest_component_by_area(&split);
     drop(split);
     report.dropped_components += dropped;
-    decimated_orientable(&faces::remove_unreferenced_vertices(&kept), early_faces)
+    let kept = faces::remove_unreferenced_vertices(&kept);
+    // A whole tooth this dense is an isosurface export: its voxel
+    // staircase is smoothed away before the decimation, which would keep
+    // the stairs' corners as sharp features.
+    let kept = if is_whole(&kept, opts.crown) {
+        crown::staircase_smoothed(&kept)
+    } else {
+        kept
+    };
+    decimated_orientable(&kept, early_faces)
 }
 
 /// Faces of a whole tooth on which its margin is searched: the crown
@@ -348,6 +393,18 @@ fn decimated_orientable(m: &Mesh, target: usize) -> Option<Mesh> {
     first
 }
 
+/// Whether the closed or nearly closed surface `m` (one component) has
+/// handles: its holes filled, its Euler characteristic is below a
+/// sphere's.
+fn has_handles(m: &Mesh) -> bool {
+    euler_characteristic(&holes::fill_all_holes(m).0) < 2
+}
+
+/// Samples along the longest side of the grid through which a whole
+/// tooth with handles is taken ([`voxelize::revoxelized`]): the crown
+/// keeps about 100 across, more than the working resolution's 70.
+const REVOXEL_SAMPLES: usize = 224;
+
 /// Whether `m` is a closed or nearly closed surface (a whole tooth, not a
 /// cropped crown).
 fn is_whole(m: &Mesh, crown: CrownMode) -> bool {
@@ -361,17 +418,17 @@ fn is_whole(m: &Mesh, crown: CrownMode) -> bool {
 /// filled first, counted in the crown report); anything else is returned
 /// unchanged.
 fn cut_whole_tooth(
-    m: Mesh,
+    m: &Mesh,
     report: &mut CleanReport,
     crown: CrownMode,
 ) -> Result<Mesh, CleanError> {
-    if !is_whole(&m, crown) {
-        return Ok(m);
+    if !is_whole(m, crown) {
+        return Ok(m.clone());
     }
     if crown == CrownMode::Off {
         return Err(CleanError::Closed);
     }
-    let (closed, filled) = holes::fill_all_holes(&m);
+    let (closed, filled) = holes::fill_all_holes(m);
     let cut = crown::extract_crown(&closed)?;
     let mut crown_report = cut.report;
     crown_report.filled_holes = filled;
@@ -438,6 +495,15 @@ pub fn clean(mesh: &Mesh, opts: &CleanOptions) -> Result<Cleaned, CleanError> {
     let reference = resample::SurfaceReference::new(&m3).ok_or(CleanError::TooFewFaces(0))?;
     let (out, flips) = resample::improve_triangles(&m4, &reference, opts.relax_iterations);
     report.edge_flips = flips;
+    // A relaxed sliver can end up flat (three points on a line), which the
+    // flattening refuses: its shortest edge is collapsed.
+    let d = bbox_diagonal(&out);
+    let (out, slivers) = faces::remove_degenerate_faces(&out, 1e-12 * d * d);
+    let out = if slivers > 0 {
+        faces::remove_unreferenced_vertices(&out)
+    } else {
+        out
+    };
     let loops = boundary_loops(&out).len();
     let chi = euler_characteristic(&out);
     if loops != 1 || chi != 1 {

@@ -6,6 +6,8 @@
 //! - `graph`: edge-path distances and breadth-first orders;
 //! - `subdivide`: midpoint subdivision;
 //! - `disk`: the triangulated unit disk;
+//! - `grid`, `isosurface`: a scalar field on a regular grid and its
+//!   closed isosurface (marching tetrahedra);
 //! - [`io`]: reading and writing files;
 //! - [`synth`]: the synthetic surface generator (tests and the demo only;
 //!   nothing numerical depends on it).
@@ -13,7 +15,9 @@
 mod axes;
 mod disk;
 mod graph;
+mod grid;
 pub mod io;
+mod isosurface;
 mod subdivide;
 pub mod synth;
 mod topology;
@@ -22,6 +26,8 @@ pub use axes::{principal_axes, weighted_principal_axes, PrincipalAxes};
 pub use disk::unit_disk;
 pub(crate) use graph::HeapItem;
 pub use graph::{breadth_first_tree, graph_distance};
+pub use grid::Grid;
+pub use isosurface::isosurface;
 pub use subdivide::subdivide_midpoint;
 pub use topology::{
     boundary_loop_extent, boundary_loop_length, boundary_loops, boundary_loops_by_length,

@@ -2,7 +2,7 @@
 //! surface that lies over the brighter material, cut along the level where
 //! the density just inside the surface crosses the enamel threshold.
 
-use super::grid::Grid;
+use crate::mesh::Grid;
 use crate::mesh::{edge_key, face_areas, vertex_adjacency, EdgeKey, Mesh};
 use rustc_hash::FxHashMap;
 

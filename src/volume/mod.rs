@@ -7,7 +7,7 @@
 //! levels (multi-level Otsu) and finds the enamel level, `specimen` takes
 //! the densest large object that is not mounting material (foam, a tube,
 //! wax, a pin: `shape` holds the shape rules), `segment` labels components
-//! and fills internal cavities, `isosurface` extracts the closed
+//! and fills internal cavities, `mesh::isosurface` extracts the closed
 //! surface (marching tetrahedra), and `enamel` cuts the crown where the
 //! surface lies over enamel. Without enamel contrast the closed surface is
 //! returned for the cleaning step's own crown extraction.
@@ -15,8 +15,6 @@
 mod dicom;
 mod dicom_scan;
 mod enamel;
-mod grid;
-mod isosurface;
 mod nifti;
 mod nrrd;
 mod reduce;
@@ -30,8 +28,9 @@ mod threshold;
 
 pub use dicom::slice_positions_along_normal;
 pub use enamel::{cut_at_zero_level, largest_part};
-pub use grid::Grid;
-pub use isosurface::isosurface;
+// The grid and its isosurface are geometry (the cleaning re-voxelizes
+// noisy whole teeth with them): they live in `mesh`.
+pub use crate::mesh::{isosurface, Grid};
 pub use reduce::{reduction_factor, BlockAverage};
 pub use segment::{connected_components, fill_cavities, specimen_mask, SegmentReport};
 pub use shape::{dilate_cube, erode_cube, local_variation, object_stats, open_cube, ObjectStats};

@@ -2,7 +2,7 @@
 //! slice is added into the block it falls in as it is read, so only the
 //! reduced volume and one slice are ever in memory.
 
-use super::grid::Grid;
+use crate::mesh::Grid;
 
 /// The integer block size that brings the largest of `dims` to at most
 /// `working` samples.

@@ -74,6 +74,32 @@ fn fit(extracted: &Mesh, original: &Mesh) -> Fit {
     }
 }
 
+/// Lowest and highest point of the crop line of `crop` along `axis`, as a
+/// fraction of `whole`'s length along it (0 at the root end): where the
+/// cut should lie, in the terms of `CrownReport::cut_height_min`/`max`.
+fn crop_line_heights(whole: &Mesh, crop: &Mesh, axis: [f64; 3]) -> (f64, f64) {
+    let h = |p: [f64; 3]| morphoid::mesh::dot(p, axis);
+    let lo = whole
+        .vertices
+        .iter()
+        .map(|&p| h(p))
+        .fold(f64::MAX, f64::min);
+    let hi = whole
+        .vertices
+        .iter()
+        .map(|&p| h(p))
+        .fold(f64::MIN, f64::max);
+    let rim = morphoid::mesh::longest_boundary_loop(crop).unwrap_or_default();
+    let t: Vec<f64> = rim
+        .iter()
+        .map(|&v| (h(crop.vertices[v as usize]) - lo) / (hi - lo))
+        .collect();
+    (
+        t.iter().copied().fold(f64::MAX, f64::min),
+        t.iter().copied().fold(f64::MIN, f64::max),
+    )
+}
+
 /// What one run found.
 struct Run {
     prepared: Vec<morphoid::cp::Prepared>,
@@ -168,12 +194,16 @@ fn run_kind(kind: Kind, step: usize, through_binary: bool) -> Option<Run> {
                 Ok(out) => {
                     let f = fit(&out.cleaned, &moved(&original));
                     let crown = out.cleaning.crown.clone();
+                    let truth = crown
+                        .as_ref()
+                        .map(|c| crop_line_heights(&moved(&tooth.mesh), &moved(&original), c.occlusal));
                     println!(
-                        "{}: mean {:.4} area {:.3} cut {:?}",
+                        "{}: mean {:.4} area {:.3} cut {:?} crop line {:?}",
                         line(seconds),
                         f.mean,
                         f.area_ratio,
-                        crown.map(|c| (c.method, c.cut_height_min, c.cut_height_max))
+                        crown.map(|c| (c.method, c.cut_height_min, c.cut_height_max)),
+                        truth
                     );
                     Ok((name.clone(), f, Some(out.prepared)))
                 }

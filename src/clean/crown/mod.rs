@@ -114,6 +114,11 @@ pub struct CrownReport {
     /// crease less 0.1 × its rise and fall (what ranks the loops found
     /// about the different axes; 0 to 1).
     pub margin_merit: f64,
+    /// Whether the whole tooth had handles (the tunnels of a thresholded
+    /// export) and was cut after being taken through a voxel grid that
+    /// closes them.
+    #[serde(default)]
+    pub revoxelized: bool,
 }
 
 /// Why no crown could be cut from a closed surface.
@@ -643,6 +648,7 @@ fn judge(
         margin_merit: 0.0,
         // Set by the caller, which knows the neck it followed.
         neck_bulge: 0.0,
+        revoxelized: false,
     })
 }
 
@@ -690,6 +696,15 @@ fn smoothing_iterations(mesh: &Mesh) -> usize {
     }
     let ratio = 0.004 * bbox_diagonal(mesh) / edge;
     (ratio * ratio).round().clamp(0.0, 30.0) as usize
+}
+
+/// `mesh` smoothed just enough that the voxel staircase of an isosurface
+/// export goes (see [`smoothing_iterations`]); its connectivity kept.
+pub(super) fn staircase_smoothed(mesh: &Mesh) -> Mesh {
+    Mesh::new(
+        taubin_smoothed(mesh, smoothing_iterations(mesh)),
+        mesh.faces.clone(),
+    )
 }
 
 /// Cut the crown from a closed, consistently oriented, manifold surface

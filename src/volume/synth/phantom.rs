@@ -1,8 +1,8 @@
 //! Voxelizing a closed whole tooth into a grey-value phantom.
 
-use super::super::grid::Grid;
 use crate::clean::TriangleGrid;
 use crate::mesh::synth::WholeTooth;
+use crate::mesh::Grid;
 use crate::mesh::{bbox_diagonal, bounding_box, Mesh};
 use rayon::prelude::*;
 

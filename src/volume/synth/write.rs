@@ -2,7 +2,7 @@
 //! readers take. Slices are made and written one at a time, so a stack far
 //! larger than memory can be written.
 
-use super::super::grid::Grid;
+use crate::mesh::Grid;
 use rand::{Rng, SeedableRng};
 use std::io::Write;
 use std::path::Path;
