@@ -8,9 +8,9 @@
 //! the densest large object that is not mounting material (foam, a tube,
 //! wax, a pin: `shape` holds the shape rules), `segment` labels components
 //! and fills internal cavities, `mesh::isosurface` extracts the closed
-//! surface (marching tetrahedra), and `enamel` cuts the crown where the
-//! surface lies over enamel. Without enamel contrast the closed surface is
-//! returned for the cleaning step's own crown extraction.
+//! surface (marching tetrahedra). The closed surface is returned for the
+//! cleaning step's crown extraction; with `[volume] enamel = true`,
+//! `enamel` cuts the crown where the surface lies over enamel instead.
 
 mod dicom;
 mod dicom_scan;
@@ -298,8 +298,8 @@ pub fn working_grid_from_bytes(
 }
 
 /// The surface of the specimen in a working grid: the stages of
-/// [`surface_from_path`] after reading (segmentation, isosurface, the
-/// crown cut over enamel). `name` only labels errors.
+/// [`surface_from_path`] after reading (segmentation, isosurface, and
+/// with `enamel` the crown cut over enamel). `name` only labels errors.
 pub fn surface_from_grid(
     grid: &Grid,
     opts: &VolumeOptions,
@@ -448,8 +448,8 @@ struct GridSurfaceReport {
     pub crown_ms: f64,
 }
 
-/// Read the volume at `path` and make its surface (the crown over enamel
-/// where the scan shows enamel, else the closed surface).
+/// Read the volume at `path` and make its surface: the closed surface,
+/// or with `opts.enamel` the crown over enamel where the scan shows it.
 pub fn surface_from_path(path: &Path, opts: &VolumeOptions) -> Result<VolumeSurface, VolumeError> {
     surface_from_path_as(path, opts, false).map(|(surface, _)| surface)
 }
