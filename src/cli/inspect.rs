@@ -188,14 +188,16 @@ fn inspect(args: &Args, opts: &CleanOptions, volume_opts: &VolumeOptions) -> Res
 
 fn print_human(r: &Report) {
     println!("{}: ok", r.file);
+    // A volume's surface is the isosurface of its specimen: named by the
+    // volume's format, since the mesh has none.
+    let format = match (&r.input.format, &r.volume) {
+        (Some(f), _) => format!("{f:?}").to_lowercase(),
+        (None, Some(v)) => format!("isosurface of a {:?} volume", v.input.format).to_lowercase(),
+        (None, None) => "unknown format".to_string(),
+    };
     println!(
-        "  input   {:>8} vertices {:>8} faces ({})",
-        r.input.vertices,
-        r.input.faces,
-        r.input
-            .format
-            .map(|f| format!("{f:?}").to_lowercase())
-            .unwrap_or_default()
+        "  input   {:>8} vertices {:>8} faces ({format})",
+        r.input.vertices, r.input.faces,
     );
     println!(
         "  output  {:>8} vertices {:>8} faces, {} boundary loop(s), Euler characteristic {}",
@@ -211,8 +213,13 @@ fn print_human(r: &Report) {
     );
     if let Some(c) = &r.crown {
         println!(
-            "  crown cut from a closed whole tooth ({}): kept area {:.6}, removed {:.6} ({} faces), crease {:.1}°, cut at {:.2}–{:.2} of the tooth's length (mean {:.2}), filled {} holes, removed {} handles",
+            "  crown cut from a closed whole tooth ({}{}): kept area {:.6}, removed {:.6} ({} faces), crease {:.1}°, cut at {:.2}–{:.2} of the tooth's length (mean {:.2}), filled {} holes, removed {} handles",
             c.method,
+            if c.revoxelized {
+                ", after a voxel grid closed its handles"
+            } else {
+                ""
+            },
             c.kept_area,
             c.removed_area,
             c.removed_faces,

@@ -59,8 +59,8 @@ fn build(args: &ConfigArgs, file: ConfigFile) -> Result<ExitCode> {
     );
     // The confidence calibration is part of the library: its distances
     // among the references are computed now (once; then from the cache),
-    // not at the first scan.
-    if out.references().len() >= library::MIN_HELD {
+    // not at the first scan; not at all with `[library] calibrate = false`.
+    if config.library.calibrate && out.references().len() >= library::MIN_HELD {
         let n = out.references().len();
         let bar = progress_bar(library::calibration_pairs(n) as u64, "calibrating");
         let distances = library::reference_distances(

@@ -199,3 +199,38 @@ fn names_with_commas_quotes_and_line_breaks_round_trip() {
     assert_eq!(v["specimens"], 3, "{v}");
     assert_eq!(v["ranks"][0]["total"], 3, "{v}");
 }
+
+/// `library build` calibrates the confidence as the classifier does: not
+/// with `[library] calibrate = false`.
+#[test]
+fn library_build_calibrates_only_when_the_configuration_says_so() {
+    let lib = tempfile::tempdir().unwrap();
+    let spec = LibrarySpec {
+        per_genus: 2,
+        target_vertices: 600,
+        seed: 22,
+        random_pose: false,
+    };
+    write_synthetic_library(lib.path(), &spec).unwrap();
+    let work = tempfile::tempdir().unwrap();
+    for calibrate in [false, true] {
+        let config = work.path().join(format!("{calibrate}.toml"));
+        std::fs::write(
+            &config,
+            format!(
+                "[library]\ndir = {:?}\ncache = {:?}\nranks = [\"genus\"]\ncalibrate = {calibrate}\n",
+                s(lib.path()),
+                s(&work.path().join("cache"))
+            ),
+        )
+        .unwrap();
+        let o = morphoid(&["library", "build", "--config", s(&config)]);
+        let out = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert_eq!(
+            out.contains("calibration genus"),
+            calibrate,
+            "calibrate = {calibrate}: {out}"
+        );
+    }
+}
