@@ -363,10 +363,21 @@ fn margin_loop(
             )
         })
         .collect();
-    let graph = cycle::WindingGraph::new(&angles, &edges, &allowed);
-    let mut sources = graph.seam_vertices();
-    sources.sort_by(|&a, &b| cheapest[a as usize].total_cmp(&cheapest[b as usize]));
-    let found = cycle::cheapest_winding_cycle(&graph, &sources)?;
+    let search = |allowed: &[bool]| {
+        let graph = cycle::WindingGraph::new(&angles, &edges, allowed);
+        let mut sources = graph.seam_vertices();
+        sources.sort_by(|&a, &b| cheapest[a as usize].total_cmp(&cheapest[b as usize]));
+        cycle::cheapest_winding_cycle(&graph, &sources)
+    };
+    let found = match search(&allowed) {
+        Some(found) => found,
+        // The neck's window leaves a gap somewhere round the tooth (a
+        // sector whose outline bends at the furcation, not at the neck):
+        // the loop may leave the window there, still drawn to the neck by
+        // the edges' weights.
+        None if neck.is_some() => search(&margin_vertices(mesh, &cyl, None))?,
+        None => return None,
+    };
     let points: Vec<[f64; 3]> = found
         .vertices
         .iter()
