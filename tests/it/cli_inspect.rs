@@ -14,40 +14,32 @@ fn morphoid(args: &[&str]) -> Output {
 }
 
 /// `morphoid args` run to its end, with its own peak resident memory in
-/// MB. (`getrusage(RUSAGE_CHILDREN)` would count every child of the test
-/// process, the daemons of tests running beside this one included.)
-// The child is reaped by `wait4`, which std's `wait` cannot stand in for.
-#[allow(clippy::zombie_processes)]
+/// MB.
 fn morphoid_with_peak_rss(args: &[&str]) -> (Output, f64) {
-    use std::io::Read;
-    use std::os::unix::process::ExitStatusExt;
-    let mut child = Command::new(env!("CARGO_BIN_EXE_morphoid"))
+    // The peak is measured by GNU time, not by wait4 here: a child forked
+    // from this test process carries the process's own peak memory (that
+    // of the other tests running in it) across exec into its ru_maxrss;
+    // one forked from `time` starts small.
+    const MARK: &str = "morphoid-peak-kb ";
+    let out = Command::new("/usr/bin/time")
+        .arg("-q")
+        .arg("-f")
+        .arg(format!("{MARK}%M"))
+        .arg(env!("CARGO_BIN_EXE_morphoid"))
         .args(args)
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .expect("the morphoid binary runs");
-    let mut out = child.stdout.take().unwrap();
-    let mut err = child.stderr.take().unwrap();
-    let reader = std::thread::spawn(move || {
-        let mut v = Vec::new();
-        out.read_to_end(&mut v).unwrap();
-        v
-    });
-    let mut stderr = Vec::new();
-    err.read_to_end(&mut stderr).unwrap();
-    let stdout = reader.join().unwrap();
-    let (mut status, mut usage) = (0i32, unsafe { std::mem::zeroed::<libc::rusage>() });
-    // SAFETY: wait4 only writes into the two values we pass; the child is
-    // reaped here and never waited for again.
-    let pid = unsafe { libc::wait4(child.id() as i32, &mut status, 0, &mut usage) };
-    assert_eq!(pid, child.id() as i32);
+        .output()
+        .expect("/usr/bin/time runs (Debian package `time`; .ci/run installs it)");
+    let text = String::from_utf8_lossy(&out.stderr).into_owned();
+    let (rest, peak) = text
+        .rsplit_once(MARK)
+        .unwrap_or_else(|| panic!("no peak from /usr/bin/time in: {text}"));
+    let kb: f64 = peak.trim().parse().expect("a peak in kilobytes");
     let output = Output {
-        status: std::process::ExitStatus::from_raw(status),
-        stdout,
-        stderr,
+        status: out.status,
+        stdout: out.stdout,
+        stderr: rest.as_bytes().to_vec(),
     };
-    (output, usage.ru_maxrss as f64 / 1024.0) // Linux reports kilobytes
+    (output, kb / 1024.0)
 }
 
 fn json_of(out: &Output) -> serde_json::Value {
