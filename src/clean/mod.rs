@@ -270,31 +270,37 @@ fn make_disk_of(
         report.predecimated_faces = report.predecimated_faces.max(m8.faces.len());
         return make_disk_of(&coarser, report, crown, revoxelized);
     }
-    let m8 = match cut_whole_tooth(&m8, report, crown) {
-        Ok(cut) => cut,
-        // A tooth is a ball: handles are the tunnels a thresholded export
-        // leaves where voxels touch along an edge, and a margin loop
-        // through one does not cut the surface in two. The same solid
-        // without them goes through these steps once more.
-        Err(e) if crown == CrownMode::Auto && !revoxelized && has_handles(&m8) => {
-            let Some(solid) = voxelize::revoxelized(&holes::fill_all_holes(&m8).0, REVOXEL_SAMPLES)
-            else {
-                return Err(e);
-            };
-            tracing::debug!(
-                faces = solid.faces.len(),
-                "whole tooth with handles re-voxelized"
-            );
-            let disk = make_disk_of(&solid, report, crown, true).map_err(|inner| {
-                tracing::debug!("re-voxelized: {inner}");
-                e
-            })?;
-            if let Some(c) = report.crown.as_mut() {
-                c.revoxelized = true;
+    let m8 = if !is_whole(&m8, crown) {
+        m8
+    } else if crown == CrownMode::Off {
+        return Err(CleanError::Closed);
+    } else {
+        let (closed, filled) = holes::fill_all_holes(&m8);
+        match cut_whole_tooth(&closed, filled, report) {
+            Ok(cut) => cut,
+            // A tooth is a ball: handles are the tunnels a thresholded
+            // export leaves where voxels touch along an edge, and a margin
+            // loop through one does not cut the surface in two. The same
+            // solid without them goes through these steps once more.
+            Err(e) if !revoxelized && euler_characteristic(&closed) < 2 => {
+                let Some(solid) = voxelize::revoxelized(&closed, REVOXEL_SAMPLES) else {
+                    return Err(e);
+                };
+                tracing::debug!(
+                    faces = solid.faces.len(),
+                    "whole tooth with handles re-voxelized"
+                );
+                let disk = make_disk_of(&solid, report, crown, true).map_err(|inner| {
+                    tracing::debug!("re-voxelized: {inner}");
+                    e
+                })?;
+                if let Some(c) = report.crown.as_mut() {
+                    c.revoxelized = true;
+                }
+                return Ok(disk);
             }
-            return Ok(disk);
+            Err(e) => return Err(e),
         }
-        Err(e) => return Err(e),
     };
     let (m9, filled) = holes::fill_holes_except_longest(&m8);
     report.filled_holes += filled;
@@ -393,13 +399,6 @@ fn decimated_orientable(m: &Mesh, target: usize) -> Option<Mesh> {
     first
 }
 
-/// Whether the closed or nearly closed surface `m` (one component) has
-/// handles: its holes filled, its Euler characteristic is below a
-/// sphere's.
-fn has_handles(m: &Mesh) -> bool {
-    euler_characteristic(&holes::fill_all_holes(m).0) < 2
-}
-
 /// Samples along the longest side of the grid through which a whole
 /// tooth with handles is taken ([`voxelize::revoxelized`]): the crown
 /// keeps about 100 across, more than the working resolution's 70.
@@ -414,22 +413,14 @@ fn is_whole(m: &Mesh, crown: CrownMode) -> bool {
     }
 }
 
-/// Step 7: a closed or nearly closed surface is cut to its crown (holes
-/// filled first, counted in the crown report); anything else is returned
-/// unchanged.
+/// Step 7: a whole tooth, its holes filled (`filled` of them), cut to
+/// its crown; the crown report goes into `report`.
 fn cut_whole_tooth(
-    m: &Mesh,
+    closed: &Mesh,
+    filled: usize,
     report: &mut CleanReport,
-    crown: CrownMode,
 ) -> Result<Mesh, CleanError> {
-    if !is_whole(m, crown) {
-        return Ok(m.clone());
-    }
-    if crown == CrownMode::Off {
-        return Err(CleanError::Closed);
-    }
-    let (closed, filled) = holes::fill_all_holes(m);
-    let cut = crown::extract_crown(&closed)?;
+    let cut = crown::extract_crown(closed)?;
     let mut crown_report = cut.report;
     crown_report.filled_holes = filled;
     report.crown = Some(crown_report);

@@ -1,5 +1,10 @@
 //! A scalar field sampled on a regular grid: the volume at working
-//! resolution, and the phantoms the generators build.
+//! resolution, the phantoms the generators build, and the solids the
+//! cleaning takes through a grid; the parity test of a closed surface's
+//! inside and the Gaussian blur are defined here once.
+
+use super::Mesh;
+use rayon::prelude::*;
 
 /// Values on a regular grid, `x` fastest, then `y`, then `z`.
 #[derive(Debug, Clone, PartialEq)]
@@ -73,6 +78,123 @@ impl Grid {
             .map(|a| (self.dims[a].saturating_sub(1)) as f64 * self.spacing[a])
             .fold(0.0, f64::max)
     }
+
+    /// Blur by a separable Gaussian of standard deviation `sigma` samples
+    /// (clamped at the edges); nothing for `sigma ≤ 0`.
+    pub fn gaussian_blur(&mut self, sigma: f64) {
+        if sigma.is_nan() || sigma <= 0.0 {
+            return;
+        }
+        let r = (3.0 * sigma).ceil() as i64;
+        let kernel: Vec<f64> = (-r..=r)
+            .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp())
+            .collect();
+        let sum: f64 = kernel.iter().sum();
+        let kernel: Vec<f64> = kernel.iter().map(|k| k / sum).collect();
+        let dims = self.dims;
+        let strides = [1, dims[0], dims[0] * dims[1]];
+        for axis in 0..3 {
+            let n = dims[axis] as i64;
+            let src = self.values.clone();
+            self.values.par_iter_mut().enumerate().for_each(|(i, out)| {
+                let pos = ((i / strides[axis]) % dims[axis]) as i64;
+                let mut acc = 0.0;
+                for (k, w) in kernel.iter().enumerate() {
+                    let j = (pos + k as i64 - r).clamp(0, n - 1);
+                    let idx = (i as i64 + (j - pos) * strides[axis] as i64) as usize;
+                    acc += w * f64::from(src[idx]);
+                }
+                *out = acc as f32;
+            });
+        }
+    }
+}
+
+/// Whether each sample of `grid` lies inside the closed surface `mesh`: the
+/// crossings of the line of samples along `axis` through it, in parity
+/// (the two other axes in cyclic order name the lines).
+pub fn inside_by_parity(mesh: &Mesh, grid: &Grid, axis: usize) -> Vec<bool> {
+    let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+    let (n, nu, nv) = (grid.dims[axis], grid.dims[u], grid.dims[v]);
+    // Faces binned by the lines (u, v) their projection may cover.
+    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); nu * nv];
+    let line = |p: f64, a: usize| (p - grid.origin[a]) / grid.spacing[a];
+    for (fi, f) in mesh.faces.iter().enumerate() {
+        let ps = f.map(|i| mesh.vertices[i as usize]);
+        let (ulo, uhi) = span(ps.map(|p| line(p[u], u)), nu);
+        let (vlo, vhi) = span(ps.map(|p| line(p[v], v)), nv);
+        for iv in vlo..vhi {
+            for iu in ulo..uhi {
+                bins[iu + nu * iv].push(fi as u32);
+            }
+        }
+    }
+    let lines: Vec<Vec<bool>> = (0..nu * nv)
+        .into_par_iter()
+        .map(|r| {
+            let (iu, iv) = (r % nu, r / nu);
+            // A tiny irrational offset keeps the line off edges and vertices.
+            let pu = grid.origin[u] + iu as f64 * grid.spacing[u] + 1.234_567e-7 * grid.spacing[u];
+            let pv = grid.origin[v] + iv as f64 * grid.spacing[v] + 2.345_678e-7 * grid.spacing[v];
+            let mut ts: Vec<f64> = bins[r]
+                .iter()
+                .filter_map(|&fi| {
+                    let t = mesh.faces[fi as usize].map(|i| mesh.vertices[i as usize]);
+                    line_crossing(t, axis, pu, pv)
+                })
+                .collect();
+            ts.sort_by(f64::total_cmp);
+            let mut out = vec![false; n];
+            for pair in ts.chunks_exact(2) {
+                let lo = ((pair[0] - grid.origin[axis]) / grid.spacing[axis])
+                    .ceil()
+                    .max(0.0) as usize;
+                let hi = ((pair[1] - grid.origin[axis]) / grid.spacing[axis]).floor();
+                if hi < 0.0 {
+                    continue;
+                }
+                for x in out.iter_mut().take((hi as usize + 1).min(n)).skip(lo) {
+                    *x = true;
+                }
+            }
+            out
+        })
+        .collect();
+    let mut inside = vec![false; grid.values.len()];
+    for (r, line) in lines.iter().enumerate() {
+        let (iu, iv) = (r % nu, r / nu);
+        for (i, &x) in line.iter().enumerate() {
+            let mut c = [0usize; 3];
+            c[axis] = i;
+            c[u] = iu;
+            c[v] = iv;
+            inside[grid.index(c[0], c[1], c[2])] = x;
+        }
+    }
+    inside
+}
+
+/// The samples `lo..hi` whose index lies within the range of `c`.
+fn span(c: [f64; 3], n: usize) -> (usize, usize) {
+    let lo = c.iter().copied().fold(f64::MAX, f64::min).ceil().max(0.0) as usize;
+    let hi =
+        (c.iter().copied().fold(f64::MIN, f64::max).floor() + 1.0).clamp(0.0, n as f64) as usize;
+    (lo.min(n), hi)
+}
+
+/// Where the line along `axis` through (`pu`, `pv`) on the two other axes
+/// crosses triangle `t`, if it does.
+fn line_crossing(t: [[f64; 3]; 3], axis: usize, pu: f64, pv: f64) -> Option<f64> {
+    let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+    let [a, b, c] = t;
+    let d = (b[u] - a[u]) * (c[v] - a[v]) - (c[u] - a[u]) * (b[v] - a[v]);
+    if d.abs() < 1e-300 {
+        return None;
+    }
+    let s = ((pu - a[u]) * (c[v] - a[v]) - (c[u] - a[u]) * (pv - a[v])) / d;
+    let r = ((b[u] - a[u]) * (pv - a[v]) - (pu - a[u]) * (b[v] - a[v])) / d;
+    (s >= 0.0 && r >= 0.0 && s + r <= 1.0)
+        .then(|| a[axis] + s * (b[axis] - a[axis]) + r * (c[axis] - a[axis]))
 }
 
 #[cfg(test)]

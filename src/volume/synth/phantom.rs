@@ -2,8 +2,8 @@
 
 use crate::clean::TriangleGrid;
 use crate::mesh::synth::WholeTooth;
-use crate::mesh::Grid;
-use crate::mesh::{bbox_diagonal, bounding_box, Mesh};
+use crate::mesh::{bbox_diagonal, bounding_box};
+use crate::mesh::{inside_by_parity, Grid};
 use rayon::prelude::*;
 
 /// How a whole tooth becomes a phantom.
@@ -35,105 +35,6 @@ impl Default for PhantomParams {
     }
 }
 
-/// Whether each sample centre of the grid lies inside the closed `mesh`:
-/// the crossings of a ray along x through each row, in parity.
-fn inside_mask(mesh: &Mesh, grid: &Grid) -> Vec<bool> {
-    let [nx, ny, nz] = grid.dims;
-    // Faces binned by the rows (y, z) their projection may cover.
-    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); ny * nz];
-    let row = |p: f64, a: usize| (p - grid.origin[a]) / grid.spacing[a];
-    for (fi, f) in mesh.faces.iter().enumerate() {
-        let ps = f.map(|v| mesh.vertices[v as usize]);
-        let (ylo, yhi) = span(ps.map(|p| row(p[1], 1)), ny);
-        let (zlo, zhi) = span(ps.map(|p| row(p[2], 2)), nz);
-        for z in zlo..zhi {
-            for y in ylo..yhi {
-                bins[y + ny * z].push(fi as u32);
-            }
-        }
-    }
-    let rows: Vec<Vec<bool>> = (0..ny * nz)
-        .into_par_iter()
-        .map(|r| {
-            let (y, z) = (r % ny, r / ny);
-            // A tiny irrational offset keeps the ray off edges and vertices.
-            let py = grid.origin[1] + y as f64 * grid.spacing[1] + 1.234_567e-7 * grid.spacing[1];
-            let pz = grid.origin[2] + z as f64 * grid.spacing[2] + 2.345_678e-7 * grid.spacing[2];
-            let mut xs: Vec<f64> = bins[r]
-                .iter()
-                .filter_map(|&fi| {
-                    let [a, b, c] = mesh.faces[fi as usize].map(|v| mesh.vertices[v as usize]);
-                    ray_x_crossing([a, b, c], py, pz)
-                })
-                .collect();
-            xs.sort_by(f64::total_cmp);
-            let mut out = vec![false; nx];
-            for pair in xs.chunks_exact(2) {
-                let lo = ((pair[0] - grid.origin[0]) / grid.spacing[0])
-                    .ceil()
-                    .max(0.0) as usize;
-                let hi = ((pair[1] - grid.origin[0]) / grid.spacing[0]).floor();
-                if hi < 0.0 {
-                    continue;
-                }
-                for v in out.iter_mut().take((hi as usize + 1).min(nx)).skip(lo) {
-                    *v = true;
-                }
-            }
-            out
-        })
-        .collect();
-    rows.into_iter().flatten().collect()
-}
-
-fn span(c: [f64; 3], n: usize) -> (usize, usize) {
-    let lo = c.iter().copied().fold(f64::MAX, f64::min).ceil().max(0.0) as usize;
-    let hi =
-        (c.iter().copied().fold(f64::MIN, f64::max).floor() + 1.0).clamp(0.0, n as f64) as usize;
-    (lo.min(n), hi)
-}
-
-/// The x where the line {y = py, z = pz} crosses triangle `t`, if it does.
-fn ray_x_crossing(t: [[f64; 3]; 3], py: f64, pz: f64) -> Option<f64> {
-    let [a, b, c] = t;
-    let d = (b[1] - a[1]) * (c[2] - a[2]) - (c[1] - a[1]) * (b[2] - a[2]);
-    if d.abs() < 1e-300 {
-        return None;
-    }
-    let u = ((py - a[1]) * (c[2] - a[2]) - (c[1] - a[1]) * (pz - a[2])) / d;
-    let v = ((b[1] - a[1]) * (pz - a[2]) - (py - a[1]) * (b[2] - a[2])) / d;
-    (u >= 0.0 && v >= 0.0 && u + v <= 1.0).then(|| a[0] + u * (b[0] - a[0]) + v * (c[0] - a[0]))
-}
-
-/// Separable Gaussian blur of `grid` with standard deviation `sigma` samples.
-fn gaussian_blur(grid: &mut Grid, sigma: f64) {
-    if sigma <= 0.0 {
-        return;
-    }
-    let r = (3.0 * sigma).ceil() as i64;
-    let kernel: Vec<f64> = (-r..=r)
-        .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp())
-        .collect();
-    let sum: f64 = kernel.iter().sum();
-    let kernel: Vec<f64> = kernel.iter().map(|k| k / sum).collect();
-    let dims = grid.dims;
-    let strides = [1, dims[0], dims[0] * dims[1]];
-    for axis in 0..3 {
-        let n = dims[axis] as i64;
-        let src = grid.values.clone();
-        grid.values.par_iter_mut().enumerate().for_each(|(i, out)| {
-            let pos = ((i / strides[axis]) % dims[axis]) as i64;
-            let mut acc = 0.0;
-            for (k, w) in kernel.iter().enumerate() {
-                let j = (pos + k as i64 - r).clamp(0, n - 1);
-                let idx = (i as i64 + (j - pos) * strides[axis] as i64) as usize;
-                acc += w * f64::from(src[idx]);
-            }
-            *out = acc as f32;
-        });
-    }
-}
-
 /// A blurred grey-value phantom of `tooth`: air outside, dentine inside,
 /// enamel within `enamel_thickness` of the crown faces.
 pub fn phantom(tooth: &WholeTooth, params: &PhantomParams) -> Grid {
@@ -149,7 +50,7 @@ pub fn phantom(tooth: &WholeTooth, params: &PhantomParams) -> Grid {
     let dims = [0, 1, 2].map(|a| ((hi[a] - lo[a]) / h).ceil() as usize + 1 + 2 * params.margin);
     let origin = [0, 1, 2].map(|a| lo[a] - m * h);
     let mut grid = Grid::filled(dims, origin, [h; 3], params.levels[0]);
-    let inside = inside_mask(mesh, &grid);
+    let inside = inside_by_parity(mesh, &grid, 0);
     let thickness = params.enamel_thickness * bbox_diagonal(mesh);
     // Only samples within the enamel thickness of the outside can be
     // enamel: find them by a breadth-first depth from the outside.
@@ -179,7 +80,7 @@ pub fn phantom(tooth: &WholeTooth, params: &PhantomParams) -> Grid {
         }
     });
     let _ = l0;
-    gaussian_blur(&mut grid, params.blur);
+    grid.gaussian_blur(params.blur);
     grid
 }
 
@@ -221,7 +122,7 @@ mod tests {
     fn a_voxelized_sphere_has_its_volume() {
         let s = closed_sphere(3000);
         let g = Grid::filled([40, 40, 40], [-1.3; 3], [2.6 / 39.0; 3], 0.0);
-        let inside = inside_mask(&s, &g);
+        let inside = inside_by_parity(&s, &g, 0);
         let vol = inside.iter().filter(|&&b| b).count() as f64 * (2.6f64 / 39.0).powi(3);
         let r = s
             .vertices
