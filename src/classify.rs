@@ -15,7 +15,7 @@ use crate::eval::Labels;
 use crate::landmarks::{self, Landmarks, PropagateError, Surface};
 use crate::library::{
     self, BuildOutcome, Cache, CacheError, CachedReference, Calibration, DistanceRow,
-    LandmarkPoint, Library, ScanLandmarks, ScanOutcome,
+    LandmarkPoint, Library, ScanLandmarks, ScanOutcome, SpecimenOutcome, SpecimensOutcome,
 };
 use crate::pipeline::{self, PipelineError, PreparedSurface, Settings};
 use crate::report::{Scene, SceneReference};
@@ -492,10 +492,68 @@ impl Classifier {
                 )))
             }
         }
-        let surface = pipeline::prepare_loaded(loaded, path, &self.settings)?;
-        let load_ms = surface.timings.load;
-        let outcome = self.compare_prepared(&name, &surface, load_ms);
-        Ok(Read::Identified(Box::new((outcome, surface))))
+        if loaded.specimens.len() == 1 {
+            let surface = pipeline::prepare_loaded(loaded, path, &self.settings)?;
+            let load_ms = surface.timings.load;
+            let outcome = self.compare_prepared(&name, &surface, load_ms);
+            return Ok(Read::Identified(Box::new((outcome, surface))));
+        }
+        // Several specimens: each identified on its own.
+        let segmentation = serde_json::json!({
+            "specimens": loaded.specimens.len(),
+            "volume": loaded.volume.as_ref().map(|v| &v.segmentation),
+            "split": loaded.split,
+        });
+        let load_ms = loaded.load_ms;
+        tracing::info!(
+            "{}: {} specimens, identified one by one",
+            path.display(),
+            loaded.specimens.len()
+        );
+        let specimens = pipeline::prepare_specimens(loaded, path, &self.settings)
+            .into_iter()
+            .enumerate()
+            .map(|(i, (position, prepared))| {
+                let result = prepared
+                    .map(|surface| {
+                        let name = format!("{name}#{}", i + 1);
+                        let outcome = self.compare_prepared(&name, &surface, load_ms);
+                        (outcome, surface)
+                    })
+                    .map_err(|e| e.to_string());
+                (position, result)
+            })
+            .collect();
+        Ok(Read::Specimens {
+            specimens,
+            segmentation,
+            load_ms,
+        })
+    }
+
+    /// The prepared specimen `n` (1-based) of the scan at `path` as it is
+    /// read now, and the content read.
+    fn prepare_specimen(
+        &self,
+        path: &Path,
+        n: u32,
+    ) -> Result<(PreparedSurface, crate::hash::Content), ClassifyError> {
+        let loaded = pipeline::load_hashed(path, &self.settings)?;
+        let content = loaded.content.clone().ok_or_else(|| {
+            ClassifyError::Pipeline(PipelineError::Load(crate::mesh::io::LoadError::Invalid {
+                path: path.to_path_buf(),
+                message: "read without its content hash".into(),
+            }))
+        })?;
+        let count = loaded.specimens.len();
+        let found = pipeline::prepare_specimens(loaded, path, &self.settings)
+            .into_iter()
+            .nth(n.saturating_sub(1) as usize)
+            .ok_or(PipelineError::Several {
+                path: path.to_path_buf(),
+                count,
+            })?;
+        Ok((found.1?, content))
     }
 
     /// [`classify_file`](Self::classify_file), with the prepared scan.
@@ -557,7 +615,15 @@ impl Classifier {
     /// is prepared again (it must still hold the identified content) and
     /// matched with the recorded nearest references.
     pub fn scene_of_record(&self, record: &ScanRecord) -> Result<Scene, SceneError> {
-        let path = Path::new(&record.path);
+        // A specimen's row names `<scan>#n`: the file is the scan's.
+        let file = match record.specimen {
+            Some(_) => record
+                .path
+                .rsplit_once('#')
+                .map_or(record.path.as_str(), |(file, _)| file),
+            None => record.path.as_str(),
+        };
+        let path = Path::new(file);
         if record.nearest.is_empty() {
             return Err(SceneError::NotIdentified(record.path.clone()));
         }
@@ -569,7 +635,16 @@ impl Classifier {
             Ok(_) => return Err(SceneError::Changed(path.to_path_buf())),
             Err(_) => return Err(SceneError::Gone(path.to_path_buf())),
         }
-        let surface = pipeline::prepare_file(path, &self.settings).map_err(ClassifyError::from)?;
+        let surface = match record.specimen {
+            Some(n) => {
+                let (surface, content) = self.prepare_specimen(path, n)?;
+                if content.hash != record.content_hash {
+                    return Err(SceneError::Changed(path.to_path_buf()));
+                }
+                surface
+            }
+            None => pipeline::prepare_file(path, &self.settings).map_err(ClassifyError::from)?,
+        };
         let nearest: Vec<(String, f64)> = record
             .nearest
             .iter()
@@ -692,10 +767,26 @@ impl Classifier {
     }
 }
 
+/// One specimen of a scan of several: where it lies, and its
+/// identification with the prepared specimen, or why it has none.
+type SpecimenRead = (
+    pipeline::Position,
+    Result<(ScanOutcome, PreparedSurface), String>,
+);
+
 /// What [`Classifier::identify_content`] read.
 enum Read {
     /// The expected content, identified (and the prepared scan).
     Identified(Box<(ScanOutcome, PreparedSurface)>),
+    /// The expected content, several specimens, each identified on its own.
+    Specimens {
+        /// The specimens in order.
+        specimens: Vec<SpecimenRead>,
+        /// What the segmentation or split found.
+        segmentation: serde_json::Value,
+        /// Milliseconds spent reading the scan.
+        load_ms: f64,
+    },
     /// Other content than expected: not identified.
     Other(crate::hash::Content),
 }
@@ -706,6 +797,8 @@ enum Read {
 pub enum Finding {
     /// The identification, to record as `ok`.
     Identified(ScanOutcome),
+    /// A scan of several specimens, each identified on its own (or not).
+    Specimens(SpecimensOutcome),
     /// Why the file cannot be identified, to record as `error`.
     Failed(String),
     /// The file no longer held the queued content when it was read: this
@@ -716,29 +809,67 @@ pub enum Finding {
 
 /// Identify the file of a claimed job (no database access): the outcome
 /// with its total time, or the message of why it cannot be identified;
-/// with `scene`, also what its report draws (computed while the prepared
-/// scan is at hand; `None` when not asked for or not identified).
-pub fn identify_job(classifier: &Classifier, job: &Job, scene: bool) -> (Finding, Option<Scene>) {
+/// with `scene`, also what its report draws, one per specimen (computed
+/// while the prepared scan is at hand; empty when not asked for or not
+/// identified, `None` for a specimen that was not identified).
+pub fn identify_job(
+    classifier: &Classifier,
+    job: &Job,
+    scene: bool,
+) -> (Finding, Vec<Option<Scene>>) {
     let started = Instant::now();
+    let draw = |outcome: &ScanOutcome, surface: &PreparedSurface| {
+        scene.then(|| {
+            let mut nearest: Vec<(String, f64)> = outcome
+                .distances
+                .iter()
+                .map(|d| (d.reference.clone(), d.distance))
+                .collect();
+            nearest.sort_by(|a, b| a.1.total_cmp(&b.1).then_with(|| a.0.cmp(&b.0)));
+            classifier.scene(surface, &nearest, outcome.landmarks.as_ref())
+        })
+    };
     match classifier.identify_content(Path::new(&job.path), &job.content_hash) {
-        Ok(Read::Other(content)) => (Finding::Superseded(content), None),
+        Ok(Read::Other(content)) => (Finding::Superseded(content), Vec::new()),
         Ok(Read::Identified(found)) => {
             let (mut outcome, surface) = *found;
             outcome
                 .timings_ms
                 .insert("total".into(), started.elapsed().as_secs_f64() * 1e3);
-            let scene = scene.then(|| {
-                let mut nearest: Vec<(String, f64)> = outcome
-                    .distances
-                    .iter()
-                    .map(|d| (d.reference.clone(), d.distance))
-                    .collect();
-                nearest.sort_by(|a, b| a.1.total_cmp(&b.1).then_with(|| a.0.cmp(&b.0)));
-                classifier.scene(&surface, &nearest, outcome.landmarks.as_ref())
-            });
-            (Finding::Identified(outcome), scene)
+            let scene = draw(&outcome, &surface);
+            (Finding::Identified(outcome), vec![scene])
         }
-        Err(e) => (Finding::Failed(e.to_string()), None),
+        Ok(Read::Specimens {
+            specimens,
+            segmentation,
+            load_ms,
+        }) => {
+            let mut scenes = Vec::new();
+            let specimens = specimens
+                .into_iter()
+                .map(|(position, result)| {
+                    let result = result.map(|(outcome, surface)| {
+                        scenes.push(draw(&outcome, &surface));
+                        outcome
+                    });
+                    if result.is_err() {
+                        scenes.push(None);
+                    }
+                    SpecimenOutcome { position, result }
+                })
+                .collect();
+            let timings_ms = BTreeMap::from([
+                ("load".to_string(), load_ms),
+                ("total".to_string(), started.elapsed().as_secs_f64() * 1e3),
+            ]);
+            let finding = Finding::Specimens(SpecimensOutcome {
+                specimens,
+                segmentation,
+                timings_ms,
+            });
+            (finding, if scene { scenes } else { Vec::new() })
+        }
+        Err(e) => (Finding::Failed(e.to_string()), Vec::new()),
     }
 }
 
@@ -754,6 +885,14 @@ pub fn record_finding(
         Finding::Identified(outcome) => {
             store.complete(scan_id, outcome)?;
             Ok(ScanStatus::Ok)
+        }
+        Finding::Specimens(outcome) => {
+            store.complete_specimens(scan_id, outcome)?;
+            Ok(if outcome.specimens.iter().any(|s| s.result.is_ok()) {
+                ScanStatus::Ok
+            } else {
+                ScanStatus::Error
+            })
         }
         Finding::Failed(message) => {
             store.fail(scan_id, message)?;
@@ -778,14 +917,36 @@ pub fn run_job(
     classifier: &Classifier,
     job: &Job,
 ) -> Result<ScanStatus, StoreError> {
-    let (finding, scene) = identify_job(classifier, job, classifier.results.is_some());
+    let (finding, scenes) = identify_job(classifier, job, classifier.results.is_some());
     let status = record_finding(store, job.scan_id, &finding)?;
     if let Some(files) = &classifier.results {
         match store.scan(job.scan_id, NEAREST) {
             Ok(Some(mut record)) => {
+                // Each specimen's files first, then the scan's (its page
+                // lists them) and the overview.
+                let specimens = std::mem::take(&mut record.specimens);
+                for (i, mut child) in specimens.into_iter().enumerate() {
+                    child.files_error = None;
+                    let scene = scenes.get(i).and_then(Option::as_ref);
+                    let written = files
+                        .write(&child)
+                        .and_then(|_| files.write_report(&child, scene, None))
+                        .map(|_| ());
+                    if let Err(e) = &written {
+                        tracing::error!(scan = %child.path, "result files not written: {e}");
+                    }
+                    record_files_attempt(store, child.id, &written)?;
+                }
+                let scene = match record.specimen_count {
+                    None => scenes.first().and_then(Option::as_ref),
+                    Some(_) => None,
+                };
+                if let Ok(Some(again)) = store.scan(job.scan_id, NEAREST) {
+                    record = again;
+                }
                 // Written now, so no earlier failure belongs on the page.
                 record.files_error = None;
-                let written = write_result_files(store, files, &record, scene.as_ref(), None);
+                let written = write_result_files(store, files, &record, scene, None);
                 if let Err(e) = &written {
                     tracing::error!(scan = %job.path, "result files not written: {e}");
                 }

@@ -75,6 +75,18 @@ pub enum PipelineError {
         /// What went wrong.
         source: CpError,
     },
+    /// The file holds several specimens where one was expected (a
+    /// reference, or a caller that takes one surface).
+    #[error(
+        "{path}: holds {count} specimens; one surface was expected here (identify a batch \
+         scan with `classify` or the daemon, which take its specimens one by one)"
+    )]
+    Several {
+        /// The file.
+        path: PathBuf,
+        /// How many specimens it holds.
+        count: usize,
+    },
 }
 
 /// The specimen name of a surface file: its stem (`a/B03.ply` → `B03`).
@@ -105,19 +117,57 @@ pub fn prepare_file(path: &Path, settings: &Settings) -> Result<PreparedSurface,
     prepare_loaded(loaded, path, settings)
 }
 
-/// A scan as read, before cleaning: the surface (from a volume, with its
-/// report) and, when asked for, the content of exactly the bytes read.
+/// Where one specimen lies in its scan.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Position {
+    /// First and last voxel along x, y, z (inclusive) in the input's
+    /// voxels; `None` for a surface file.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub voxels: Option<[[usize; 3]; 2]>,
+    /// The specimen's bounding box (lowest and highest corner) in the
+    /// file's coordinates.
+    pub bounds: [[f64; 3]; 2],
+}
+
+/// One specimen of a scan, as read.
+#[derive(Debug, Clone)]
+pub struct LoadedSpecimen {
+    /// Its surface as read (or made from the volume).
+    pub mesh: Mesh,
+    /// Where it lies in the scan.
+    pub position: Position,
+}
+
+/// A scan as read, before cleaning: the surface of each specimen (from a
+/// volume, with its report) and, when asked for, the content of exactly
+/// the bytes read.
 #[derive(Debug, Clone)]
 pub struct LoadedScan {
-    /// The surface as read (or made from the volume).
-    pub mesh: Mesh,
+    /// The specimens, in their documented order (along the volume's or the
+    /// file's longest axis); one for a single specimen.
+    pub specimens: Vec<LoadedSpecimen>,
     /// What was done to a volume; `None` for a surface file.
     pub volume: Option<VolumeReport>,
+    /// For a surface file of several specimens, what was split off.
+    pub split: Option<SplitReport>,
+    /// The surface file's format; `None` for a volume.
+    pub format: Option<io::Format>,
     /// The content read ([`load_hashed`]; `None` from [`prepare_file`]'s
     /// path, which does not hash).
     pub content: Option<crate::hash::Content>,
     /// Milliseconds spent reading.
     pub load_ms: f64,
+}
+
+/// What the split of a surface file into specimens dropped.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SplitReport {
+    /// Specimens found.
+    pub specimens: usize,
+    /// Components dropped as debris or fragments.
+    pub debris: usize,
+    /// Closed components inside a specimen (cavities, canals, cracks).
+    pub nested: usize,
 }
 
 /// The first step of [`prepare_file`], hashing as it reads: the file (or
@@ -128,65 +178,159 @@ pub fn load_hashed(path: &Path, settings: &Settings) -> Result<LoadedScan, Pipel
     load(path, settings, true)
 }
 
+/// [`load_hashed`] without hashing.
+pub fn load_scan(path: &Path, settings: &Settings) -> Result<LoadedScan, PipelineError> {
+    load(path, settings, false)
+}
+
 fn load(path: &Path, settings: &Settings, hashed: bool) -> Result<LoadedScan, PipelineError> {
     let name = specimen_name(path);
     let t = Instant::now();
-    let (mesh, volume, content) = if volume::is_volume_path(path) {
+    let mut format = None;
+    let (specimens, volume, split, content) = if volume::is_volume_path(path) {
         let _s = tracing::debug_span!("volume", scan = %name).entered();
-        if hashed {
+        let (s, content) = if hashed {
             let (s, content) = volume::surface_from_path_hashed(path, &settings.volume)?;
-            (s.mesh, Some(s.report), Some(content))
+            (s, Some(content))
         } else {
-            let s = volume::surface_from_path(path, &settings.volume)?;
-            (s.mesh, Some(s.report), None)
-        }
+            (volume::surface_from_path(path, &settings.volume)?, None)
+        };
+        let specimens = s
+            .specimens
+            .into_iter()
+            .map(|v| LoadedSpecimen {
+                position: Position {
+                    voxels: Some(v.voxels),
+                    bounds: bounds_of(&v.mesh),
+                },
+                mesh: v.mesh,
+            })
+            .collect();
+        (specimens, Some(s.report), None, content)
     } else {
         let _s = tracing::debug_span!("load", scan = %name).entered();
-        if hashed {
+        let (loaded, content) = if hashed {
             let (m, content) = io::load_hashed(path)?;
-            (m.mesh, None, Some(content))
+            (m, Some(content))
         } else {
-            (io::load(path)?.mesh, None, None)
+            (io::load(path)?, None)
+        };
+        format = Some(loaded.format);
+        let mesh = loaded.mesh;
+        match clean::surface_specimens(&mesh, settings.clean.weld_tolerance) {
+            Some(found) => {
+                let split = SplitReport {
+                    specimens: found.parts.len(),
+                    debris: found.debris,
+                    nested: found.nested,
+                };
+                let specimens = found
+                    .parts
+                    .into_iter()
+                    .map(|mesh| LoadedSpecimen {
+                        position: Position {
+                            voxels: None,
+                            bounds: bounds_of(&mesh),
+                        },
+                        mesh,
+                    })
+                    .collect();
+                (specimens, None, Some(split), content)
+            }
+            None => {
+                let position = Position {
+                    voxels: None,
+                    bounds: bounds_of(&mesh),
+                };
+                (vec![LoadedSpecimen { mesh, position }], None, None, content)
+            }
         }
     };
     Ok(LoadedScan {
-        mesh,
+        specimens,
         volume,
+        split,
+        format,
         content,
         load_ms: ms(t),
     })
 }
 
-/// The rest of [`prepare_file`]: clean and prepare a scan read from `path`
-/// (which names it and its errors).
+fn bounds_of(mesh: &Mesh) -> [[f64; 3]; 2] {
+    crate::mesh::bounding_box(mesh).map_or([[0.0; 3]; 2], |(lo, hi)| [lo, hi])
+}
+
+/// The rest of [`prepare_file`] for a scan of one specimen: clean and
+/// prepare it (`path` names it and its errors). A scan of several
+/// specimens is an error here ([`PipelineError::Several`]); take them one
+/// by one with [`prepare_specimens`].
 pub fn prepare_loaded(
     loaded: LoadedScan,
     path: &Path,
     settings: &Settings,
 ) -> Result<PreparedSurface, PipelineError> {
-    let name = specimen_name(path);
+    if loaded.specimens.len() != 1 {
+        return Err(PipelineError::Several {
+            path: path.to_path_buf(),
+            count: loaded.specimens.len(),
+        });
+    }
+    prepare_specimens(loaded, path, settings)
+        .pop()
+        .map(|(_, prepared)| prepared)
+        .unwrap_or(Err(PipelineError::Several {
+            path: path.to_path_buf(),
+            count: 0,
+        }))
+}
+
+/// Clean and prepare each specimen of a scan read from `path`, in order,
+/// each with its position: one failing does not stop the others. A
+/// specimen of a scan of several is named `<stem>#n` (1-based).
+#[allow(clippy::type_complexity)]
+pub fn prepare_specimens(
+    loaded: LoadedScan,
+    path: &Path,
+    settings: &Settings,
+) -> Vec<(Position, Result<PreparedSurface, PipelineError>)> {
+    let stem = specimen_name(path);
     let LoadedScan {
-        mesh,
+        specimens,
         volume: volume_report,
         load_ms,
         ..
     } = loaded;
-    prepare_mesh(&mesh, &name, settings)
-        .map(|mut p| {
-            p.timings.load = load_ms;
-            p.volume = volume_report;
-            p
+    let several = specimens.len() > 1;
+    specimens
+        .into_iter()
+        .enumerate()
+        .map(|(i, s)| {
+            let name = if several {
+                format!("{stem}#{}", i + 1)
+            } else {
+                stem.clone()
+            };
+            let _span = several.then(|| tracing::info_span!("specimen", scan = %name).entered());
+            let prepared = prepare_mesh(&s.mesh, &name, settings)
+                .map(|mut p| {
+                    p.timings.load = load_ms;
+                    p.volume = volume_report.clone();
+                    p
+                })
+                .map_err(|e| {
+                    let path = if several {
+                        PathBuf::from(format!("{}#{}", path.display(), i + 1))
+                    } else {
+                        path.to_path_buf()
+                    };
+                    match e {
+                        MeshError::Clean(source) => PipelineError::Clean { path, source },
+                        MeshError::Prepare(source) => PipelineError::Prepare { path, source },
+                    }
+                });
+            (s.position, prepared)
         })
-        .map_err(|e| match e {
-            MeshError::Clean(source) => PipelineError::Clean {
-                path: path.to_path_buf(),
-                source,
-            },
-            MeshError::Prepare(source) => PipelineError::Prepare {
-                path: path.to_path_buf(),
-                source,
-            },
-        })
+        .collect()
 }
 
 /// Why a mesh could not be prepared (no file involved).

@@ -159,8 +159,11 @@ impl ResultFiles {
     fn write_page(&self, store: &Store, k: i64, path: &Path) -> Result<(), ResultsError> {
         let mut records = Vec::new();
         for id in ((k * INDEX_PAGE + 1)..=((k + 1) * INDEX_PAGE)).rev() {
+            // A specimen's row is shown under its scan's.
             if let Some(r) = store.scan(id, crate::store::DEFAULT_NEAREST)? {
-                records.push(r);
+                if r.parent.is_none() {
+                    records.push(r);
+                }
             }
         }
         let back = [PageLink {
@@ -179,6 +182,11 @@ impl ResultFiles {
     /// An overview page of `records`, linking each to its report (and
     /// thumbnail, when one was written).
     fn overview(&self, records: &[ScanRecord], title: &str, pages: &[PageLink]) -> String {
+        // A scan of several specimens is followed by its specimens' rows.
+        let records: Vec<&ScanRecord> = records
+            .iter()
+            .flat_map(|r| std::iter::once(r).chain(&r.specimens))
+            .collect();
         let links: Vec<(String, Option<String>)> = records
             .iter()
             .map(|r| {
@@ -355,6 +363,11 @@ mod tests {
             files_error: None,
             calibrating: false,
             superseded_by: None,
+            parent: None,
+            specimen: None,
+            position: None,
+            specimen_count: None,
+            specimens: Vec::new(),
         }
     }
 

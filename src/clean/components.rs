@@ -6,7 +6,7 @@ use crate::mesh::{face_areas, Mesh};
 /// Label of the connected component (faces linked through shared vertices)
 /// of every face, labels numbered 0.. in order of each component's first
 /// face. Returns `(labels, count)`.
-fn face_components(mesh: &Mesh) -> (Vec<u32>, usize) {
+pub(super) fn face_components(mesh: &Mesh) -> (Vec<u32>, usize) {
     let mut uf = UnionFind::new(mesh.vertices.len());
     for f in &mesh.faces {
         uf.union(f[0], f[1]);

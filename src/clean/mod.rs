@@ -41,6 +41,7 @@ mod holes;
 mod manifold;
 mod orient;
 mod resample;
+mod specimens;
 mod union_find;
 mod voxelize;
 mod weld;
@@ -53,6 +54,7 @@ use crate::mesh::{
     surface_area, widest_boundary_loop_extent, Mesh,
 };
 pub use crown::{CrownError, CrownMode, CrownReport};
+pub use specimens::{surface_specimens, SurfaceSpecimens};
 
 /// A surface whose every boundary loop spans less than this share of its
 /// bounding-box diagonal ([`widest_boundary_loop_extent`]) is a closed surface

@@ -111,6 +111,9 @@ fn write_known(
         files_error: None,
         ..record.clone()
     };
+    for c in &record.specimens {
+        write_known(store, classifier, files, c)?;
+    }
     files.write(record)?;
     if files.report_paths(record).0.exists() {
         return Ok(());
@@ -133,14 +136,26 @@ fn write_known(
 /// not.
 pub fn summary(r: &ScanRecord) -> String {
     let line = status_summary(r);
-    match &r.files_error {
+    let mut out = match &r.files_error {
         Some(e) => format!("{line}; result files not written: {e}"),
         None => line,
+    };
+    // A scan of several specimens: one line each, below it.
+    for c in &r.specimens {
+        out.push_str("\n  ");
+        out.push_str(&summary(c));
     }
+    out
 }
 
 /// [`summary`] without the result files.
 fn status_summary(r: &ScanRecord) -> String {
+    if let (Some(n), ScanStatus::Ok) = (r.specimen_count, r.status) {
+        return format!(
+            "{}: {n} specimens (numbered along the scan's longest axis)",
+            r.path
+        );
+    }
     match r.status {
         ScanStatus::Ok => {
             let ranks: Vec<String> = r

@@ -4,7 +4,8 @@ use super::common::ConfigFile;
 use anyhow::{Context, Result};
 use morphoid::clean::{self, CleanOptions, CleanReport, CrownReport};
 use morphoid::mesh::io::{self, Format};
-use morphoid::volume::{self, VolumeOptions, VolumeReport};
+use morphoid::pipeline::{self, Position, Settings, SplitReport};
+use morphoid::volume::{VolumeOptions, VolumeReport};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -59,6 +60,28 @@ struct Report {
     /// Slice folder or volume file: what segmentation did.
     #[serde(skip_serializing_if = "Option::is_none")]
     volume: Option<VolumeReport>,
+    /// A surface file of several specimens: what the split dropped.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    split: Option<SplitReport>,
+    /// A scan of several specimens: each one (the fields above describe
+    /// the first that could be cleaned).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    specimens: Vec<InspectedSpecimen>,
+}
+
+/// One specimen of a scan of several.
+#[derive(Debug, Serialize)]
+struct InspectedSpecimen {
+    /// `<scan>#n`.
+    name: String,
+    position: Position,
+    status: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    error: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    area: Option<f64>,
+    /// Whether a crown was cut from a whole tooth.
+    crown_cut: bool,
 }
 
 /// The rarer repairs, grouped so that the top level stays readable.
@@ -106,6 +129,8 @@ impl Report {
             crown: r.crown.clone(),
             timings_ms,
             volume: None,
+            split: None,
+            specimens: Vec::new(),
         }
     }
 }
@@ -159,30 +184,74 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
 
 fn inspect(args: &Args, opts: &CleanOptions, volume_opts: &VolumeOptions) -> Result<Report> {
     let t0 = Instant::now();
-    let (mesh, format, volume_report) = if volume::is_volume_path(&args.mesh) {
-        let s = volume::surface_from_path(&args.mesh, volume_opts)?;
-        (s.mesh, None, Some(s.report))
-    } else {
-        let loaded = io::load(&args.mesh)?;
-        (loaded.mesh, Some(loaded.format), None)
+    let settings = Settings {
+        clean: opts.clone(),
+        volume: volume_opts.clone(),
+        ..Settings::default()
     };
+    let loaded = pipeline::load_scan(&args.mesh, &settings)?;
     let t_load = t0.elapsed();
-    let cleaned = clean::clean(&mesh, opts).with_context(|| format!("{}", args.mesh.display()))?;
-    let t_clean = t0.elapsed() - t_load;
+    let several = loaded.specimens.len() > 1;
+    let mut first: Option<(clean::Cleaned, f64)> = None;
+    let mut specimens = Vec::new();
+    for (i, s) in loaded.specimens.iter().enumerate() {
+        let t = Instant::now();
+        let name = if several {
+            format!("{}#{}", args.mesh.display(), i + 1)
+        } else {
+            args.mesh.display().to_string()
+        };
+        match clean::clean(&s.mesh, opts) {
+            Ok(cleaned) => {
+                let ms = t.elapsed().as_secs_f64() * 1e3;
+                if several {
+                    specimens.push(InspectedSpecimen {
+                        name,
+                        position: s.position.clone(),
+                        status: "ok",
+                        error: None,
+                        area: Some(cleaned.report.area),
+                        crown_cut: cleaned.report.crown.is_some(),
+                    });
+                }
+                if first.is_none() {
+                    first = Some((cleaned, ms));
+                }
+            }
+            Err(e) if several => specimens.push(InspectedSpecimen {
+                name,
+                position: s.position.clone(),
+                status: "error",
+                error: Some(e.to_string()),
+                area: None,
+                crown_cut: false,
+            }),
+            Err(e) => return Err(e).with_context(|| format!("{}", args.mesh.display())),
+        }
+    }
+    let Some((cleaned, clean_ms)) = first else {
+        anyhow::bail!(
+            "{}: none of its {} specimens could be cleaned",
+            args.mesh.display(),
+            specimens.len()
+        );
+    };
     if let Some(out) = &args.write_clean {
         io::save(out, &cleaned.mesh)
             .with_context(|| format!("writing the cleaned surface of {}", args.mesh.display()))?;
     }
     let mut report = Report::new(
         args.mesh.display().to_string(),
-        format,
+        loaded.format,
         &cleaned.report,
         Timings {
             load: t_load.as_secs_f64() * 1e3,
-            clean: t_clean.as_secs_f64() * 1e3,
+            clean: clean_ms,
         },
     );
-    report.volume = volume_report;
+    report.volume = loaded.volume;
+    report.split = loaded.split;
+    report.specimens = specimens;
     Ok(report)
 }
 
@@ -230,6 +299,41 @@ fn print_human(r: &Report) {
             c.filled_holes,
             c.removed_handles
         );
+    }
+    if !r.specimens.is_empty() {
+        println!(
+            "  {} specimens (in order along the scan's longest axis; the lines above are the first):",
+            r.specimens.len()
+        );
+        for s in &r.specimens {
+            let [lo, hi] = s.position.bounds;
+            let at = format!(
+                "({:.2}, {:.2}, {:.2})–({:.2}, {:.2}, {:.2})",
+                lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+            );
+            match &s.error {
+                None => println!(
+                    "    {}: ok, area {:.6}{}, at {at}",
+                    s.name,
+                    s.area.unwrap_or(0.0),
+                    if s.crown_cut { ", crown cut" } else { "" }
+                ),
+                Some(e) => println!("    {}: error: {e}, at {at}", s.name),
+            }
+        }
+    }
+    if let Some(v) = &r.volume {
+        for w in &v.segmentation.warnings {
+            println!("  warning: {w}");
+        }
+    }
+    if let Some(s) = &r.split {
+        if s.debris + s.nested > 0 {
+            println!(
+                "  dropped {} debris or fragment component(s) and {} surface(s) nested inside a specimen",
+                s.debris, s.nested
+            );
+        }
     }
     println!(
         "  load {:.1} ms, clean {:.1} ms",

@@ -159,6 +159,9 @@ struct Held {
     job: Job,
     finding: Finding,
     secs: f64,
+    /// The pictures of a scan of several specimens, one per specimen, kept
+    /// under the specimens' rows once they are recorded.
+    specimen_scenes: Vec<Option<Scene>>,
 }
 
 /// What one step of the worker came to.
@@ -279,17 +282,24 @@ impl WorkerState {
         guard.worked();
         drop(guard);
         let started = Instant::now();
-        let (finding, scene) =
+        let (finding, mut scenes) =
             classify::identify_job(&self.setup.classifier, &job, self.setup.files.is_some());
-        if let Some(scene) = scene {
-            self.scenes.insert(job.scan_id, scene);
-            while self.scenes.len() > SCENES_KEPT {
-                self.scenes.pop_first();
+        let specimen_scenes = if matches!(finding, Finding::Specimens(_)) {
+            scenes
+        } else {
+            if let Some(scene) = scenes.pop().flatten() {
+                self.keep_scene(job.scan_id, scene);
             }
-        }
+            Vec::new()
+        };
         let secs = started.elapsed().as_secs_f64();
         self.progress.current.store(0, Ordering::SeqCst);
-        self.held = Some(Held { job, finding, secs });
+        self.held = Some(Held {
+            job,
+            finding,
+            secs,
+            specimen_scenes,
+        });
         Step::Worked
     }
 
@@ -320,6 +330,7 @@ impl WorkerState {
                     if let Err(e) = store.checkpoint() {
                         tracing::debug!("checkpoint after scan {}: {e}", held.job.scan_id);
                     }
+                    self.keep_specimen_scenes(store, &held);
                     self.recorded(store, &held, status)
                 }
                 Err(e @ (StoreError::WrongStatus { .. } | StoreError::NoSuchScan(_))) => {
@@ -357,10 +368,35 @@ impl WorkerState {
                 job,
                 finding: Finding::Failed(message),
                 secs: 0.0,
+                specimen_scenes: Vec::new(),
             });
             return Ok(Next::Worked);
         }
         Ok(Next::Claimed(job))
+    }
+
+    /// Keep `scene` for the report of scan `id` (the oldest go first).
+    fn keep_scene(&mut self, id: i64, scene: Scene) {
+        self.scenes.insert(id, scene);
+        while self.scenes.len() > SCENES_KEPT {
+            self.scenes.pop_first();
+        }
+    }
+
+    /// Keep the pictures of a recorded scan of several specimens under
+    /// their rows.
+    fn keep_specimen_scenes(&mut self, store: &Store, held: &Held) {
+        if held.specimen_scenes.is_empty() {
+            return;
+        }
+        let Ok(Some(record)) = store.scan(held.job.scan_id, 0) else {
+            return;
+        };
+        for (child, scene) in record.specimens.iter().zip(&held.specimen_scenes) {
+            if let Some(scene) = scene {
+                self.keep_scene(child.id, scene.clone());
+            }
+        }
     }
 
     /// The log line of a recorded job, and the quarantine of a failed one.
@@ -479,22 +515,40 @@ enum Next {
 /// One info line per identified scan: file, nearest taxon per rank with
 /// its reference and distance, time taken.
 fn log_result(store: &Store, id: i64, path: &str, secs: f64) {
+    let ranks_of = |r: &crate::store::ScanRecord| {
+        r.ranks
+            .iter()
+            .map(|k| {
+                format!(
+                    "{}={} ({} at {:.4})",
+                    k.rank, k.taxon, k.reference, k.distance
+                )
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
     let record = store.scan(id, NEAREST).ok().flatten();
-    let ranks = record
-        .map(|r| {
-            r.ranks
+    match record {
+        Some(r) if !r.specimens.is_empty() => {
+            let each = r
+                .specimens
                 .iter()
-                .map(|k| {
-                    format!(
-                        "{}={} ({} at {:.4})",
-                        k.rank, k.taxon, k.reference, k.distance
-                    )
+                .map(|c| match &c.error {
+                    Some(e) => format!("#{}: error: {e}", c.specimen.unwrap_or(0)),
+                    None => format!("#{}: {}", c.specimen.unwrap_or(0), ranks_of(c)),
                 })
                 .collect::<Vec<_>>()
-                .join(", ")
-        })
-        .unwrap_or_default();
-    tracing::info!("{path}: {ranks}; {secs:.1} s");
+                .join("; ");
+            tracing::info!(
+                "{path}: {} specimens: {each}; {secs:.1} s",
+                r.specimens.len()
+            );
+        }
+        r => {
+            let ranks = r.as_ref().map(ranks_of).unwrap_or_default();
+            tracing::info!("{path}: {ranks}; {secs:.1} s");
+        }
+    }
 }
 
 /// Move an unusable file into the quarantine folder (keeping its name,

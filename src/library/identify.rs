@@ -109,6 +109,30 @@ pub struct ScanOutcome {
     pub calibrating: bool,
 }
 
+/// One specimen of a scan of several: where it lies and its
+/// identification, or why it has none.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpecimenOutcome {
+    /// Where it lies in the scan.
+    pub position: crate::pipeline::Position,
+    /// Its identification, or the message of why it could not be made.
+    pub result: Result<ScanOutcome, String>,
+}
+
+/// Everything the identification of a scan of several specimens produced,
+/// recorded by the store in one transaction (`Store::complete_specimens`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpecimensOutcome {
+    /// The specimens, in their documented order (along the scan's longest
+    /// axis).
+    pub specimens: Vec<SpecimenOutcome>,
+    /// What the scan's segmentation or split found (each object, what was
+    /// dropped and why), as JSON.
+    pub segmentation: serde_json::Value,
+    /// Milliseconds per stage of the whole scan (`load`, `total`).
+    pub timings_ms: BTreeMap<String, f64>,
+}
+
 /// The identification of one scan.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Identification {

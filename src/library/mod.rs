@@ -25,7 +25,7 @@ pub use calibration::{
 };
 pub use identify::{
     identify, Confidence, DistanceRow, Identification, LandmarkPoint, Nearest, RankResult,
-    ScanLandmarks, ScanOutcome,
+    ScanLandmarks, ScanOutcome, SpecimenOutcome, SpecimensOutcome,
 };
 pub use matrix::{landscape, SurfaceDistance, SurfaceMatrixError};
 

@@ -197,6 +197,52 @@ fn line_crossing(t: [[f64; 3]; 3], axis: usize, pu: f64, pv: f64) -> Option<f64>
         .then(|| a[axis] + s * (b[axis] - a[axis]) + r * (c[axis] - a[axis]))
 }
 
+/// Whether `p` lies inside the closed surface `mesh`: the parity of the
+/// triangles a ray from `p` crosses, by majority over three skew
+/// directions (a ray through an edge or a vertex may count a crossing
+/// twice or not at all; three rarely all do).
+pub fn point_inside_by_parity(mesh: &Mesh, p: [f64; 3]) -> bool {
+    // Skew directions: along no axis, plane diagonal or each other.
+    const DIRECTIONS: [[f64; 3]; 3] = [
+        [0.8018, 0.5345, 0.2673],
+        [-0.3015, 0.9045, -0.3015],
+        [0.2357, -0.2357, 0.9428],
+    ];
+    let votes = DIRECTIONS
+        .iter()
+        .filter(|d| ray_crossings(mesh, p, **d) % 2 == 1)
+        .count();
+    votes >= 2
+}
+
+/// Triangles of `mesh` the ray `p + t d` (t > 0) crosses (Möller–Trumbore).
+fn ray_crossings(mesh: &Mesh, p: [f64; 3], d: [f64; 3]) -> usize {
+    use super::{cross, dot, sub};
+    mesh.faces
+        .iter()
+        .filter(|f| {
+            let [a, b, c] = f.map(|i| mesh.vertices[i as usize]);
+            let (e1, e2) = (sub(b, a), sub(c, a));
+            let h = cross(d, e2);
+            let det = dot(e1, h);
+            if det.abs() < 1e-300 {
+                return false;
+            }
+            let s = sub(p, a);
+            let u = dot(s, h) / det;
+            if !(0.0..=1.0).contains(&u) {
+                return false;
+            }
+            let q = cross(s, e1);
+            let v = dot(d, q) / det;
+            if v < 0.0 || u + v > 1.0 {
+                return false;
+            }
+            dot(e2, q) / det > 0.0
+        })
+        .count()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -26,7 +26,7 @@ pub use axes::{principal_axes, weighted_principal_axes, PrincipalAxes};
 pub use disk::unit_disk;
 pub(crate) use graph::HeapItem;
 pub use graph::{breadth_first_tree, graph_distance};
-pub use grid::{inside_by_parity, Grid};
+pub use grid::{inside_by_parity, point_inside_by_parity, Grid};
 pub use isosurface::isosurface;
 pub use subdivide::subdivide_midpoint;
 pub use topology::{

@@ -207,7 +207,27 @@ pub fn report_html(record: &ScanRecord, scene: Option<&Scene>, note: Option<&str
     if let Some(note) = note {
         let _ = writeln!(h, "<p class=\"note\" id=\"note\">{}</p>", escape(note));
     }
+    if record.specimen_count.is_some() {
+        specimens(&mut h, record);
+    }
+    if let (Some(n), Some(p)) = (record.specimen, &record.position) {
+        let voxels = p
+            .voxels
+            .map(|[lo, hi]| format!("voxels {lo:?}–{hi:?}, "))
+            .unwrap_or_default();
+        let _ = writeln!(
+            h,
+            "<p id=\"specimen\">Specimen {n} of the scan <code>{}</code> (scan {}): {}\
+             coordinates {}–{}.</p>",
+            escape(record.path.rsplit_once('#').map_or("", |(f, _)| f)),
+            record.parent.unwrap_or_default(),
+            escape(&voxels),
+            escape(&format_point(p.bounds[0])),
+            escape(&format_point(p.bounds[1]))
+        );
+    }
     match shown_status_kind(record) {
+        _ if record.specimen_count.is_some() && record.status == ScanStatus::Ok => {}
         ScanStatus::Error => {
             let _ = writeln!(
                 h,
@@ -227,6 +247,55 @@ pub fn report_html(record: &ScanRecord, scene: Option<&Scene>, note: Option<&str
     timings(&mut h, record);
     h.push_str("</body></html>\n");
     h
+}
+
+/// `(x, y, z)` to two decimals.
+fn format_point(p: [f64; 3]) -> String {
+    format!("({:.2}, {:.2}, {:.2})", p[0], p[1], p[2])
+}
+
+/// The specimens of a scan of several: each one's number, position,
+/// answer, and a link to its own report.
+fn specimens(h: &mut String, record: &ScanRecord) {
+    let _ = writeln!(
+        h,
+        "<h2>Specimens</h2>\n<p>{} specimens, numbered along the scan's longest axis; each \
+         is identified on its own.</p>\n<table id=\"specimens\"><tr><th>Specimen</th>\
+         <th>Status</th><th>Answer</th><th>Position (file coordinates)</th></tr>",
+        record.specimen_count.unwrap_or(0)
+    );
+    for c in &record.specimens {
+        let answer = match c.status {
+            ScanStatus::Ok => c
+                .ranks
+                .iter()
+                .map(|k| format!("{}: <b>{}</b>", escape(&k.rank), escape(&k.taxon)))
+                .collect::<Vec<_>>()
+                .join(", "),
+            _ => escape(c.error.as_deref().unwrap_or("")),
+        };
+        let position = c
+            .position
+            .as_ref()
+            .map(|p| {
+                format!(
+                    "{}–{}",
+                    format_point(p.bounds[0]),
+                    format_point(p.bounds[1])
+                )
+            })
+            .unwrap_or_default();
+        let page = super::href_of(&format!("{}.html", file_name(&c.path)));
+        let _ = writeln!(
+            h,
+            "<tr><td><a href=\"{}\">{}</a></td><td>{}</td><td>{answer}</td><td>{}</td></tr>",
+            escape(&page),
+            escape(file_name(&c.path)),
+            escape(c.status.as_str()),
+            escape(&position)
+        );
+    }
+    h.push_str("</table>\n");
 }
 
 /// The status a person reads (a duplicate's is its original's).

@@ -111,7 +111,20 @@ fn index_row(h: &mut String, row: &IndexRow<'_>) {
             )
         })
         .unwrap_or_default();
-    let (taxa, confidence) = if result_status == ScanStatus::Ok {
+    let (taxa, confidence) = if let Some(n) = r.specimen_count {
+        // A scan of several specimens: its rows follow, one per specimen.
+        let failed = r
+            .specimens
+            .iter()
+            .filter(|c| c.status == ScanStatus::Error)
+            .count();
+        let text = if failed > 0 {
+            format!("{n} specimens ({failed} not identified), listed below")
+        } else {
+            format!("{n} specimens, listed below")
+        };
+        (text, String::new())
+    } else if result_status == ScanStatus::Ok {
         let taxa: Vec<String> = r
             .ranks
             .iter()
@@ -135,6 +148,9 @@ fn index_row(h: &mut String, row: &IndexRow<'_>) {
         (String::new(), String::new())
     };
     let mut flags = Vec::new();
+    if let Some(n) = r.specimen {
+        flags.push(format!("specimen {n}"));
+    }
     if r.duplicate_of.is_some() {
         flags.push("duplicate".to_string());
     }

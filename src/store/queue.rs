@@ -4,7 +4,7 @@
 //! run again and a crash leaves nothing half recorded.
 
 use super::{now_ms, parse_status, to_json, Enqueued, Job, ScanStatus, Store, StoreError};
-use crate::library::ScanOutcome;
+use crate::library::{ScanOutcome, SpecimensOutcome};
 use rusqlite::{params, Connection, OptionalExtension, Row, TransactionBehavior};
 
 /// The columns a claim returns, in [`job_from_row`]'s terms.
@@ -108,6 +108,114 @@ impl Store {
                 cleaning,
                 self.result_files,
                 outcome.calibrating
+            ],
+        )?;
+        tx.commit()?;
+        Ok(())
+    }
+
+    /// Record the identification of a running scan of several specimens,
+    /// all in ONE transaction: a row `<scan>#n` for each specimen (its
+    /// number, position, and its result like [`Store::complete`]'s, or
+    /// its error), and the scan's own row `ok` (with the number of
+    /// specimens and the segmentation) when at least one specimen was
+    /// identified, else `error`.
+    pub fn complete_specimens(
+        &mut self,
+        scan_id: i64,
+        outcome: &SpecimensOutcome,
+    ) -> Result<(), StoreError> {
+        for s in &outcome.specimens {
+            if let Ok(o) = &s.result {
+                validate_outcome(o)?;
+            }
+        }
+        let count = outcome.specimens.len();
+        if count < 2 {
+            return Err(StoreError::OutOfRange("scan.specimens"));
+        }
+        let timings = to_json("scan.timings", &outcome.timings_ms)?;
+        let segmentation = to_json("scan.cleaning", &outcome.segmentation)?;
+        let tx = self
+            .conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)?;
+        require_status(&tx, scan_id, ScanStatus::Running, "complete", "running")?;
+        let (path, hash, size, started): (String, String, i64, Option<i64>) = tx.query_row(
+            "SELECT path, content_hash, size, started_at FROM scan WHERE id = ?1",
+            [scan_id],
+            |r| {
+                Ok((
+                    r.get("path")?,
+                    r.get("content_hash")?,
+                    r.get("size")?,
+                    r.get("started_at")?,
+                ))
+            },
+        )?;
+        let now = now_ms();
+        let mut errors = Vec::new();
+        for (i, s) in outcome.specimens.iter().enumerate() {
+            let n = i + 1;
+            let position = to_json("scan.position", &s.position)?;
+            let name = format!("{path}#{n}");
+            let (status, error, timings, cleaning, calibrating) = match &s.result {
+                Ok(o) => (
+                    "ok",
+                    None,
+                    Some(to_json("scan.timings", &o.timings_ms)?),
+                    Some(to_json("scan.cleaning", &o.cleaning)?),
+                    o.calibrating,
+                ),
+                Err(e) => {
+                    errors.push(format!("#{n}: {e}"));
+                    ("error", Some(e.clone()), None, None, false)
+                }
+            };
+            tx.execute(
+                "INSERT INTO scan (path, content_hash, size, status, error, attempts, created_at,
+                                   started_at, finished_at, timings, cleaning, files_due,
+                                   calibrating, parent_id, specimen, position)
+                 VALUES (?1, ?2, ?3, ?4, ?5, 1, ?6, ?7, ?6, ?8, ?9, ?10, ?11, ?12, ?13, ?14)",
+                params![
+                    name,
+                    hash,
+                    size,
+                    status,
+                    error,
+                    now,
+                    started,
+                    timings,
+                    cleaning,
+                    self.result_files,
+                    calibrating,
+                    scan_id,
+                    n as i64,
+                    position
+                ],
+            )?;
+            if let Ok(o) = &s.result {
+                insert_outcome(&tx, tx.last_insert_rowid(), o)?;
+            }
+        }
+        let error = (errors.len() == count).then(|| {
+            format!(
+                "none of its {count} specimens could be identified: {}",
+                errors.join("; ")
+            )
+        });
+        tx.execute(
+            "UPDATE scan SET status = ?2, error = ?3, finished_at = ?4, timings = ?5,
+                    cleaning = ?6, files_due = ?7, specimens = ?8
+             WHERE id = ?1",
+            params![
+                scan_id,
+                if error.is_some() { "error" } else { "ok" },
+                error,
+                now,
+                timings,
+                segmentation,
+                self.result_files,
+                count as i64
             ],
         )?;
         tx.commit()?;
@@ -226,6 +334,14 @@ impl Store {
         let tx = self
             .conn
             .transaction_with_behavior(TransactionBehavior::Immediate)?;
+        // A specimen is identified again with its scan.
+        let parent: Option<i64> = tx
+            .query_row("SELECT parent_id FROM scan WHERE id = ?1", [scan_id], |r| {
+                r.get(0)
+            })
+            .optional()?
+            .flatten();
+        let scan_id = parent.unwrap_or(scan_id);
         let status = scan_status(&tx, scan_id)?;
         if !matches!(status, ScanStatus::Ok | ScanStatus::Error) {
             return Err(StoreError::WrongStatus {
@@ -235,12 +351,22 @@ impl Store {
                 expected: "ok or error",
             });
         }
-        tx.execute("DELETE FROM result WHERE scan_id = ?1", [scan_id])?;
-        tx.execute("DELETE FROM distance WHERE scan_id = ?1", [scan_id])?;
-        tx.execute("DELETE FROM landmark WHERE scan_id = ?1", [scan_id])?;
+        // A scan of several specimens is identified again as a whole: its
+        // specimens' rows and their results go too.
+        for table in ["result", "distance", "landmark"] {
+            tx.execute(
+                &format!(
+                    "DELETE FROM {table} WHERE scan_id = ?1
+                        OR scan_id IN (SELECT id FROM scan WHERE parent_id = ?1)"
+                ),
+                [scan_id],
+            )?;
+        }
+        tx.execute("DELETE FROM scan WHERE parent_id = ?1", [scan_id])?;
         tx.execute(
             "UPDATE scan SET status = 'pending', error = NULL, started_at = NULL,
-                    finished_at = NULL, timings = NULL, cleaning = NULL, calibrating = 0
+                    finished_at = NULL, timings = NULL, cleaning = NULL, calibrating = 0,
+                    specimens = NULL
              WHERE id = ?1",
             [scan_id],
         )?;
@@ -315,7 +441,8 @@ fn enqueue_in(
     let known: Option<(i64, String, String)> = tx
         .query_row(
             "SELECT id, status, path FROM scan
-             WHERE content_hash = ?1 AND status NOT IN ('duplicate', 'superseded')",
+             WHERE content_hash = ?1 AND status NOT IN ('duplicate', 'superseded')
+               AND parent_id IS NULL",
             [content_hash],
             |r| Ok((r.get("id")?, r.get("status")?, r.get("path")?)),
         )

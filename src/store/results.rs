@@ -13,7 +13,7 @@ use std::collections::BTreeMap;
 /// The `scan` columns [`scan_from_row`] reads.
 const SCAN_COLUMNS: &str = "id, path, content_hash, size, status, error, attempts, \
      created_at, started_at, finished_at, timings, cleaning, duplicate_of, files_error, \
-     calibrating, superseded_by";
+     calibrating, superseded_by, parent_id, specimen, position, specimens";
 
 impl Store {
     /// The scan with this id, with its result and `nearest_count` nearest
@@ -40,14 +40,16 @@ impl Store {
         // The content's own row, not a duplicate or superseded one.
         scan_where(
             &self.conn,
-            "content_hash = ?1 AND status NOT IN ('duplicate', 'superseded')",
+            "content_hash = ?1 AND status NOT IN ('duplicate', 'superseded') AND parent_id IS NULL",
             Value::Text(content_hash.to_string()),
             nearest_count,
         )
     }
 
     /// The `n` most recently enqueued scans, newest first, each with
-    /// [`DEFAULT_NEAREST`] nearest references (`morphoid results --last N`).
+    /// [`DEFAULT_NEAREST`] nearest references (`morphoid results --last N`);
+    /// a scan of several specimens carries them in
+    /// [`ScanRecord::specimens`] (they are not counted among the `n`).
     /// Read in one transaction: a consistent snapshot.
     pub fn recent(&mut self, n: usize) -> Result<Vec<ScanRecord>, StoreError> {
         let limit = i64::try_from(n).unwrap_or(i64::MAX);
@@ -55,7 +57,7 @@ impl Store {
         let mut out = Vec::new();
         {
             let mut stmt = tx.prepare(&format!(
-                "SELECT {SCAN_COLUMNS} FROM scan ORDER BY id DESC LIMIT ?1"
+                "SELECT {SCAN_COLUMNS} FROM scan WHERE parent_id IS NULL ORDER BY id DESC LIMIT ?1"
             ))?;
             let mut rows = stmt.query([limit])?;
             while let Some(row) = rows.next()? {
@@ -161,7 +163,39 @@ fn scan_from_row(r: &Row<'_>) -> Result<ScanRecord, StoreError> {
         files_error: r.get("files_error")?,
         calibrating: r.get("calibrating")?,
         superseded_by: r.get("superseded_by")?,
+        parent: r.get("parent_id")?,
+        specimen: r
+            .get::<_, Option<i64>>("specimen")?
+            .and_then(|n| u32::try_from(n).ok()),
+        position: match r.get::<_, Option<String>>("position")? {
+            Some(p) => Some(from_json("scan.position", &p)?),
+            None => None,
+        },
+        specimen_count: r
+            .get::<_, Option<i64>>("specimens")?
+            .and_then(|n| u32::try_from(n).ok()),
+        specimens: Vec::new(),
     })
+}
+
+/// The specimens' rows of the scan `parent`, in their order, each with its
+/// result.
+fn specimens_of(
+    conn: &Connection,
+    parent: i64,
+    nearest_count: usize,
+) -> Result<Vec<ScanRecord>, StoreError> {
+    let mut stmt = conn.prepare_cached(&format!(
+        "SELECT {SCAN_COLUMNS} FROM scan WHERE parent_id = ?1 ORDER BY specimen"
+    ))?;
+    let mut rows = stmt.query([parent])?;
+    let mut out = Vec::new();
+    while let Some(row) = rows.next()? {
+        let mut record = scan_from_row(row)?;
+        load_result(conn, &mut record, nearest_count)?;
+        out.push(record);
+    }
+    Ok(out)
 }
 
 /// Fill `record`'s ranks, its `nearest_count` nearest references and its
@@ -193,6 +227,16 @@ fn load_result(
     record.ranks = ranks_of(conn, of)?;
     record.nearest = nearest_of(conn, of, nearest_count)?;
     record.landmarks = landmarks_of(conn, of)?;
+    // A duplicate of a scan of several specimens carries them too.
+    let count: Option<i64> = if of == record.id {
+        record.specimen_count.map(i64::from)
+    } else {
+        conn.prepare_cached("SELECT specimens FROM scan WHERE id = ?1")?
+            .query_row([of], |r| r.get(0))?
+    };
+    if count.is_some() {
+        record.specimens = specimens_of(conn, of, nearest_count)?;
+    }
     Ok(())
 }
 

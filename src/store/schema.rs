@@ -21,6 +21,7 @@ pub const MIGRATIONS: &[&str] = &[
     MIGRATION_4,
     MIGRATION_5,
     MIGRATION_6,
+    MIGRATION_7,
 ];
 
 /// The schema version this build writes and understands.
@@ -229,6 +230,25 @@ CREATE INDEX scan_duplicate_of ON scan (duplicate_of) WHERE duplicate_of IS NOT 
 CREATE INDEX scan_superseded_by ON scan (superseded_by) WHERE superseded_by IS NOT NULL;
 CREATE INDEX scan_files_due ON scan (id) WHERE files_due = 1;
 DROP INDEX distance_reference;
+"#;
+
+/// Migration 7: several specimens in one scan (issue 29). The scan's own
+/// row (the job) gets `specimens`, their number; each specimen gets a row
+/// of its own, `<scan>#n`, with `parent_id` the scan's row, `specimen`
+/// its number n (1-based, in order along the scan's longest axis) and
+/// `position` its bounding box (JSON: `voxels` in the input's voxels for
+/// a volume, `bounds` in the file's coordinates). A specimen's row holds
+/// its result, distances and landmarks like any scan's. The content's
+/// uniqueness counts the scans' own rows only.
+const MIGRATION_7: &str = r#"
+ALTER TABLE scan ADD COLUMN parent_id INTEGER REFERENCES scan (id);
+ALTER TABLE scan ADD COLUMN specimen INTEGER CHECK (specimen IS NULL OR specimen >= 1);
+ALTER TABLE scan ADD COLUMN position TEXT CHECK (position IS NULL OR json_valid(position));
+ALTER TABLE scan ADD COLUMN specimens INTEGER CHECK (specimens IS NULL OR specimens >= 2);
+DROP INDEX scan_content;
+CREATE UNIQUE INDEX scan_content ON scan (content_hash)
+    WHERE status NOT IN ('duplicate', 'superseded') AND parent_id IS NULL;
+CREATE UNIQUE INDEX scan_specimen ON scan (parent_id, specimen) WHERE parent_id IS NOT NULL;
 "#;
 
 /// Bring the database on `conn` to [`SCHEMA_VERSION`]: refuse a file of

@@ -226,6 +226,17 @@ pub struct ScanRecord {
     pub calibrating: bool,
     /// For a `superseded` scan: the row of the content its job read.
     pub superseded_by: Option<i64>,
+    /// For one specimen of a scan of several: the scan's row.
+    pub parent: Option<i64>,
+    /// For one specimen of a scan of several: its number (1-based, in
+    /// order along the scan's longest axis).
+    pub specimen: Option<u32>,
+    /// For one specimen of a scan of several: where it lies.
+    pub position: Option<crate::pipeline::Position>,
+    /// For a scan of several specimens: how many.
+    pub specimen_count: Option<u32>,
+    /// For a scan of several specimens: each one's record, in order.
+    pub specimens: Vec<ScanRecord>,
 }
 
 impl ScanRecord {
@@ -306,7 +317,12 @@ impl Serialize for RanksJson<'_> {
 /// could not be written, and `"calibrating": true` for an `ok` scan
 /// identified before the library's calibration was ready. A `duplicate` adds `"duplicate_of":
 /// {"id", "scan", "status"}` and the earlier scan's result in the same
-/// fields (or its `"error"`).
+/// fields (or its `"error"`). A scan of several specimens has, instead of
+/// a result, `"segmentation"` (what was found and dropped),
+/// `"timings_ms"` and `"specimens"`: each specimen's record as above
+/// (`"scan": "<scan>#n"`), with `"parent"` (the scan's id), `"specimen"`
+/// (n) and `"position"` (`{"voxels": [[x, y, z], [x, y, z]]` for a volume,
+/// `"bounds": [[x, y, z], [x, y, z]]}` in file coordinates).
 impl Serialize for ScanRecord {
     fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
         let mut map = serializer.serialize_map(None)?;
@@ -320,6 +336,26 @@ impl Serialize for ScanRecord {
             }
             (status, _) => *status,
         };
+        if let (Some(parent), Some(n)) = (self.parent, self.specimen) {
+            map.serialize_entry("parent", &parent)?;
+            map.serialize_entry("specimen", &n)?;
+            if let Some(p) = &self.position {
+                map.serialize_entry("position", p)?;
+            }
+        }
+        if !self.specimens.is_empty() {
+            // A scan of several specimens: each one's result is its own.
+            if shown == ScanStatus::Error {
+                map.serialize_entry("error", self.error.as_deref().unwrap_or(""))?;
+            }
+            map.serialize_entry("segmentation", &self.cleaning)?;
+            map.serialize_entry("timings_ms", &self.timings_ms)?;
+            map.serialize_entry("specimens", &self.specimens)?;
+            if let Some(e) = &self.files_error {
+                map.serialize_entry("files_error", e)?;
+            }
+            return map.end();
+        }
         match shown {
             ScanStatus::Ok => {
                 map.serialize_entry("ranks", &RanksJson(&self.ranks))?;

@@ -22,6 +22,7 @@ mod segment;
 mod shape;
 mod source;
 mod specimen;
+mod split;
 mod stack;
 pub mod synth;
 mod threshold;
@@ -37,8 +38,9 @@ pub use shape::{dilate_cube, erode_cube, local_variation, object_stats, open_cub
 pub use source::{VolumeFormat, VolumeInfo};
 pub use specimen::{
     find_specimen, DropReason, SegmentObject, Specimen, SpecimenError, MIN_SPECIMEN_VOXELS,
-    STANDS_OUT, TEXTURED, THIN_RADIUS, UNEVEN,
+    SPECIMEN_SHARE, STANDS_OUT, TEXTURED, THIN_RADIUS, UNEVEN,
 };
+pub use split::{separate_at_necks, Separation, FUSED_RADIUS, NECK_RADIUS};
 pub use stack::{natural_order, slice_format, slice_paths};
 pub use threshold::{
     contrast, enamel_threshold, foreground_threshold, multi_otsu, otsu, Histogram, Thresholds,
@@ -114,11 +116,21 @@ pub struct VolumeTimings {
     pub crown: f64,
 }
 
-/// A surface made from a volume and how.
+/// One specimen's surface made from a volume.
 #[derive(Debug, Clone)]
-pub struct VolumeSurface {
+pub struct VolumeSpecimen {
     /// The crown (open) where enamel was found, else the closed surface.
     pub mesh: Mesh,
+    /// First and last voxel along x, y, z, inclusive, in the input's voxels.
+    pub voxels: [[usize; 3]; 2],
+}
+
+/// The surfaces made from a volume and how.
+#[derive(Debug, Clone)]
+pub struct VolumeSurface {
+    /// The specimens, in order along the grid's longest axis (one for a
+    /// single specimen).
+    pub specimens: Vec<VolumeSpecimen>,
     /// What was done.
     pub report: VolumeReport,
 }
@@ -297,16 +309,16 @@ pub fn working_grid_from_bytes(
     Ok((grid, info))
 }
 
-/// The surface of the specimen in a working grid: the stages of
+/// The surfaces of the specimens in a working grid: the stages of
 /// [`surface_from_path`] after reading (segmentation, isosurface, and
 /// with `enamel` the crown cut over enamel). `name` only labels errors.
 pub fn surface_from_grid(
     grid: &Grid,
     opts: &VolumeOptions,
     name: &Path,
-) -> Result<Mesh, VolumeError> {
+) -> Result<Vec<Mesh>, VolumeError> {
     grid_surface(grid, opts)
-        .map(|(mesh, ..)| mesh)
+        .map(|(found, ..)| found.into_iter().map(|(mesh, _)| mesh).collect())
         .map_err(|e| VolumeError::Invalid {
             path: name.to_path_buf(),
             problem: e.to_string(),
@@ -324,23 +336,40 @@ enum SegmentError {
     TooSmall(usize),
 }
 
-/// The surface of the specimen in `grid` (see the module documentation),
-/// with the thresholds and what segmentation and the crown cut did.
+/// The surfaces of the specimens in `grid` (see the module documentation;
+/// several in a batch scan), each with its box in working samples, with
+/// the thresholds and what segmentation and the crown cut did.
+#[allow(clippy::type_complexity)]
 fn grid_surface(
     grid: &Grid,
     opts: &VolumeOptions,
-) -> Result<(Mesh, Thresholds, SegmentReport, GridSurfaceReport), SegmentError> {
+) -> Result<
+    (
+        Vec<(Mesh, [[usize; 3]; 2])>,
+        Thresholds,
+        SegmentReport,
+        GridSurfaceReport,
+    ),
+    SegmentError,
+> {
     let t = Instant::now();
     let Specimen {
-        mask,
+        masks,
         level: fg,
         report: seg,
     } = find_specimen(&grid.values, grid.dims)?;
     if seg.kept_voxels < 8 {
         return Err(SegmentError::TooSmall(seg.kept_voxels));
     }
-    let interior: Vec<f32> = interior_samples(&mask, grid.dims, 2)
-        .into_iter()
+    let boxes: Vec<[[usize; 3]; 2]> = seg
+        .objects
+        .iter()
+        .filter(|o| o.kept)
+        .map(|o| o.bbox)
+        .collect();
+    let interior: Vec<f32> = masks
+        .iter()
+        .flat_map(|m| interior_samples(m, grid.dims, 2))
         .map(|i| grid.values[i])
         .collect();
     let th = Thresholds {
@@ -354,47 +383,50 @@ fn grid_surface(
         * (grid.values.iter().copied().fold(f32::MIN, f32::max) - fg)
             .abs()
             .max(1e-6);
-    let mut field = grid.clone();
-    for (v, &m) in field.values.iter_mut().zip(&mask) {
-        *v = if m {
-            v.max(fg + margin)
-        } else {
-            v.min(fg - margin)
-        };
-    }
-    let segment_ms = ms(t);
-    let t = Instant::now();
-    let closed = isosurface(&field, fg);
-    let iso_ms = ms(t);
-    let t = Instant::now();
     let mut report = GridSurfaceReport {
-        isosurface_faces: closed.faces.len(),
-        isosurface_area: surface_area(&closed),
-        segment_ms,
-        isosurface_ms: iso_ms,
+        segment_ms: ms(t),
         ..Default::default()
     };
-    let mesh = match th.enamel.filter(|_| opts.enamel) {
-        Some(level) => {
-            let step = grid.spacing.iter().copied().fold(f64::MAX, f64::min);
-            let normals = crate::mesh::vertex_normals(&closed.vertices, &closed.faces);
-            let depths = [1.0, 1.5, 2.0, 2.5, 3.0].map(|d| d * step);
-            let values = enamel::density_below_surface(&closed, &normals, grid, &depths, level);
-            let values = enamel::smooth_vertex_values(&closed, &values);
-            let (crown, parts) = largest_part(&cut_at_zero_level(&closed, &values));
-            if crown.faces.is_empty() {
-                closed
+    let mut out = Vec::with_capacity(masks.len());
+    for (mask, bbox) in masks.iter().zip(boxes) {
+        let t = Instant::now();
+        let mut field = grid.clone();
+        for (v, &m) in field.values.iter_mut().zip(mask) {
+            *v = if m {
+                v.max(fg + margin)
             } else {
-                report.enamel_found = true;
-                report.crown_area = surface_area(&crown);
-                report.enamel_regions = parts;
-                crown
-            }
+                v.min(fg - margin)
+            };
         }
-        None => closed,
-    };
-    report.crown_ms = ms(t);
-    Ok((mesh, th, seg, report))
+        let closed = isosurface(&field, fg);
+        drop(field);
+        report.isosurface_ms += ms(t);
+        let t = Instant::now();
+        report.isosurface_faces += closed.faces.len();
+        report.isosurface_area += surface_area(&closed);
+        let mesh = match th.enamel.filter(|_| opts.enamel) {
+            Some(level) => {
+                let step = grid.spacing.iter().copied().fold(f64::MAX, f64::min);
+                let normals = crate::mesh::vertex_normals(&closed.vertices, &closed.faces);
+                let depths = [1.0, 1.5, 2.0, 2.5, 3.0].map(|d| d * step);
+                let values = enamel::density_below_surface(&closed, &normals, grid, &depths, level);
+                let values = enamel::smooth_vertex_values(&closed, &values);
+                let (crown, parts) = largest_part(&cut_at_zero_level(&closed, &values));
+                if crown.faces.is_empty() {
+                    closed
+                } else {
+                    report.enamel_found = true;
+                    report.crown_area += surface_area(&crown);
+                    report.enamel_regions += parts;
+                    crown
+                }
+            }
+            None => closed,
+        };
+        report.crown_ms += ms(t);
+        out.push((mesh, bbox));
+    }
+    Ok((out, th, seg, report))
 }
 
 /// The samples of `mask` at least `depth` steps (6-connected) from any
@@ -484,7 +516,7 @@ fn surface_from_path_as(
         read_working_grid(path, opts, hashed)?
     };
     let read_ms = ms(t);
-    let (mesh, th, seg, r) = {
+    let (found, th, seg, r) = {
         let _s = tracing::debug_span!("volume_surface", scan = %name).entered();
         grid_surface(&grid, opts).map_err(|e| VolumeError::Invalid {
             path: path.to_path_buf(),
@@ -493,12 +525,25 @@ fn surface_from_path_as(
     };
     let mut seg = seg;
     // Bounding boxes in the input's voxels, as a user finds them in the file.
+    let input_box = |b: [[usize; 3]; 2]| {
+        [
+            b[0].map(|v| v * factor),
+            [0, 1, 2].map(|a| ((b[1][a] + 1) * factor).min(info.dims[a]).max(1) - 1),
+        ]
+    };
     for o in &mut seg.objects {
-        o.bbox = [
-            o.bbox[0].map(|v| v * factor),
-            [0, 1, 2].map(|a| ((o.bbox[1][a] + 1) * factor).min(info.dims[a]) - 1),
-        ];
+        o.bbox = input_box(o.bbox);
     }
+    for w in &seg.warnings {
+        tracing::warn!("{}: {w}", path.display());
+    }
+    let specimens = found
+        .into_iter()
+        .map(|(mesh, b)| VolumeSpecimen {
+            mesh,
+            voxels: input_box(b),
+        })
+        .collect();
     for o in seg.objects.iter().filter(|o| !o.kept) {
         tracing::info!(
             "{}: dropped an object of grey {:.1}, {} voxels at the working resolution, \
@@ -512,7 +557,7 @@ fn surface_from_path_as(
         );
     }
     let surface = VolumeSurface {
-        mesh,
+        specimens,
         report: VolumeReport {
             input: info,
             reduction_factor: factor,

@@ -8,7 +8,7 @@ use super::specimen::SegmentObject;
 /// What segmentation kept and dropped.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SegmentReport {
-    /// Voxels of the kept specimen before filling.
+    /// Voxels of the kept specimens before filling.
     pub kept_voxels: usize,
     /// Other objects above the specimen's threshold, dropped.
     pub dropped_components: usize,
@@ -33,6 +33,10 @@ pub struct SegmentReport {
     /// Their samples.
     #[serde(default)]
     pub small_voxels: usize,
+    /// What a user should know about the split into specimens (an object
+    /// cut at a neck, or possibly two fused).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 /// 6-connected components of the `true` voxels of `mask` on a grid of

@@ -19,6 +19,7 @@ use super::segment::{connected_components, fill_cavities, SegmentReport};
 use super::shape::{
     dilate_cube, erode_cube, local_variation, object_stats, open_cube, quantile, ObjectStats,
 };
+use super::split::{separate_at_necks, Separation};
 use super::threshold::{foreground_threshold, multi_otsu, Histogram};
 
 /// Half-side (working samples) of the cube opening that separates thin
@@ -28,6 +29,12 @@ pub const THIN_RADIUS: usize = 2;
 
 /// Samples (working resolution) an object needs to be a specimen.
 pub const MIN_SPECIMEN_VOXELS: usize = 1000;
+
+/// An object at the specimens' level that is not mounting material is a
+/// specimen of its own when it holds at least this share of the largest
+/// one's samples, else a fragment (a broken cusp, debris): teeth scanned
+/// together differ in volume by less than this factor, fragments by more.
+pub const SPECIMEN_SHARE: f64 = 0.2;
 
 /// Below the specimen's level, objects are listed from this many times
 /// [`MIN_SPECIMEN_VOXELS`] up.
@@ -73,9 +80,12 @@ pub enum DropReason {
     ThinShell,
     /// Fewer than [`MIN_SPECIMEN_VOXELS`] samples.
     TooSmall,
-    /// A large object, but another one is larger (wax, clay, a second
-    /// specimen).
+    /// A large object, but another one is larger (reports written before
+    /// batch scans were identified specimen by specimen).
     NotDensestLarge,
+    /// Not mounting material, but under [`SPECIMEN_SHARE`] of the largest
+    /// specimen: a fragment or debris, reported and not identified.
+    Fragment,
 }
 
 /// One object found in a volume, kept or dropped.
@@ -98,11 +108,13 @@ pub struct SegmentObject {
     pub bbox: [[usize; 3]; 2],
 }
 
-/// The specimen found in a working grid.
+/// The specimens found in a working grid (one, or several in a batch
+/// scan).
 #[derive(Debug, Clone)]
 pub struct Specimen {
-    /// The specimen's samples, cavities filled.
-    pub mask: Vec<bool>,
+    /// Each specimen's samples, cavities filled, in order along the grid's
+    /// longest axis (the order of the kept objects in the report).
+    pub masks: Vec<Vec<bool>>,
     /// The threshold it was cut at.
     pub level: f64,
     /// What was kept, dropped and filled.
@@ -425,16 +437,91 @@ pub fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen, Speci
         levels: levels.clone(),
         ..Default::default()
     };
-    let core = select(&view.labels, spec_label);
-    let mut specimen: Vec<bool> = dilate_cube(&core, dims, THIN_RADIUS)
+
+    // The specimens: the seed's object and every other object at its level
+    // that is large, not mounting material, and at least a share of the
+    // largest of them (batch scans); smaller ones are fragments.
+    let mut candidates: Vec<u32> = vec![spec_label];
+    let mut mount: Vec<Option<String>> = vec![None; view.stats.len()];
+    for (l, s) in view.stats.iter().enumerate() {
+        if l as u32 == spec_label || s.voxels < MIN_SPECIMEN_VOXELS {
+            continue;
+        }
+        let region = select(&view.labels, l as u32);
+        mount[l] = mount_like(values, dims, &region, &view, l as u32, background);
+        if mount[l].is_none() {
+            candidates.push(l as u32);
+        }
+    }
+    let largest = candidates
         .iter()
-        .zip(&view.mask)
-        .map(|(&d, &m)| d && m)
-        .collect();
+        .map(|&l| view.stats[l as usize].voxels)
+        .max()
+        .unwrap_or(0);
+    let share = |l: u32| view.stats[l as usize].voxels as f64 >= SPECIMEN_SHARE * largest as f64;
+    let kept_labels: Vec<u32> = candidates.iter().copied().filter(|&l| share(l)).collect();
+
+    // Each kept object cut at its thin necks (touching specimens).
+    let mut cores: Vec<(Vec<bool>, u32)> = Vec::new();
+    for &l in &kept_labels {
+        let core = select(&view.labels, l);
+        match separate_at_necks(&core, dims) {
+            Separation::Cut { parts, radius } => {
+                report.warnings.push(format!(
+                    "an object of {} samples was cut at a neck {} samples wide into {} \
+                     specimens",
+                    view.stats[l as usize].voxels,
+                    2 * radius + 1,
+                    parts.len()
+                ));
+                cores.extend(parts.into_iter().map(|p| (p, l)));
+            }
+            Separation::Fused { radius } => {
+                report.warnings.push(format!(
+                    "an object of {} samples may be two specimens fused over a junction \
+                     about {} samples wide (no thin neck to cut it at): identified as one",
+                    view.stats[l as usize].voxels,
+                    2 * radius + 1
+                ));
+                cores.push((core, l));
+            }
+            Separation::Whole => cores.push((core, l)),
+        }
+    }
+
+    // Each specimen: its core grown back over the opening's reach within
+    // the level's mask (the parts of a cut object do not take each other's
+    // samples).
+    let mut claimed = vec![false; values.len()];
+    let mut specimens: Vec<Vec<bool>> = Vec::with_capacity(cores.len());
+    for (core, _) in &cores {
+        let grown: Vec<bool> = dilate_cube(core, dims, THIN_RADIUS)
+            .iter()
+            .zip(&view.mask)
+            .zip(core)
+            .map(|((&d, &m), &c)| c || (d && m))
+            .collect();
+        specimens.push(grown);
+    }
+    for s in &specimens {
+        for (c, &b) in claimed.iter_mut().zip(s) {
+            *c |= b;
+        }
+    }
+    // A sample two grown parts share goes to the first (cores never overlap).
+    let mut seen = vec![false; values.len()];
+    for s in &mut specimens {
+        for (b, v) in s.iter_mut().zip(seen.iter_mut()) {
+            if *b && *v {
+                *b = false;
+            }
+            *v |= *b;
+        }
+    }
 
     // Thin parts: what the opening cut off and its dilation does not give
-    // back. Small ones on the specimen are its own (cusp tips, noise);
-    // long ones are tubes, walls and pins.
+    // back. Small ones on a specimen are its own (cusp tips, noise); long
+    // ones are tubes, walls and pins.
     let thick_back = dilate_cube(&view.opened, dims, THIN_RADIUS);
     let residue: Vec<bool> = view
         .mask
@@ -444,47 +531,72 @@ pub fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen, Speci
         .collect();
     let (res_labels, res_sizes) = connected_components(&residue, dims);
     let res_stats = object_stats(&res_labels, res_sizes.len(), values, dims);
-    let mut touches = vec![false; res_sizes.len()];
+    // Which specimen each thin part touches first.
+    let mut touches: Vec<Option<usize>> = vec![None; res_sizes.len()];
     for (i, &l) in res_labels.iter().enumerate() {
-        if l != u32::MAX && !touches[l as usize] && neighbours_any(i, dims, &specimen) {
-            touches[l as usize] = true;
+        if l == u32::MAX || touches[l as usize].is_some() || !neighbours_any(i, dims, &claimed) {
+            continue;
         }
+        touches[l as usize] = specimens.iter().position(|s| neighbours_any(i, dims, s));
     }
-    // A thin part on the specimen that stays within its reach (a cusp tip,
-    // a root apex, an enamel edge) is its own; one that leads away from it
+    // A thin part on a specimen that stays within its reach (a cusp tip, a
+    // root apex, an enamel edge) is its own; one that leads away from it
     // (a pin, a tube wall it touches) is not.
     let reach = 4 * THIN_RADIUS + 1;
-    let core_box = &view.stats[spec_label as usize];
-    let joins: Vec<bool> = res_stats
+    let boxes: Vec<Option<[[usize; 3]; 2]>> = specimens.iter().map(|s| bbox_of(s, dims)).collect();
+    let joins: Vec<Option<usize>> = res_stats
         .iter()
         .zip(&touches)
         .map(|(s, &t)| {
-            t && (0..3)
-                .all(|a| s.min[a] + reach >= core_box.min[a] && s.max[a] <= core_box.max[a] + reach)
+            let k = t?;
+            let b = boxes[k]?;
+            (0..3)
+                .all(|a| s.min[a] + reach >= b[0][a] && s.max[a] <= b[1][a] + reach)
+                .then_some(k)
         })
         .collect();
     for (i, &l) in res_labels.iter().enumerate() {
-        if l != u32::MAX && joins[l as usize] {
-            specimen[i] = true;
+        if l != u32::MAX {
+            if let Some(k) = joins[l as usize] {
+                specimens[k][i] = true;
+            }
         }
     }
-    let kept_voxels = specimen.iter().filter(|&&b| b).count();
-    let spec_stats = &view.stats[spec_label as usize];
-    let kept_mean = mean_of(values, &specimen);
-    report.objects.push(SegmentObject {
-        kept: true,
-        reason: None,
-        detail: "the densest large object".into(),
-        level,
-        mean: kept_mean,
-        voxels: kept_voxels,
-        bbox: bbox_of(&specimen, dims).unwrap_or(bbox(spec_stats)),
-    });
-    report.kept_voxels = kept_voxels;
 
-    // The other objects at the specimen's level.
+    // In order along the volume's longest axis (physical extent is the
+    // caller's: here the grid's longest), by the centre of each box.
+    let axis = (0..3)
+        .max_by_key(|&a| (dims[a], usize::MAX - a))
+        .unwrap_or(0);
+    let mut order: Vec<usize> = (0..specimens.len()).collect();
+    let centre = |k: usize| boxes[k].map_or(0, |b| b[0][axis] + b[1][axis]);
+    order.sort_by_key(|&k| (centre(k), k));
+    let specimens: Vec<Vec<bool>> = {
+        let mut slots: Vec<Option<Vec<bool>>> = specimens.into_iter().map(Some).collect();
+        order.iter().filter_map(|&k| slots[k].take()).collect()
+    };
+    for s in &specimens {
+        let voxels = s.iter().filter(|&&b| b).count();
+        report.objects.push(SegmentObject {
+            kept: true,
+            reason: None,
+            detail: if specimens.len() == 1 {
+                "the densest large object".into()
+            } else {
+                "one of the specimens: dense, large, not mounting material".into()
+            },
+            level,
+            mean: mean_of(values, s),
+            voxels,
+            bbox: bbox_of(s, dims).unwrap_or([[0; 3]; 2]),
+        });
+        report.kept_voxels += voxels;
+    }
+    let kept_count = specimens.len();
+
+    // The other objects at the specimens' level.
     for (l, s) in view.stats.iter().enumerate() {
-        if l as u32 == spec_label {
+        if kept_labels.contains(&(l as u32)) {
             continue;
         }
         report.dropped_components += 1;
@@ -495,19 +607,21 @@ pub fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen, Speci
                 format!("under {MIN_SPECIMEN_VOXELS} samples"),
             )
         } else {
-            let region = select(&view.labels, l as u32);
-            match mount_like(values, dims, &region, &view, l as u32, background) {
+            match mount[l].take() {
                 Some(why) => (DropReason::BackgroundClass, why),
                 None => (
-                    DropReason::NotDensestLarge,
-                    "smaller than the specimen".into(),
+                    DropReason::Fragment,
+                    format!(
+                        "under {:.0} % of the largest specimen: a fragment or debris",
+                        SPECIMEN_SHARE * 100.0
+                    ),
                 ),
             }
         };
         push_object(&mut report, reason, detail, level, s);
     }
     for (l, s) in res_stats.iter().enumerate() {
-        if joins[l] {
+        if joins[l].is_some() {
             continue;
         }
         report.dropped_components += 1;
@@ -520,7 +634,14 @@ pub fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen, Speci
             s,
         );
     }
-
+    let specimen: Vec<bool> = specimens
+        .iter()
+        .fold(vec![false; values.len()], |mut acc, s| {
+            for (a, &b) in acc.iter_mut().zip(s) {
+                *a |= b;
+            }
+            acc
+        });
     // Below the specimen: what stopped the search, and everything at the
     // lowest level (the foam as a whole, the tube).
     // Past the blur at the specimen's edge.
@@ -548,18 +669,25 @@ pub fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen, Speci
     }
     // The largest dropped objects are listed, the rest counted (foam bright
     // enough to reach the specimen's level would crowd the list).
-    let mut dropped = report.objects.split_off(1);
+    let mut dropped = report.objects.split_off(kept_count);
     dropped.sort_by_key(|o| std::cmp::Reverse(o.voxels));
     for o in dropped.split_off(dropped.len().min(LISTED_DROPPED)) {
         report.small_objects += 1;
         report.small_voxels += o.voxels;
     }
     report.objects.extend(dropped);
-    let (mask, cavities, filled) = fill_cavities(specimen, dims);
-    report.filled_cavities = cavities;
-    report.filled_voxels = filled;
+    drop(specimen);
+    let masks = specimens
+        .into_iter()
+        .map(|s| {
+            let (mask, cavities, filled) = fill_cavities(s, dims);
+            report.filled_cavities += cavities;
+            report.filled_voxels += filled;
+            mask
+        })
+        .collect();
     Ok(Specimen {
-        mask,
+        masks,
         level,
         report,
     })
@@ -819,7 +947,12 @@ mod tests {
     fn the_tooth_is_found_in_foam_and_a_tube_and_both_are_dropped() {
         let (values, dims, truth) = mounted(48, true, 1);
         let s = find_specimen(&values, dims).unwrap();
-        let wrong = s.mask.iter().zip(&truth).filter(|(a, b)| a != b).count();
+        assert_eq!(s.masks.len(), 1);
+        let wrong = s.masks[0]
+            .iter()
+            .zip(&truth)
+            .filter(|(a, b)| a != b)
+            .count();
         let size = truth.iter().filter(|&&b| b).count();
         assert!(wrong * 10 < size, "{wrong} of {size} wrong: {:?}", s.report);
         let reasons: Vec<_> = s.report.objects.iter().map(|o| o.reason).collect();
