@@ -18,6 +18,7 @@ mod enamel;
 mod nifti;
 mod nrrd;
 mod reduce;
+mod refine;
 mod segment;
 mod shape;
 mod source;
@@ -33,6 +34,7 @@ pub use enamel::{cut_at_zero_level, largest_part};
 // noisy whole teeth with them): they live in `mesh`.
 pub use crate::mesh::{isosurface, Grid};
 pub use reduce::{reduction_factor, BlockAverage};
+pub use refine::{detail_factor, refined_surface, DETAIL_VOXELS};
 pub use segment::{connected_components, fill_cavities, specimen_mask, SegmentReport};
 pub use shape::{dilate_cube, erode_cube, local_variation, object_stats, open_cube, ObjectStats};
 pub use source::{VolumeFormat, VolumeInfo};
@@ -215,8 +217,10 @@ fn open(path: &Path, hashed: bool) -> Result<Box<dyn SliceSource>, VolumeError> 
     })
 }
 
-/// The working grid of a volume as read, and the content read when hashed.
-type WorkingGrid = (Grid, VolumeInfo, usize, Option<Content>);
+/// The working grid of a volume as read, its block size, the finer detail
+/// grid (when finer than the working grid), and the content read when
+/// hashed.
+type WorkingGrid = (Grid, VolumeInfo, usize, Option<Grid>, Option<Content>);
 
 /// Read the volume at `path` slice by slice into the working grid.
 fn read_working_grid(
@@ -243,6 +247,9 @@ fn reduce_source(
     }
     let factor = reduction_factor(info.dims, opts.working_voxels);
     let mut reducer = BlockAverage::new(info.dims, info.voxel_size, factor);
+    // A batch's specimens are each made again from a finer grid.
+    let fine = detail_factor(info.dims);
+    let mut detail = (fine < factor).then(|| BlockAverage::new(info.dims, info.voxel_size, fine));
     let mut slice = Vec::new();
     for _ in 0..info.dims[2] {
         source.next_slice(&mut slice)?;
@@ -257,9 +264,18 @@ fn reduce_source(
             });
         }
         reducer.push(&slice);
+        if let Some(d) = &mut detail {
+            d.push(&slice);
+        }
     }
     let content = source.content()?;
-    Ok((reducer.finish(), info, factor, content))
+    Ok((
+        reducer.finish(),
+        info,
+        factor,
+        detail.map(BlockAverage::finish),
+        content,
+    ))
 }
 
 /// Decode one slice file held in memory, as a slice folder or a DICOM
@@ -305,7 +321,7 @@ pub fn working_grid_from_bytes(
             })
         }
     };
-    let (grid, info, _, _) = reduce_source(source, name, opts)?;
+    let (grid, info, _, _, _) = reduce_source(source, name, opts)?;
     Ok((grid, info))
 }
 
@@ -317,7 +333,7 @@ pub fn surface_from_grid(
     opts: &VolumeOptions,
     name: &Path,
 ) -> Result<Vec<Mesh>, VolumeError> {
-    grid_surface(grid, opts)
+    grid_surface(grid, None, opts)
         .map(|(found, ..)| found.into_iter().map(|(mesh, _)| mesh).collect())
         .map_err(|e| VolumeError::Invalid {
             path: name.to_path_buf(),
@@ -342,6 +358,7 @@ enum SegmentError {
 #[allow(clippy::type_complexity)]
 fn grid_surface(
     grid: &Grid,
+    detail: Option<&Grid>,
     opts: &VolumeOptions,
 ) -> Result<
     (
@@ -398,7 +415,12 @@ fn grid_surface(
                 v.min(fg - margin)
             };
         }
-        let closed = isosurface(&field, fg);
+        // A batch's specimens each at its own resolution, from the finer
+        // grid when there is one.
+        let refined = detail
+            .filter(|_| masks.len() > 1)
+            .and_then(|d| refined_surface(d, grid, mask, f64::from(fg), opts.working_voxels));
+        let closed = refined.unwrap_or_else(|| isosurface(&field, fg));
         drop(field);
         report.isosurface_ms += ms(t);
         let t = Instant::now();
@@ -511,14 +533,14 @@ fn surface_from_path_as(
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     let t = Instant::now();
-    let (grid, info, factor, content) = {
+    let (grid, info, factor, detail, content) = {
         let _s = tracing::debug_span!("volume_read", scan = %name).entered();
         read_working_grid(path, opts, hashed)?
     };
     let read_ms = ms(t);
     let (found, th, seg, r) = {
         let _s = tracing::debug_span!("volume_surface", scan = %name).entered();
-        grid_surface(&grid, opts).map_err(|e| VolumeError::Invalid {
+        grid_surface(&grid, detail.as_ref(), opts).map_err(|e| VolumeError::Invalid {
             path: path.to_path_buf(),
             problem: e.to_string(),
         })?
