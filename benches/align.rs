@@ -42,8 +42,10 @@ fn library(scratch: &Path) -> (PathBuf, String) {
     let limit: Option<usize> = std::env::var("MORPHOID_BENCH_ALIGN_TEETH")
         .ok()
         .and_then(|v| v.parse().ok());
-    match (support::data::teeth_dir(), support::data::tooth_paths()) {
-        (Some(dir), Some(paths)) => match limit {
+    let teeth = support::data::teeth_dir_if_present()
+        .map(|dir| (support::data::ply_files(&dir.join("meshes")), dir));
+    match teeth {
+        Some((paths, dir)) => match limit {
             None => (dir, format!("{} real teeth", paths.len())),
             Some(k) => {
                 let lib = scratch.join("teeth");

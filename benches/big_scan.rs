@@ -57,7 +57,7 @@ fn main() {
     // `cargo bench` passes `--bench`; nothing to parse.
     let bin = morphoid_binary();
     let tmp = tempfile::tempdir().expect("temp dir");
-    let (base, library) = match support::data::teeth_dir() {
+    let (base, library) = match support::data::teeth_dir_if_present() {
         Some(dir) => (
             io::load(&dir.join("meshes").join("J12.ply"))
                 .expect("J12 loads")

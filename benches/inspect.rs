@@ -19,7 +19,7 @@ mod support;
 use std::path::{Path, PathBuf};
 
 fn source_surface() -> morphoid::mesh::Mesh {
-    match support::data::teeth_meshes() {
+    match support::data::teeth_dir_if_present().map(|d| d.join("meshes")) {
         Some(dir) => io::load(&dir.join("J12.ply")).expect("J12 loads").mesh,
         None => {
             eprintln!("real teeth not found: using a synthetic crown");

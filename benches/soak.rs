@@ -88,7 +88,7 @@ fn main() {
     let teeth = if synthetic {
         None
     } else {
-        support::data::teeth_dir()
+        support::data::teeth_dir_if_present()
     };
     let library = match teeth {
         Some(d) => d,

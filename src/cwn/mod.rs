@@ -45,7 +45,7 @@ use std::time::Instant;
 pub struct CwnParams {
     /// Euclidean radius `R` of the neighbourhood `N(0, R)` in the disk
     /// (hyperbolic radius `ln((1 + R)/(1 − R))`). The default 0.6 was
-    /// tuned on the PNAS teeth (0.4, 0.5, 0.6 tried; see README).
+    /// tuned on the PNAS teeth (0.4, 0.5, 0.6 tried; see docs/design.md).
     pub radius: f64,
     /// Rings of the polar quadrature of the neighbourhood.
     pub rings: usize,

@@ -1,4 +1,4 @@
-//! Cleaning the real teeth (skipped when the data set is absent).
+//! Cleaning the real teeth (needs the data set, see `support::data`).
 
 use crate::support::clean::*;
 use morphoid::clean::{clean, CleanOptions};

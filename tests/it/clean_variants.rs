@@ -1,5 +1,5 @@
 //! Defective variants of a real tooth, generated here, clean back to a disk
-//! on the tooth's surface (skipped when the data set is absent).
+//! on the tooth's surface (needs the data set, see `support::data`).
 
 use crate::support::clean::*;
 use morphoid::clean::{clean, CleanOptions, Cleaned};

@@ -1,5 +1,5 @@
 //! Flattening of all 116 teeth after the cleaning pipeline (which also
-//! repairs J12 and S09); skipped when the data set is absent.
+//! repairs J12 and S09); needs the data set, see `support::data`.
 
 use morphoid::clean::{clean, CleanOptions};
 use morphoid::conformal::{flatten_to_disk, flipped_triangles, normalize, quasi_conformal_ratios};

@@ -1,8 +1,8 @@
 //! Measurement: the flattening against the simplest version of the
 //! Green's-function/harmonic-conjugate method (z = exp(−2π(u + i v)) with
 //! the conjugate v on the mid-edge mesh, each vertex at the mean of its
-//! edge midpoints' images), on all teeth. Skipped when the data set is
-//! absent.
+//! edge midpoints' images), on all teeth. Needs the data set, see
+//! `support::data`.
 
 use faer::sparse::{SparseColMat, Triplet};
 use morphoid::conformal::{

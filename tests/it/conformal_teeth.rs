@@ -1,5 +1,5 @@
-//! Conformal flattening of the 116 real teeth (skipped when the data set is
-//! absent).
+//! Conformal flattening of the 116 real teeth (needs the data set, see
+//! `support::data`).
 
 use morphoid::conformal::{
     conformal_factor, flatten_to_disk, flatten_to_disk_with, flipped_triangles, normalize,

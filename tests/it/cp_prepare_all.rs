@@ -1,4 +1,5 @@
-//! Every real tooth can be prepared (skipped when the data is absent).
+//! Every real tooth can be prepared (needs the data set, see
+//! `support::data`).
 
 use morphoid::cp::CpParams;
 

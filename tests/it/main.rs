@@ -1,7 +1,8 @@
 //! The integration tests: one test crate, one module per area and topic.
 //! Shared helpers live in `support`; the real teeth are found by
-//! `support::data` (set `MORPHOID_REQUIRE_DATA=1` to fail instead of skip
-//! when they are missing).
+//! `support::data`. A test fails when the real teeth or root (the
+//! storage-fault tests) are missing, unless `MORPHOID_SKIP_DATA=1` or
+//! `MORPHOID_SKIP_ROOT=1` opts out: then it prints `skipped: …` on stderr.
 
 mod support;
 

@@ -82,8 +82,9 @@ impl WindingGraph {
     /// at winding 0 and copy at winding 1 are connected in the cover (the
     /// cover's edges go both ways, so connected is reachable). A search
     /// from any other source explores everything it can reach and finds
-    /// nothing; on a surface where nothing winds round, that was every
-    /// source over the whole surface (minutes on a 400k-face isosurface).
+    /// nothing; on a surface where nothing winds round, that would be
+    /// every source over the whole surface (minutes on a 400k-face
+    /// isosurface).
     fn sources_with_winding_loop(&self, sources: &[u32]) -> Vec<u32> {
         let mut uf = crate::clean::union_find::UnionFind::new(self.neighbours.len() * LAYERS);
         for (v, list) in self.neighbours.iter().enumerate() {

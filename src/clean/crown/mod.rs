@@ -61,8 +61,8 @@ const MIN_CREASE_DEGREES: f64 = 15.0;
 /// roots longer than this. A cut that dips lower ran round a wrong axis
 /// or round the roots, so the scan is refused rather than identified from
 /// a wrong crown. (On whole teeth built from the 116 PNAS crowns the
-/// margin's lowest point lies at 0.48 or higher; the three wrong cuts of
-/// the search before [`END_EXCLUDED`] was raised dipped to 0.07–0.17.)
+/// margin's lowest point lies at 0.48 or higher; a loop round the roots'
+/// closure near the apex dips to 0.07–0.17.)
 const MIN_CUT_HEIGHT: f64 = 0.3;
 
 /// The smallest share of the cut's length that must run along crease
@@ -242,10 +242,9 @@ const CLIMB_COST: f64 = 0.3;
 const CREASE_SCALE: f64 = 12.0;
 
 /// Share of the tooth's length at each end that the margin search leaves
-/// out: the margin lies 0.5–0.8 of the length above the apex, and with 3 %
-/// a short loop round the roots' narrow closure near the apex (7–19 % of
-/// the length) won on three of the whole teeth built from the 116 PNAS
-/// crowns.
+/// out: the margin lies 0.5–0.8 of the length above the apex, and a
+/// short loop round the roots' narrow closure near the apex (7–19 % of
+/// the length) must not compete with it.
 const END_EXCLUDED: f64 = 0.15;
 
 /// Vertices the margin may pass through along `cyl`: not at the very ends

@@ -5,7 +5,8 @@ use morphoid::clean::TriangleGrid;
 use morphoid::mesh::Mesh;
 use std::path::{Path, PathBuf};
 
-/// Folder of the real teeth's surface files, if present.
+/// Folder of the real teeth's surface files; see
+/// [`super::data::teeth_dir`] for when it is missing.
 pub fn teeth_dir() -> Option<PathBuf> {
     super::data::teeth_meshes()
 }

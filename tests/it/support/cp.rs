@@ -4,7 +4,8 @@
 use morphoid::mesh::Mesh;
 use std::path::{Path, PathBuf};
 
-/// The real teeth folder (`labels.csv`, `meshes/`), if present.
+/// The real teeth folder (`labels.csv`, `meshes/`); see
+/// [`super::data::teeth_dir`] for when it is missing.
 pub fn data_dir() -> Option<PathBuf> {
     super::data::teeth_dir()
 }
@@ -103,7 +104,7 @@ fn prepared_slot(
 /// synthetic crowns of about 5,000 vertices; with a description of which.
 #[allow(dead_code)] // used by the benches, which include this module
 pub fn benchmark_pair() -> (Mesh, Mesh, &'static str) {
-    match super::data::teeth_dir() {
+    match super::data::teeth_dir_if_present() {
         Some(dir) => (
             load_tooth(&dir, "H10"),
             load_tooth(&dir, "H16"),

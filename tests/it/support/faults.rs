@@ -3,23 +3,28 @@
 //! ext4 shut down with `EXT4_IOC_SHUTDOWN`: device-mapper is not available
 //! on every machine, this needs only loop devices), read-only bind
 //! mounts. Mounts are undone by a guard's `Drop`, also when a test fails.
-//! All of it needs root: without it a test prints `skipped: needs root`
-//! and passes, unless `MORPHOID_REQUIRE_ROOT=1`.
+//! All of it needs root: without it a test fails, unless the developer
+//! opts out with `MORPHOID_SKIP_ROOT=1` (the test then prints `skipped: …`
+//! on stderr and passes; see [`super::missing`]). `MORPHOID_REQUIRE_ROOT=1`,
+//! the former switch, is still accepted: it overrides the opt-out.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// Whether the test can run: root, or a skip message (a failure with
-/// `MORPHOID_REQUIRE_ROOT=1`).
+/// Whether the test can run: true as root; otherwise the test fails,
+/// unless `MORPHOID_SKIP_ROOT=1`, where this prints `skipped: …` on stderr
+/// and gives false, and the test returns early.
+#[track_caller]
 pub fn have_root(test: &str) -> bool {
     if libc_geteuid() == 0 {
         return true;
     }
-    assert!(
-        std::env::var("MORPHOID_REQUIRE_ROOT").as_deref() != Ok("1"),
-        "{test}: needs root (MORPHOID_REQUIRE_ROOT=1)"
+    super::missing(
+        &format!("{test} needs root"),
+        "run the tests as root, as CI does",
+        "MORPHOID_SKIP_ROOT",
+        "MORPHOID_REQUIRE_ROOT",
     );
-    println!("{test}: skipped: needs root");
     false
 }
 

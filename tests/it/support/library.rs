@@ -26,7 +26,8 @@ pub struct RealLibrary {
 }
 
 /// The real teeth built as [`RealLibrary`] says, or `None` without the
-/// data (see `data::teeth_dir`). Every reference must prepare.
+/// data when the developer opted out of it (see `data::teeth_dir`).
+/// Every reference must prepare.
 pub fn real_library() -> Option<RealLibrary> {
     let dir = super::data::teeth_dir()?;
     let ranks: Vec<String> = ["order", "family", "genus"].map(String::from).to_vec();
