@@ -365,9 +365,11 @@ pub fn volume_pipeline(data: &[u8]) -> bool {
         enamel: flags & 8 != 0,
     };
     match morphoid::volume::surface_from_grid(&grid, &opts, Path::new("fuzz")) {
-        Ok(m) => {
-            assert_eq!(m.first_non_finite_vertex(), None, "non-finite vertex");
-            assert_eq!(m.first_face_out_of_range(), None, "face index out of range");
+        Ok(meshes) => {
+            for m in meshes {
+                assert_eq!(m.first_non_finite_vertex(), None, "non-finite vertex");
+                assert_eq!(m.first_face_out_of_range(), None, "face index out of range");
+            }
             true
         }
         Err(_) => false,

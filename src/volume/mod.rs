@@ -566,6 +566,17 @@ fn surface_from_path_as(
             voxels: input_box(b),
         })
         .collect();
+    for o in seg.objects.iter().filter(|o| o.kept) {
+        tracing::info!(
+            "{}: kept a specimen of grey {:.1}, {} voxels at the working resolution, voxels \
+             {:?}..{:?}",
+            path.display(),
+            o.mean,
+            o.voxels,
+            o.bbox[0],
+            o.bbox[1]
+        );
+    }
     for o in seg.objects.iter().filter(|o| !o.kept) {
         tracing::info!(
             "{}: dropped an object of grey {:.1}, {} voxels at the working resolution, \

@@ -477,6 +477,89 @@ fn blur(values: &mut [f32], dims: [usize; 3], sigma: f64) {
 /// Write `crown` (an open crown surface) mounted as `mount` says, as a
 /// folder of 16-bit TIFF slices at `path`.
 pub fn write_mounted(crown: &Mesh, mount: &Mount, path: &Path) -> Mounted {
+    let (grid, mounted) = mounted_grid(crown, mount);
+    let spec = StackSpec {
+        noise: mount.noise,
+        seed: mount.seed,
+        ..Default::default()
+    };
+    write_volume(&grid, path, SynthFormat::Tiff16, &spec).expect("stack written");
+    mounted
+}
+
+/// Several teeth scanned together (batch scanning): each mounted as its
+/// `Mount` says (its own foam and tube), the mounts standing side by side
+/// along x, `gap` voxels apart (a negative gap pushes them into each
+/// other: tubes and foam merge, the brighter material wins), aligned at
+/// the bottom, in one stack of 16-bit TIFF slices at `path`. Returns each
+/// tooth's crown in the stack's voxel coordinates, in order along x.
+pub fn write_batch(teeth: &[(&Mesh, Mount)], gap: i64, path: &Path) -> Vec<Mounted> {
+    let parts: Vec<(Grid, Mounted)> = teeth
+        .iter()
+        .map(|(crown, mount)| mounted_grid(crown, mount))
+        .collect();
+    let width: i64 =
+        parts.iter().map(|(g, _)| g.dims[0] as i64).sum::<i64>() + gap * (parts.len() as i64 - 1);
+    let dims = [
+        width.max(1) as usize,
+        parts.iter().map(|(g, _)| g.dims[1]).max().unwrap_or(1),
+        parts.iter().map(|(g, _)| g.dims[2]).max().unwrap_or(1),
+    ];
+    // Air of the first mount's scan everywhere no mount reaches.
+    let air = parts.first().map_or(AIR, |(g, _)| g.values[0]);
+    let mut values = vec![f32::MIN; dims[0] * dims[1] * dims[2]];
+    let mut out = Vec::new();
+    let mut x0: i64 = 0;
+    for (g, mounted) in parts {
+        let y0 = (dims[1] - g.dims[1]) / 2;
+        for z in 0..g.dims[2] {
+            for y in 0..g.dims[1] {
+                for x in 0..g.dims[0] {
+                    let tx = x0 + x as i64;
+                    if tx < 0 || tx >= dims[0] as i64 {
+                        continue;
+                    }
+                    let i = tx as usize + dims[0] * (y + y0 + dims[1] * z);
+                    values[i] = values[i].max(g.values[g.index(x, y, z)]);
+                }
+            }
+        }
+        let crown: Vec<[f64; 3]> = mounted
+            .crown
+            .vertices
+            .iter()
+            .map(|p| [p[0] + x0 as f64, p[1] + y0 as f64, p[2]])
+            .collect();
+        out.push(Mounted {
+            crown: Mesh::new(crown, mounted.crown.faces.clone()),
+            dims,
+        });
+        x0 += g.dims[0] as i64 + gap;
+    }
+    for v in &mut values {
+        if *v == f32::MIN {
+            *v = air;
+        }
+    }
+    let grid = Grid {
+        dims,
+        origin: [0.0; 3],
+        spacing: [1.0; 3],
+        values,
+    };
+    let first = &teeth[0].1;
+    let spec = StackSpec {
+        noise: first.noise,
+        seed: first.seed,
+        ..Default::default()
+    };
+    write_volume(&grid, path, SynthFormat::Tiff16, &spec).expect("stack written");
+    out
+}
+
+/// The grey values of `crown` mounted as `mount` says (before the
+/// scanner's noise, which the writer adds), and what was placed.
+fn mounted_grid(crown: &Mesh, mount: &Mount) -> (Grid, Mounted) {
     let mut rng = ChaCha8Rng::seed_from_u64(mount.seed);
     let rim = rim(crown);
     let fr = frame(crown, &rim);
@@ -794,20 +877,15 @@ pub fn write_mounted(crown: &Mesh, mount: &Mount, path: &Path) -> Mounted {
         spacing: [1.0; 3],
         values,
     };
-    let spec = StackSpec {
-        noise: mount.noise,
-        seed: mount.seed,
-        ..Default::default()
-    };
-    write_volume(&grid, path, SynthFormat::Tiff16, &spec).expect("stack written");
-    Mounted {
+    let mounted = Mounted {
         crown: if mount.tooth {
             Mesh::new(crown_stack, crown.faces.clone())
         } else {
             Mesh::new(Vec::new(), Vec::new())
         },
         dims,
-    }
+    };
+    (grid, mounted)
 }
 
 /// The root's width as a fraction of the rim's at `u` (0 at the rim, 1 at

@@ -1,0 +1,240 @@
+//! Batch scans: several real teeth scanned together, each in its own foam
+//! and tube, the mounts standing side by side (`support::mounting`, built
+//! independently of the segmentation). Each tooth must come out as its own
+//! specimen, numbered along the stack's longest axis, with its position,
+//! its crown on the real crown, and its own identification.
+
+use super::support::{cp as cps, data, mounting::*};
+use morphoid::clean::point_to_surface_distances;
+use morphoid::pipeline::{load_scan, prepare_specimens, PreparedSurface, Settings};
+use rayon::prelude::*;
+use std::path::Path;
+
+/// One batch of teeth as read back: each specimen prepared (or why not),
+/// with its mean distance to the true crown (voxels) and whether its box
+/// holds that crown.
+struct Batch {
+    names: Vec<String>,
+    specimens: Vec<(Result<PreparedSurface, String>, Option<f64>, bool)>,
+    warnings: Vec<String>,
+}
+
+fn mean(d: Vec<f64>) -> f64 {
+    d.iter().sum::<f64>() / d.len().max(1) as f64
+}
+
+/// The teeth `names` of `dir` scanned together (mount varied by `seed`,
+/// `across` voxels across each crown, mounts `gap` voxels apart), written
+/// under `out`, read back through the normal volume path.
+fn batch(dir: &Path, names: &[String], seed: u64, across: usize, gap: i64, out: &Path) -> Batch {
+    let crowns: Vec<_> = names.iter().map(|n| cps::load_tooth(dir, n)).collect();
+    let first = Mount::varied(seed, across);
+    let teeth: Vec<(&morphoid::mesh::Mesh, Mount)> = crowns
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            // One scan of one kind of mount: the same foam and tube
+            // material, offset, noise and rings for every tooth.
+            let mut m = Mount::varied(seed + 17 * i as u64, across);
+            if let (Some(f), Some(f0)) = (&mut m.foam, &first.foam) {
+                f.grey = f0.grey;
+                f.texture = f0.texture;
+                f.grain = f0.grain;
+            }
+            if let (Some(t), Some(t0)) = (&mut m.tube, &first.tube) {
+                t.grey = t0.grey;
+            }
+            m.offset = first.offset;
+            m.noise = first.noise;
+            m.rings = first.rings;
+            m.cupping = first.cupping.min(0.08);
+            (c, m)
+        })
+        .collect();
+    let path = out.join(format!("batch-{seed}"));
+    let truth = write_batch(&teeth, gap, &path);
+    let settings = Settings::default();
+    let loaded = load_scan(&path, &settings).expect("the batch stack is read");
+    let warnings = loaded
+        .volume
+        .as_ref()
+        .map(|v| v.segmentation.warnings.clone())
+        .unwrap_or_default();
+    let specimens = prepare_specimens(loaded, &path, &settings)
+        .into_iter()
+        .map(|(position, prepared)| {
+            let prepared = prepared.map_err(|e| e.to_string());
+            // The true crown this specimen's box holds (by its centre).
+            let holder = truth.iter().position(|t| {
+                let c = centre(&t.crown.vertices);
+                let [lo, hi] = position.bounds;
+                (0..3).all(|a| c[a] >= lo[a] && c[a] <= hi[a])
+            });
+            let distance = match (&prepared, holder) {
+                (Ok(p), Some(k)) => Some(mean(point_to_surface_distances(
+                    &p.cleaned.vertices,
+                    &truth[k].crown,
+                ))),
+                _ => None,
+            };
+            (prepared, distance, holder.is_some())
+        })
+        .collect();
+    // MORPHOID_KEEP_BATCH=folder keeps the stacks there, to look at.
+    match std::env::var_os("MORPHOID_KEEP_BATCH") {
+        Some(keep) => {
+            let keep = Path::new(&keep);
+            let _ = std::fs::create_dir_all(keep);
+            let _ = std::fs::rename(&path, keep.join(path.file_name().unwrap_or_default()));
+        }
+        None => {
+            let _ = std::fs::remove_dir_all(&path);
+        }
+    }
+    Batch {
+        names: names.to_vec(),
+        specimens,
+        warnings,
+    }
+}
+
+fn centre(points: &[[f64; 3]]) -> [f64; 3] {
+    let n = points.len().max(1) as f64;
+    [0, 1, 2].map(|a| points.iter().map(|p| p[a]).sum::<f64>() / n)
+}
+
+fn print_batch(b: &Batch) {
+    println!("{}: {} specimens", b.names.join(" + "), b.specimens.len());
+    for (i, (p, d, holds)) in b.specimens.iter().enumerate() {
+        match p {
+            Ok(_) => println!(
+                "  #{}: crown {:.2} voxels from the true crown, box holds a crown {holds}",
+                i + 1,
+                d.unwrap_or(f64::NAN)
+            ),
+            Err(e) => println!("  #{}: REFUSED {e}", i + 1),
+        }
+    }
+    for w in &b.warnings {
+        println!("  warning: {w}");
+    }
+}
+
+/// Three real teeth in one stack, each in its own foam and tube: three
+/// specimens, in order along x (the stack's longest axis), each box
+/// holding its own tooth and each crown within two voxels of the truth.
+#[test]
+fn three_teeth_scanned_together_are_three_specimens_in_order() {
+    let Some(dir) = data::teeth_dir() else {
+        return;
+    };
+    let all = cps::tooth_names(&dir);
+    let names: Vec<String> = [3, 40, 77].iter().map(|&k| all[k].clone()).collect();
+    let tmp = tempfile::tempdir().unwrap();
+    let b = batch(&dir, &names, 7, 90, 4, tmp.path());
+    print_batch(&b);
+    assert_eq!(b.specimens.len(), 3, "{:?}", b.warnings);
+    let mut xs = Vec::new();
+    for (p, d, holds) in &b.specimens {
+        assert!(holds, "a specimen's box holds no tooth");
+        let p = p.as_ref().expect("each specimen is prepared");
+        assert!(d.is_some_and(|d| d < 2.0), "crown {d:?} voxels off");
+        xs.push(centre(&p.cleaned.vertices)[0]);
+    }
+    assert!(xs[0] < xs[1] && xs[1] < xs[2], "{xs:?}");
+}
+
+/// Two teeth whose mounts are pushed into each other (tubes and foam
+/// merged): still two specimens, each on its own tooth.
+#[test]
+fn two_teeth_in_merged_mounts_are_two_specimens() {
+    let Some(dir) = data::teeth_dir() else {
+        return;
+    };
+    let all = cps::tooth_names(&dir);
+    let names: Vec<String> = [12, 95].iter().map(|&k| all[k].clone()).collect();
+    let tmp = tempfile::tempdir().unwrap();
+    let b = batch(&dir, &names, 11, 80, -12, tmp.path());
+    print_batch(&b);
+    assert_eq!(b.specimens.len(), 2, "{:?}", b.warnings);
+    assert!(b.specimens.iter().all(|(p, _, holds)| p.is_ok() && *holds));
+}
+
+/// All 116 teeth, three per stack (38 batches and one of two), each
+/// specimen identified against the other 115 original crowns: run by
+/// name, figures printed. `MORPHOID_BATCH_STEP=k` takes every k-th batch.
+#[test]
+#[ignore = "real data, tens of minutes: run by name"]
+fn all_teeth_in_batches_of_three_are_identified() {
+    let Some(dir) = data::teeth_dir() else {
+        return;
+    };
+    let all = cps::tooth_names(&dir);
+    let step = std::env::var("MORPHOID_BATCH_STEP")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1);
+    // Neighbours in the list share a genus: batches mix the list's thirds.
+    let third = all.len().div_ceil(3);
+    let groups: Vec<Vec<String>> = (0..third)
+        .step_by(step)
+        .map(|i| {
+            [i, i + third, i + 2 * third]
+                .iter()
+                .filter_map(|&k| all.get(k).cloned())
+                .collect()
+        })
+        .collect();
+    let tmp = tempfile::tempdir().unwrap();
+    let batches: Vec<Batch> = groups
+        .par_iter()
+        .enumerate()
+        .map(|(i, names)| {
+            let across = 100 + (i * 23) % 60;
+            batch(&dir, names, 500 + i as u64, across, 3, tmp.path())
+        })
+        .collect();
+    batches.iter().for_each(print_batch);
+    let teeth: usize = batches.iter().map(|b| b.names.len()).sum();
+    let found: usize = batches
+        .iter()
+        .filter(|b| b.specimens.len() == b.names.len())
+        .map(|b| b.names.len())
+        .sum();
+    let on_target = batches
+        .iter()
+        .flat_map(|b| &b.specimens)
+        .filter(|(_, d, _)| d.is_some_and(|d| d < 2.0))
+        .count();
+    // Each specimen named after the tooth its box holds, in x order: the
+    // batch's teeth stand in the order they were given.
+    let mut prepared: Vec<morphoid::cp::Prepared> = Vec::new();
+    for b in batches
+        .iter()
+        .filter(|b| b.specimens.len() == b.names.len())
+    {
+        for (name, (p, _, _)) in b.names.iter().zip(&b.specimens) {
+            if let Ok(p) = p {
+                let mut q = p.prepared.clone();
+                q.set_name(name);
+                prepared.push(q);
+            }
+        }
+    }
+    let params = morphoid::cp::CpParams::default();
+    let originals = cps::prepare_teeth(&dir, &all, &params);
+    let s = cps::heldout_scores(&dir, &prepared, &originals, &params.compare);
+    let genus = s
+        .iter()
+        .find(|r| r.rank == "genus")
+        .map(|r| (r.correct, r.total))
+        .unwrap_or_default();
+    println!(
+        "teeth {teeth}; in batches split right {found}; crowns within 2 voxels {on_target}; \
+         prepared {}; genus right {}/{}",
+        prepared.len(),
+        genus.0,
+        genus.1
+    );
+    assert!(found * 10 >= teeth * 9, "split right {found}/{teeth}");
+}
