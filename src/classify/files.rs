@@ -61,6 +61,31 @@ impl ResultFiles {
         ResultFiles { dir, export_dir }
     }
 
+    /// Result files for scans given on a command line: named relative to
+    /// `export_dir` when every scan lies in it, else relative to the
+    /// deepest folder holding them all (a single scan: its file name), so
+    /// that an absolute path is not mirrored whole under `dir`.
+    pub fn for_scans(dir: PathBuf, export_dir: &Path, scans: &[PathBuf]) -> Self {
+        let export = absolute_lexical(export_dir);
+        let absolute: Vec<PathBuf> = scans.iter().map(|s| absolute_lexical(s)).collect();
+        if absolute.iter().all(|a| a.starts_with(&export)) {
+            return ResultFiles::new(dir, Some(export_dir.to_path_buf()));
+        }
+        let mut common: Option<PathBuf> = absolute
+            .first()
+            .and_then(|a| a.parent())
+            .map(Path::to_path_buf);
+        for a in &absolute {
+            while let Some(c) = &common {
+                if a.starts_with(c) && a != c {
+                    break;
+                }
+                common = c.parent().map(Path::to_path_buf);
+            }
+        }
+        ResultFiles::new(dir, common)
+    }
+
     /// The results folder.
     pub fn dir(&self) -> &Path {
         &self.dir

@@ -23,6 +23,10 @@ use crate::mesh::{
 /// this share of the largest component's; smaller ones are fragments.
 pub const SPECIMEN_SHARE: f64 = 0.2;
 
+/// At most this many small components are tested for lying inside a
+/// specimen; the rest count as debris.
+const MAX_NESTED_CHECKS: usize = 256;
+
 /// The specimens of a surface file that holds several.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SurfaceSpecimens {
@@ -117,6 +121,25 @@ pub fn surface_specimens(mesh: &Mesh, weld_tolerance: f64) -> Option<SurfaceSpec
         let c = |k: usize| boxes[k].0[axis] + boxes[k].1[axis];
         c(a).total_cmp(&c(b)).then(a.cmp(&b))
     });
+    // The small components: inside a specimen (a cavity, a canal) or
+    // debris. Each test casts rays through a specimen, so a crowd of
+    // crumbs is checked only as far as MAX_NESTED_CHECKS.
+    let mut nested = nested;
+    let small: Vec<usize> = (0..count).filter(|c| !large.contains(c)).collect();
+    for &c in small.iter().take(MAX_NESTED_CHECKS) {
+        let p = part(c);
+        let Some((a, b)) = bounding_box(&p) else {
+            continue;
+        };
+        let within = order.iter().any(|&k| {
+            let (lo, hi) = boxes[k];
+            (0..3).all(|i| a[i] >= lo[i] && b[i] <= hi[i])
+                && point_inside_by_parity(&closed[k], p.vertices[0])
+        });
+        if within {
+            nested += 1;
+        }
+    }
     let debris = count - order.len() - nested;
     let mut closed: Vec<Option<Mesh>> = closed.into_iter().map(Some).collect();
     let parts = order.iter().filter_map(|&k| closed[k].take()).collect();

@@ -46,7 +46,7 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
         .out_dir
         .clone()
         .or_else(|| config.results.dir.clone())
-        .map(|dir| ResultFiles::new(dir, Some(config.watch.dir.clone())));
+        .map(|dir| ResultFiles::for_scans(dir, &config.watch.dir, &args.scans));
     // Scans identified now get their report (and the overview) from the
     // job; the JSON of known ones is written below.
     let classifier = classifier.with_result_files(results.clone());

@@ -15,6 +15,7 @@ mod clean_exports;
 mod clean_pipeline;
 mod clean_teeth;
 mod clean_variants;
+mod cli_batch;
 mod cli_classify;
 mod cli_config;
 mod cli_cwn;
