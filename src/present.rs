@@ -1,6 +1,26 @@
 //! What every module that shows something to a person shares, written
-//! once: an error with its causes on one line ([`error_chain`]). Pure
-//! functions over plain data.
+//! once: text put into HTML, SVG or XML ([`escape`]) and an error with
+//! its causes on one line ([`error_chain`]). Pure functions over plain
+//! data.
+
+/// `s` with the characters HTML and XML give meaning to (`&`, `<`, `>`,
+/// `"` and `'`) escaped, so that it can stand in element text and in
+/// attribute values quoted either way.
+pub fn escape(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            // `&apos;` is not HTML 4; the numeric reference is read by both.
+            '\'' => out.push_str("&#39;"),
+            c => out.push(c),
+        }
+    }
+    out
+}
 
 /// `e` and its causes on one line, `: `-separated. A text the line
 /// already ends with is not repeated: errors here name their source in
@@ -24,6 +44,15 @@ pub fn error_chain(e: &dyn std::error::Error) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn escape_covers_markup_and_both_quotes() {
+        assert_eq!(
+            escape("<a href=\"x\">&'"),
+            "&lt;a href=&quot;x&quot;&gt;&amp;&#39;"
+        );
+        assert_eq!(escape("plain é"), "plain é");
+    }
 
     #[derive(Debug, thiserror::Error)]
     #[error("{text}")]
