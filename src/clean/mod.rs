@@ -47,6 +47,7 @@ mod weld;
 
 pub use closest::{point_to_surface_distances, TriangleGrid};
 pub use cloud::{CloudError, CloudReport};
+pub use components::largest_component_by_area;
 
 use crate::mesh::{
     bbox_diagonal, boundary_loops, euler_characteristic, genus, longest_boundary_loop,
