@@ -53,7 +53,7 @@ use crate::mesh::{
     bbox_diagonal, boundary_loops, euler_characteristic, genus, longest_boundary_loop,
     surface_area, widest_boundary_loop_extent, Mesh,
 };
-pub use crown::{CrownError, CrownMode, CrownReport};
+pub use crown::{CrownError, CrownMode, CrownRefusal, CrownReport};
 
 /// A surface whose every boundary loop spans less than this share of its
 /// bounding-box diagonal ([`widest_boundary_loop_extent`]) is a closed surface
