@@ -18,6 +18,7 @@ use crate::library::{
     LandmarkPoint, Library, ScanLandmarks, ScanOutcome, SpecimenOutcome, SpecimensOutcome,
 };
 use crate::pipeline::{self, PipelineError, PreparedSurface, Settings};
+use crate::present::error_chain;
 use crate::report::{Scene, SceneReference};
 use crate::store::{self, Job, ScanRecord, ScanStatus, Store, StoreError};
 use rayon::prelude::*;
@@ -971,22 +972,6 @@ pub fn record_files_attempt(
         Ok(()) => store.clear_files_error(scan_id),
         Err(e) => store.files_failed(scan_id, &error_chain(e)),
     }
-}
-
-/// `e` and its causes, `: `-separated, a cause whose text the line holds
-/// already not repeated.
-pub(crate) fn error_chain(e: &dyn std::error::Error) -> String {
-    let mut out = e.to_string();
-    let mut cause = e.source();
-    while let Some(c) = cause {
-        let text = c.to_string();
-        if !out.contains(&text) {
-            out.push_str(": ");
-            out.push_str(&text);
-        }
-        cause = c.source();
-    }
-    out
 }
 
 /// All result files of a recorded scan: the JSON (and landmarks), the

@@ -4,6 +4,8 @@
 //! The library is layered; each layer only uses the ones above it:
 //! - [`hash`], [`atomic_write`]: content hashes and atomic file replacement;
 //! - [`stats`]: order statistics over plain numbers;
+//! - [`present`]: what every output shares (markup escaping, PNG bytes,
+//!   error lines);
 //! - [`mesh`]: the triangle-mesh type, file formats, synthetic surfaces;
 //! - [`clean`]: turn a raw scan into a clean disk-type surface;
 //! - [`conformal`]: normalization and conformal flattening to the unit disk;
@@ -45,6 +47,7 @@ pub mod landmarks;
 pub mod library;
 pub mod mesh;
 pub mod pipeline;
+pub mod present;
 pub mod report;
 pub mod stats;
 pub mod store;

@@ -138,7 +138,7 @@ impl ResultFiles {
         let _span = tracing::info_span!("report", scan = %record.path).entered();
         let (html_path, png_path) = self.report_paths(record);
         create_parent(&html_path)?;
-        if let Some(png) = scene.and_then(|s| report::png_bytes(&report::thumbnail(s))) {
+        if let Some(png) = scene.and_then(|s| report::thumbnail(s).to_png()) {
             write_atomic(&png_path, &png)?;
         }
         let html = report::report_html(record, scene, note);

@@ -57,7 +57,7 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
             Ok(r) => r,
             Err(e) => {
                 all_ok = false;
-                let message = format!("{e:#}");
+                let message = morphoid::present::error_chain(&e);
                 if args.json {
                     println!(
                         "{}",

@@ -119,7 +119,7 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
             &boundaries,
             eval::default_cell_size(matrix.names().len()),
         )?;
-        let bytes = eval::encode_png(&image)?;
+        let bytes = image.to_png()?;
         write_output(out, bytes)?;
         eprintln!(
             "wrote {} ({} × {} pixels)",
@@ -266,7 +266,7 @@ fn write_mds(
     let svg = out.with_extension("svg");
     write_output(&svg, eval::scatter_svg(&plot))?;
     let png = out.with_extension("png");
-    let bytes = eval::encode_png(&eval::scatter_raster(&plot, 900, 640))?;
+    let bytes = eval::scatter_raster(&plot, 900, 640).to_png()?;
     write_output(&png, bytes)?;
     eprintln!(
         "wrote {}, {} and {}",

@@ -167,7 +167,7 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Err(e) => {
-            let message = format!("{e:#}");
+            let message = super::one_line(&e);
             if args.json {
                 let out = serde_json::json!({
                     "status": "error",

@@ -117,23 +117,11 @@ pub fn main() -> ExitCode {
     }
 }
 
-/// One line, as users read it in a log: the context chain joined by `: `.
-/// Library errors name their source in their own message (so that a log
-/// line of `{e}` is complete); a cause whose text the line already ends
-/// with is not repeated.
+/// One line, as users read it in a log: the context chain joined by `: `,
+/// by the library's one rule (a cause whose text the line already ends
+/// with is not repeated).
 fn one_line(e: &anyhow::Error) -> String {
-    let mut line = String::new();
-    for cause in e.chain() {
-        let text = cause.to_string();
-        if line.ends_with(&text) {
-            continue;
-        }
-        if !line.is_empty() {
-            line.push_str(": ");
-        }
-        line.push_str(&text);
-    }
-    line
+    morphoid::present::error_chain(e.as_ref())
 }
 
 /// Logs go to stderr so that `--json` output on stdout stays parseable.

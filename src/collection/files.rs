@@ -8,9 +8,7 @@ use super::Alignment;
 use crate::atomic_write::{write_atomic, AtomicWriteError};
 use crate::cp::Prepared;
 use crate::eval::csv_text::CsvString;
-use crate::eval::{
-    encode_png, scatter_raster, scatter_svg, DistanceMatrix, HeatmapError, Scatter, TableError,
-};
+use crate::eval::{scatter_raster, scatter_svg, DistanceMatrix, Scatter, TableError};
 use crate::landmarks::{self, LandmarkError, Landmarks, NamedLandmarks, PropagateError, Surface};
 use crate::mesh::io::{write_ply, SaveError};
 use std::path::{Path, PathBuf};
@@ -44,7 +42,7 @@ pub enum OutputError {
         /// The file.
         path: PathBuf,
         /// Why.
-        source: HeatmapError,
+        source: png::EncodingError,
     },
     /// A specimen's surface cannot be rebuilt.
     #[error("surface of `{name}`: {source}")]
@@ -241,10 +239,12 @@ pub fn write_outputs(
     };
     text("morphospace.svg", scatter_svg(&plot), &mut written)?;
     let png_path = out.join("morphospace.png");
-    let png = encode_png(&scatter_raster(&plot, 900, 640)).map_err(|source| OutputError::Png {
-        path: png_path.clone(),
-        source,
-    })?;
+    let png = scatter_raster(&plot, 900, 640)
+        .to_png()
+        .map_err(|source| OutputError::Png {
+            path: png_path.clone(),
+            source,
+        })?;
     write_atomic(&png_path, &png)?;
     written.files.push(png_path);
 

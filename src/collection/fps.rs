@@ -1,7 +1,7 @@
 //! Pseudolandmarks on a template: points spread evenly over its area by
 //! farthest-point sampling of a dense area-uniform sample.
 
-use crate::mesh::{face_areas, Mesh};
+use crate::mesh::{face_areas, farthest_point_order, Mesh};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -63,10 +63,10 @@ pub fn area_uniform_points(mesh: &Mesh, count: usize, seed: u64) -> Vec<MeshPoin
         .collect()
 }
 
-/// Indices of `n` of `points` chosen by farthest-point sampling: first the
-/// point nearest the centroid, then repeatedly the point farthest
-/// (Euclidean) from all chosen ones; ties go to the lower index. Fewer
-/// when there are fewer points.
+/// Indices of `n` of `points` chosen by farthest-point sampling
+/// ([`farthest_point_order`]): first the point nearest the centroid, then
+/// repeatedly the point farthest (Euclidean) from all chosen ones; ties go
+/// to the lower index. Fewer when there are fewer distinct points.
 pub fn farthest_point_sampling(points: &[[f64; 3]], n: usize) -> Vec<usize> {
     if points.is_empty() || n == 0 {
         return Vec::new();
@@ -79,28 +79,20 @@ pub fn farthest_point_sampling(points: &[[f64; 3]], n: usize) -> Vec<usize> {
         }
     }
     let d2 = |a: [f64; 3], b: [f64; 3]| (0..3).map(|d| (a[d] - b[d]).powi(2)).sum::<f64>();
-    let first = argmax(points.iter().map(|&p| -d2(p, c)));
-    let mut chosen = vec![first];
-    let mut nearest: Vec<f64> = points.iter().map(|&p| d2(p, points[first])).collect();
-    while chosen.len() < n.min(points.len()) {
-        let next = argmax(nearest.iter().copied());
-        chosen.push(next);
+    // Nearest the centroid, the first on ties (NaN never wins).
+    let mut first = (0, f64::INFINITY);
+    for (k, &p) in points.iter().enumerate() {
+        let d = d2(p, c);
+        if d < first.1 {
+            first = (k, d);
+        }
+    }
+    // Squared distances order the points as the distances do.
+    farthest_point_order(points.len(), &[first.0], n, |_, s, nearest| {
         for (k, p) in points.iter().enumerate() {
-            nearest[k] = nearest[k].min(d2(*p, points[next]));
+            nearest[k] = nearest[k].min(d2(*p, points[s]));
         }
-    }
-    chosen
-}
-
-/// Index of the largest value (the first on ties; NaN never wins).
-fn argmax(values: impl Iterator<Item = f64>) -> usize {
-    let mut best = (0, f64::NEG_INFINITY);
-    for (k, v) in values.enumerate() {
-        if v > best.1 {
-            best = (k, v);
-        }
-    }
-    best.0
+    })
 }
 
 /// `n` pseudolandmarks of `mesh` spread evenly over its area: farthest-

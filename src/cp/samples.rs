@@ -1,9 +1,7 @@
 //! Farthest-point sampling over the surface, with Voronoi-cell weights.
 
-use crate::mesh::Mesh;
+use crate::mesh::{farthest_point_order, norm, sub, HeapItem, Mesh};
 use std::collections::BinaryHeap;
-
-use crate::mesh::HeapItem;
 
 /// Samples: vertex indices and the area of their (graph-)Voronoi cells.
 #[derive(Debug, Clone, PartialEq)]
@@ -15,8 +13,8 @@ pub struct Sampling {
 }
 
 /// Farthest-point sampling of `count` vertices by edge-path distance,
-/// seeded at `seeds` (then, if empty, at vertex 0); each sample is weighted
-/// by the total `vertex_areas` of the vertices nearest to it.
+/// seeded at `seeds` (then, if none is a vertex, at vertex 0); each sample
+/// is weighted by the total `vertex_areas` of the vertices nearest to it.
 pub fn farthest_point_samples(
     mesh: &Mesh,
     adjacency: &[Vec<u32>],
@@ -25,23 +23,17 @@ pub fn farthest_point_samples(
     count: usize,
 ) -> Sampling {
     let n = mesh.vertices.len();
-    let mut dist = vec![f64::INFINITY; n];
     let mut owner = vec![u32::MAX; n];
-    let mut chosen: Vec<u32> = Vec::new();
     let mut heap = BinaryHeap::new();
-    let edge = |a: u32, b: u32| {
-        crate::mesh::norm(crate::mesh::sub(
-            mesh.vertices[a as usize],
-            mesh.vertices[b as usize],
-        ))
-    };
-    let mut add = |s: u32, dist: &mut Vec<f64>, owner: &mut Vec<u32>, chosen: &mut Vec<u32>| {
-        let id = chosen.len() as u32;
-        chosen.push(s);
+    let edge = |a: u32, b: u32| norm(sub(mesh.vertices[a as usize], mesh.vertices[b as usize]));
+    let seeds: Vec<usize> = seeds.iter().map(|&s| s as usize).collect();
+    let chosen = farthest_point_order(n, &seeds, count, |id, s, dist| {
+        let (id, s) = (id as u32, s as u32);
         dist[s as usize] = 0.0;
         owner[s as usize] = id;
         heap.push(HeapItem(0.0, s));
-        // Incremental Dijkstra: only vertices that get closer are visited.
+        // Incremental Dijkstra: only vertices that get closer are visited,
+        // and each is owned by the sample that reached it closest.
         while let Some(HeapItem(d, v)) = heap.pop() {
             if d > dist[v as usize] {
                 continue;
@@ -55,32 +47,7 @@ pub fn farthest_point_samples(
                 }
             }
         }
-    };
-    let count = count.min(n);
-    for &s in seeds {
-        if chosen.len() >= count {
-            break;
-        }
-        if (s as usize) < n && !chosen.contains(&s) {
-            add(s, &mut dist, &mut owner, &mut chosen);
-        }
-    }
-    if chosen.is_empty() && n > 0 {
-        add(0, &mut dist, &mut owner, &mut chosen);
-    }
-    while chosen.len() < count {
-        // Farthest vertex; ties by smallest index.
-        let mut best: Option<(f64, usize)> = None;
-        for (i, &d) in dist.iter().enumerate() {
-            if d.is_finite() && best.is_none_or(|(bd, _)| d > bd) {
-                best = Some((d, i));
-            }
-        }
-        match best {
-            Some((d, i)) if d > 0.0 => add(i as u32, &mut dist, &mut owner, &mut chosen),
-            _ => break,
-        }
-    }
+    });
     let mut weights = vec![0.0; chosen.len()];
     for (i, &o) in owner.iter().enumerate() {
         if let Some(w) = weights.get_mut(o as usize) {
@@ -88,7 +55,7 @@ pub fn farthest_point_samples(
         }
     }
     Sampling {
-        vertices: chosen,
+        vertices: chosen.into_iter().map(|v| v as u32).collect(),
         weights,
     }
 }

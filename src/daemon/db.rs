@@ -12,7 +12,7 @@
 //! after an I/O error).
 
 use super::health::{Health, Part};
-use crate::classify::error_chain;
+use crate::present::error_chain;
 use crate::store::{Store, StoreError};
 use std::os::unix::fs::MetadataExt as _;
 use std::path::{Path, PathBuf};

@@ -32,10 +32,11 @@ pub use serial::BACKOFF_MAX;
 pub use worker::MAX_ATTEMPTS;
 
 use crate::classify::{
-    error_chain, CalibrationProbe, CalibrationState, Classifier, PendingCalibration, ResultFiles,
+    CalibrationProbe, CalibrationState, Classifier, PendingCalibration, ResultFiles,
 };
 use crate::config::Config;
 use crate::library::BuildOutcome;
+use crate::present::error_chain;
 use crate::store::{now_ms, utc_day_start_ms, Enqueued, Store, StoreError};
 use db::{Db, SharedDb};
 use health::{Backoff, Health};

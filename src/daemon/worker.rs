@@ -15,6 +15,7 @@
 use super::db::{self, SharedDb};
 use super::health::{Backoff, Health, Part};
 use crate::classify::{self, Classifier, Finding, ResultFiles, NEAREST};
+use crate::present::error_chain;
 use crate::report::Scene;
 use crate::store::{now_ms, Job, ScanStatus, Store, StoreError};
 use std::collections::BTreeMap;
@@ -268,8 +269,7 @@ impl WorkerState {
                 if !guard.failed(&e) {
                     // Not the storage: the same request would fail again;
                     // reported once, retried with the same backoff.
-                    self.health
-                        .fault(Part::Database, &classify::error_chain(&e));
+                    self.health.fault(Part::Database, &error_chain(&e));
                 }
                 return Step::Fault;
             }
@@ -481,7 +481,7 @@ impl WorkerState {
                 Err(e) => {
                     // Logged once per fault by the health, kept per scan
                     // in its row.
-                    let message = classify::error_chain(&e);
+                    let message = error_chain(&e);
                     tracing::debug!(scan = %record.path, "result files not written: {message}");
                     store.files_failed(id, &message)?;
                     self.health.fault(Part::Results, &message);
@@ -497,7 +497,7 @@ impl WorkerState {
         }
         if wrote {
             if let Err(e) = files.write_index(store) {
-                self.health.fault(Part::Results, &classify::error_chain(&e));
+                self.health.fault(Part::Results, &error_chain(&e));
             }
         }
         Ok(wrote)

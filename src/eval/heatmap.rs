@@ -2,12 +2,13 @@
 //! upper right triangle, another in the lower left, specimens ordered so
 //! that near ones sit together, each matrix coloured over its own range
 //! with a perceptual colour map. Pure functions from matrices to an RGB
-//! image; [`encode_png`] turns the image into PNG bytes, the caller writes
+//! image; [`RgbImage::to_png`] turns the image into PNG bytes, the caller writes
 //! them.
 
 use super::mantel::{align_to, check_distance_matrix, MantelError};
 use super::tree::average_linkage_merges;
 use super::DistanceMatrix;
+use crate::present::{png_bytes, Channels};
 
 /// An 8-bit RGB raster, row-major, top row first.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -30,6 +31,11 @@ impl RgbImage {
         let p = self.pixels.get(k..k + 3)?;
         Some([p[0], p[1], p[2]])
     }
+
+    /// The image as PNG bytes (8-bit RGB).
+    pub fn to_png(&self) -> Result<Vec<u8>, png::EncodingError> {
+        png_bytes(self.width, self.height, Channels::Rgb, &self.pixels)
+    }
 }
 
 /// Why a heatmap could not be drawn or encoded.
@@ -47,9 +53,6 @@ pub enum HeatmapError {
     /// The image would be too large.
     #[error("{0} × {0} pixels is too large an image")]
     TooLarge(u64),
-    /// PNG encoding failed.
-    #[error("PNG encoding: {0}")]
-    Png(#[from] png::EncodingError),
 }
 
 /// Colour where a specimen meets itself: the separating diagonal.
@@ -273,20 +276,6 @@ pub fn heatmap(
     })
 }
 
-/// The image as PNG bytes (8-bit RGB).
-pub fn encode_png(image: &RgbImage) -> Result<Vec<u8>, HeatmapError> {
-    let mut out = Vec::new();
-    {
-        let mut encoder = png::Encoder::new(&mut out, image.width, image.height);
-        encoder.set_color(png::ColorType::Rgb);
-        encoder.set_depth(png::BitDepth::Eight);
-        let mut writer = encoder.write_header()?;
-        writer.write_image_data(&image.pixels)?;
-        writer.finish()?;
-    }
-    Ok(out)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -446,7 +435,7 @@ mod tests {
     fn png_round_trip_and_errors() {
         let (a, _) = planted(3);
         let img = heatmap(&a, &a, &average_linkage_order(&a), &[], 2).unwrap();
-        let bytes = encode_png(&img).unwrap();
+        let bytes = img.to_png().unwrap();
         let decoder = png::Decoder::new(std::io::Cursor::new(bytes));
         let mut reader = decoder.read_info().unwrap();
         let mut buf = vec![0; reader.output_buffer_size().unwrap()];

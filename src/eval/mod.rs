@@ -14,8 +14,7 @@ mod tree;
 
 pub use csv_text::TableError;
 pub use heatmap::{
-    average_linkage_order, default_cell_size, encode_png, grouped_order, heatmap, HeatmapError,
-    RgbImage,
+    average_linkage_order, default_cell_size, grouped_order, heatmap, HeatmapError, RgbImage,
 };
 pub use labels::Labels;
 pub use loo::{leave_one_out, RankScore};

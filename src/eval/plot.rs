@@ -4,6 +4,7 @@
 //! (points, axes and legend swatches; no text).
 
 use super::RgbImage;
+use crate::present::escape;
 
 /// What a scatter plot shows.
 #[derive(Debug, Clone, PartialEq)]
@@ -83,13 +84,6 @@ impl Scatter {
         }
         (lo, hi)
     }
-}
-
-fn escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
 }
 
 fn hex(c: [u8; 3]) -> String {

@@ -2,6 +2,7 @@
 //! and as a dendrogram picture (SVG).
 
 use super::DistanceMatrix;
+use crate::present::escape;
 
 /// A binary tree from hierarchical clustering: leaves are specimens,
 /// every inner node a merge at a height (half the average distance
@@ -262,10 +263,7 @@ pub fn dendrogram_svg(
             "<text x=\"{}\" y=\"{:.2}\" dominant-baseline=\"middle\">{}</text>\n",
             left + width + 6.0,
             pos[i],
-            label
-                .replace('&', "&amp;")
-                .replace('<', "&lt;")
-                .replace('>', "&gt;")
+            escape(&label)
         ));
     }
     s.push_str("</svg>\n");

@@ -3,7 +3,7 @@
 //! (`active="0"`) are read like the others, so that counts match the file.
 
 use super::{parse_coordinate, LandmarkError, Landmarks};
-use quick_xml::escape::escape;
+use crate::present::escape;
 use quick_xml::events::Event;
 use quick_xml::{Reader, XmlVersion};
 use std::fmt::Write as _;

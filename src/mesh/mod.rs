@@ -14,6 +14,7 @@
 
 mod axes;
 mod disk;
+mod farthest;
 mod graph;
 mod grid;
 pub mod io;
@@ -24,6 +25,7 @@ mod topology;
 
 pub use axes::{principal_axes, weighted_principal_axes, PrincipalAxes};
 pub use disk::unit_disk;
+pub use farthest::farthest_point_order;
 pub(crate) use graph::HeapItem;
 pub use graph::{breadth_first_tree, graph_distance};
 pub use grid::{inside_by_parity, point_inside_by_parity, Grid};

@@ -5,8 +5,9 @@
 //! (see `ResultFiles::write_index`), so updating the overview costs the
 //! same with ten or ten thousand scans.
 
-use super::html::{confidence_text, escape, file_name, utc_time, STYLE};
+use super::html::{confidence_text, file_name, utc_time, STYLE};
 use super::{no_close_match, rank_confidence};
+use crate::present::escape;
 use crate::store::{ScanRecord, ScanStatus};
 use std::fmt::Write;
 

@@ -15,8 +15,7 @@ mod render;
 mod scene;
 
 pub use html::{
-    escape, file_name, png_bytes, report_html, scene_json, thumbnail, utc_time, PICTURE_SIZE,
-    THUMBNAIL_SIZE,
+    file_name, report_html, scene_json, thumbnail, utc_time, PICTURE_SIZE, THUMBNAIL_SIZE,
 };
 pub use index::{href_of, index_html, page_name, IndexRow, PageLink, INDEX_PAGE, INDEX_RECENT};
 pub use render::{render, unit, vertex_normals, Camera, Image};

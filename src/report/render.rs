@@ -5,6 +5,7 @@
 
 use crate::mesh::{cross, dot, sub};
 pub use crate::mesh::{unit, vertex_normals};
+use crate::present::{png_bytes, Channels};
 
 /// An orthographic view: an orthonormal frame and the square of the scene
 /// it shows.
@@ -51,6 +52,12 @@ pub struct Image {
 }
 
 impl Image {
+    /// The picture as PNG bytes (`None` only if the encoder fails).
+    pub fn to_png(&self) -> Option<Vec<u8>> {
+        let side = u32::try_from(self.size).ok()?;
+        png_bytes(side, side, Channels::Rgba, &self.rgba).ok()
+    }
+
     /// Number of pixels something was drawn on (alpha not zero).
     #[cfg(test)]
     fn covered_pixels(&self) -> usize {

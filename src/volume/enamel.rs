@@ -2,8 +2,9 @@
 //! surface that lies over the brighter material, cut along the level where
 //! the density just inside the surface crosses the enamel threshold.
 
+use crate::clean::largest_component_by_area;
 use crate::mesh::Grid;
-use crate::mesh::{edge_key, face_areas, vertex_adjacency, EdgeKey, Mesh};
+use crate::mesh::{edge_key, vertex_adjacency, EdgeKey, Mesh};
 use rustc_hash::FxHashMap;
 
 /// For every vertex, the mean of `grid` sampled at `depths` (physical
@@ -102,50 +103,33 @@ pub fn cut_at_zero_level(mesh: &Mesh, values: &[f64]) -> Mesh {
 }
 
 /// The connected part (faces joined through shared vertices) of largest
-/// area, with unused vertices dropped, and how many parts there were.
+/// area ([`largest_component_by_area`]), with unused vertices dropped, and
+/// how many parts there were.
 pub fn largest_part(mesh: &Mesh) -> (Mesh, usize) {
-    let n = mesh.vertices.len();
-    let mut parent: Vec<u32> = (0..n as u32).collect();
-    fn root(parent: &mut [u32], mut v: u32) -> u32 {
-        while parent[v as usize] != v {
-            parent[v as usize] = parent[parent[v as usize] as usize];
-            v = parent[v as usize];
-        }
-        v
-    }
-    for f in &mesh.faces {
-        let r0 = root(&mut parent, f[0]);
-        for &v in &f[1..] {
-            let r = root(&mut parent, v);
-            parent[r as usize] = r0;
-        }
-    }
-    let areas = face_areas(mesh);
-    let mut part_area: FxHashMap<u32, f64> = FxHashMap::default();
-    let face_root: Vec<u32> = mesh.faces.iter().map(|f| root(&mut parent, f[0])).collect();
-    for (r, a) in face_root.iter().zip(&areas) {
-        *part_area.entry(*r).or_default() += a;
-    }
-    let parts = part_area.len();
-    let best = part_area
-        .iter()
-        .max_by(|a, b| a.1.total_cmp(b.1).then(b.0.cmp(a.0)))
-        .map(|(&r, _)| r);
-    let mut map = vec![u32::MAX; n];
+    let (part, dropped) = largest_component_by_area(mesh);
+    let parts = if mesh.faces.is_empty() {
+        0
+    } else {
+        dropped + 1
+    };
+    // Renumbered in the order the faces first use them (not the cleaning's
+    // index order): the vertex order the crown has always had, which the
+    // cleaning after it sees.
+    let mut map = vec![u32::MAX; part.vertices.len()];
     let mut vertices = Vec::new();
-    let mut faces = Vec::new();
-    for (f, &r) in mesh.faces.iter().zip(&face_root) {
-        if Some(r) != best {
-            continue;
-        }
-        faces.push(f.map(|v| {
-            if map[v as usize] == u32::MAX {
-                vertices.push(mesh.vertices[v as usize]);
-                map[v as usize] = (vertices.len() - 1) as u32;
-            }
-            map[v as usize]
-        }));
-    }
+    let faces = part
+        .faces
+        .iter()
+        .map(|f| {
+            f.map(|v| {
+                if map[v as usize] == u32::MAX {
+                    vertices.push(part.vertices[v as usize]);
+                    map[v as usize] = (vertices.len() - 1) as u32;
+                }
+                map[v as usize]
+            })
+        })
+        .collect();
     (Mesh::new(vertices, faces), parts)
 }
 

@@ -5,6 +5,7 @@
 
 use super::neighbours::Neighbours;
 use super::normals::LocalPlane;
+use crate::clean::union_find::UnionFind;
 use crate::mesh::{cross, dot, norm, sub, Mesh};
 use rayon::prelude::*;
 use rustc_hash::{FxHashMap, FxHashSet};
@@ -327,14 +328,7 @@ pub fn drop_nonmanifold(mesh: &Mesh, rounds: usize) -> Mesh {
                 continue;
             }
             // Fans: the triangles at v joined across the edges from v.
-            let mut fan: Vec<usize> = (0..list.len()).collect();
-            fn root(fan: &mut [usize], mut i: usize) -> usize {
-                while fan[i] != i {
-                    fan[i] = fan[fan[i]];
-                    i = fan[i];
-                }
-                i
-            }
+            let mut fan = UnionFind::new(list.len());
             let mut by_edge: FxHashMap<crate::mesh::EdgeKey, usize> = FxHashMap::default();
             for (k, &f) in list.iter().enumerate() {
                 for &w in &faces[f] {
@@ -342,17 +336,16 @@ pub fn drop_nonmanifold(mesh: &Mesh, rounds: usize) -> Mesh {
                         continue;
                     }
                     match by_edge.get(&edge_key(v as u32, w)) {
-                        Some(&other) => {
-                            let (a, b) = (root(&mut fan, k), root(&mut fan, other));
-                            fan[a.max(b)] = a.min(b);
-                        }
+                        Some(&other) => fan.union(k as u32, other as u32),
                         None => {
                             by_edge.insert(edge_key(v as u32, w), k);
                         }
                     }
                 }
             }
-            let roots: Vec<usize> = (0..list.len()).map(|k| root(&mut fan, k)).collect();
+            let roots: Vec<usize> = (0..list.len())
+                .map(|k| fan.find(k as u32) as usize)
+                .collect();
             let mut sizes: FxHashMap<usize, usize> = FxHashMap::default();
             for &r in &roots {
                 *sizes.entry(r).or_default() += 1;

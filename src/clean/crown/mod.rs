@@ -124,9 +124,10 @@ pub struct CrownReport {
 /// Why no crown could be cut from a closed surface.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CrownError {
-    /// Nothing on the surface looks like a tooth crown above a neck.
+    /// Nothing on the surface looks like a tooth crown above a neck; why,
+    /// for the margin line that came closest.
     #[error("no recognisable tooth crown on this closed surface ({0}); crown extraction needs a whole tooth (crown, cervical neck, roots): crop the crown at the cervical margin by hand, or check that the file is a tooth")]
-    NoCrown(String),
+    NoCrown(CrownRefusal),
     /// The crown part has handles or several boundaries.
     #[error("the crown cut from this closed surface is not a disk ({loops} boundary loop(s), Euler characteristic {euler}: handles or tunnels through the crown); repair the surface or crop the crown by hand")]
     NotDisk {
@@ -135,6 +136,70 @@ pub enum CrownError {
         /// Its Euler characteristic.
         euler: i64,
     },
+}
+
+/// Why a margin line (or the whole surface) gives no crown: one variant per
+/// test of the module documentation, with what the test measured. The
+/// texts are part of the messages users read.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum CrownRefusal {
+    /// The surface has no area (or no extent) to find axes in.
+    #[error("the surface has no area")]
+    NoArea,
+    /// No closed edge path winds round the axis.
+    #[error("no closed line runs round the surface")]
+    NoMarginLine,
+    /// The surface has no faces to seed a side of the cut from.
+    #[error("no faces")]
+    NoFaces,
+    /// Both sides of the cut alike in area and in width next to it.
+    #[error("the best margin line cuts the surface into two halves alike in area and width: a symmetric solid, not a tooth")]
+    SymmetricSolid,
+    /// A neck-guided cut whose crown side does not bulge over the neck.
+    #[error("the part above the neck seen on the outline does not bulge over it: the roots' end")]
+    RootsEnd,
+    /// Neither side of the line was judged (nothing was measured).
+    #[error("no crown on either side of the line")]
+    NeitherSide,
+    /// The crown side holds too little or too much of the surface.
+    #[error("the best margin line leaves {:.0} % of the surface as crown", 100.0 * .share)]
+    CrownShare {
+        /// The crown side's share of the surface area (0 to 1).
+        share: f64,
+    },
+    /// The surface turns too little along the cut for a cervical crease.
+    #[error("no cervical crease: the surface turns by {degrees:.1}° on average along the best margin line, at least {MIN_CREASE_DEGREES}° is needed")]
+    NoCrease {
+        /// The mean turn along the cut, in degrees.
+        degrees: f64,
+    },
+    /// Too little of the cut runs along crease edges.
+    #[error("the best margin line runs along a crease for {:.0} % of its length only, not around the tooth", 100.0 * .coverage)]
+    ShortCrease {
+        /// The share of the cut's length on crease edges (0 to 1).
+        coverage: f64,
+    },
+    /// The crown side does not rise above the cut.
+    #[error("the part above the best margin line is flat, not a crown")]
+    Flat,
+    /// The other side does not narrow towards an apex.
+    #[error("the part below the best margin line does not taper to a root apex")]
+    NoTaper,
+    /// The cut dips below [`MIN_CUT_HEIGHT`].
+    #[error("the best margin line found dips to {:.0} % of the tooth's length above the apex, where no cervical margin lies: the tooth's axis was not found", 100.0 * .height)]
+    TooLow {
+        /// The cut's lowest point, as a share of the tooth's length from
+        /// the apex.
+        height: f64,
+    },
+}
+
+/// A margin line that gave no crown: how clearly it was a margin (its
+/// loop's score, which picks the refusal users are told) and why.
+#[derive(Debug, Clone, Copy)]
+struct Rejection {
+    score: f64,
+    reason: CrownRefusal,
 }
 
 /// A crown cut from a closed surface.
@@ -418,7 +483,7 @@ fn crown_of_loop(
     geo: &SurfaceGeometry,
     found: &MarginLoop,
     neck_guided: bool,
-) -> Result<Candidate, (f64, String)> {
+) -> Result<Candidate, Rejection> {
     let k = found.vertices.len();
     let cut: std::collections::HashSet<(u32, u32)> = (0..k)
         .map(|i| {
@@ -441,7 +506,10 @@ fn crown_of_loop(
             cyl.height(geo.centroids[f])
                 .total_cmp(&cyl.height(geo.centroids[g]))
         }) else {
-            return Err((0.0, "no faces".into()));
+            return Err(Rejection {
+                score: 0.0,
+                reason: CrownRefusal::NoFaces,
+            });
         };
         let inside = cut::faces_bounded_by(mesh, geo, &cut, seed);
         let bulge = near_cut_radius(mesh, geo, &cyl, &inside, true)
@@ -455,17 +523,17 @@ fn crown_of_loop(
             .sum::<f64>()
             / geo.areas.iter().sum::<f64>().max(f64::MIN_POSITIVE);
         if (2.0 * kept - 1.0).abs() < 0.05 && (bulge - 1.0).abs() < SYMMETRIC_BULGE {
-            reasons.push((
+            reasons.push(Rejection {
                 score,
-                "the best margin line cuts the surface into two halves alike in area and width: a symmetric solid, not a tooth".into(),
-            ));
+                reason: CrownRefusal::SymmetricSolid,
+            });
             continue;
         }
         if neck_guided && !(bulge > 1.0) {
-            reasons.push((
+            reasons.push(Rejection {
                 score,
-                "the part above the neck seen on the outline does not bulge over it: the roots' end".into(),
-            ));
+                reason: CrownRefusal::RootsEnd,
+            });
             continue;
         }
         match judge(mesh, geo, &cyl, &inside, (zmin, zmax), !neck_guided) {
@@ -473,7 +541,7 @@ fn crown_of_loop(
                 report.margin_merit = margin_merit(score, report.cut_variation);
                 sides.push((bulge, Candidate { inside, report }));
             }
-            Err(r) => reasons.push((score, r)),
+            Err(reason) => reasons.push(Rejection { score, reason }),
         }
     }
     sides
@@ -481,10 +549,10 @@ fn crown_of_loop(
         .max_by(|a, b| a.0.total_cmp(&b.0))
         .map(|s| s.1)
         .ok_or_else(|| {
-            reasons
-                .into_iter()
-                .next()
-                .unwrap_or((score, "no crown on either side of the line".into()))
+            reasons.into_iter().next().unwrap_or(Rejection {
+                score,
+                reason: CrownRefusal::NeitherSide,
+            })
         })
 }
 
@@ -544,7 +612,7 @@ fn judge(
     inside: &[bool],
     (zmin, zmax): (f64, f64),
     crease_required: bool,
-) -> Result<CrownReport, String> {
+) -> Result<CrownReport, CrownRefusal> {
     let total: f64 = geo.areas.iter().sum();
     let kept: f64 = geo
         .areas
@@ -555,10 +623,7 @@ fn judge(
         .sum();
     let fraction = kept / total;
     if !(0.08..=0.92).contains(&fraction) {
-        return Err(format!(
-            "the best margin line leaves {:.0} % of the surface as crown",
-            100.0 * fraction
-        ));
+        return Err(CrownRefusal::CrownShare { share: fraction });
     }
     // The cut: edges between a crown face and a removed one.
     let (mut turn_len, mut len_sum, mut crease_len) = (0.0, 0.0, 0.0);
@@ -580,16 +645,11 @@ fn judge(
     }
     let crease = (turn_len / len_sum.max(f64::MIN_POSITIVE)).to_degrees();
     if crease_required && !(crease >= MIN_CREASE_DEGREES) {
-        return Err(format!(
-            "no cervical crease: the surface turns by {crease:.1}° on average along the best margin line, at least {MIN_CREASE_DEGREES}° is needed"
-        ));
+        return Err(CrownRefusal::NoCrease { degrees: crease });
     }
     let coverage = crease_len / len_sum.max(f64::MIN_POSITIVE);
     if crease_required && !(coverage >= MIN_CREASE_COVERAGE) {
-        return Err(format!(
-            "the best margin line runs along a crease for {:.0} % of its length only, not around the tooth",
-            100.0 * coverage
-        ));
+        return Err(CrownRefusal::ShortCrease { coverage });
     }
     let cut_points: Vec<[f64; 3]> = (0..mesh.vertices.len())
         .filter(|&v| cut_vertices[v])
@@ -614,7 +674,7 @@ fn judge(
         }
     }
     if crown_top - cut_mean < 0.2 * cut_radius {
-        return Err("the part above the best margin line is flat, not a crown".into());
+        return Err(CrownRefusal::Flat);
     }
     let slab = root_low + 0.15 * (cut_mean - root_low);
     for (f, face) in mesh.faces.iter().enumerate() {
@@ -629,7 +689,7 @@ fn judge(
     }
     let apex_radius = cross_radius(cyl, &root_points);
     if !(apex_radius < 0.75 * cut_radius) {
-        return Err("the part below the best margin line does not taper to a root apex".into());
+        return Err(CrownRefusal::NoTaper);
     }
     let folding_ratio =
         folding(mesh, geo, inside, true) / folding(mesh, geo, inside, false).max(f64::MIN_POSITIVE);
@@ -740,7 +800,7 @@ pub fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
     let geo = SurfaceGeometry::new(&smoothed);
     let (centre, axes) = area_weighted_axes(&geo)
         .filter(|_| bbox_diagonal(mesh) > 0.0)
-        .ok_or_else(|| CrownError::NoCrown("the surface has no area".into()))?;
+        .ok_or(CrownError::NoCrown(CrownRefusal::NoArea))?;
     let mut candidates: Vec<Candidate> = Vec::new();
     let mut reasons = Vec::new();
     for axis in axes {
@@ -767,7 +827,10 @@ pub fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
         for (axis, neck) in searches {
             let Some(first) = margin_loop(&smoothed, &geo, centre, axis, neck.as_ref()) else {
                 tracing::debug!(neck = neck.is_some(), "no winding loop");
-                reasons.push((0.0, "no closed line runs round the surface".to_string()));
+                reasons.push(Rejection {
+                    score: 0.0,
+                    reason: CrownRefusal::NoMarginLine,
+                });
                 continue;
             };
             // The principal axis is only near the tooth's axis: search
@@ -798,17 +861,18 @@ pub fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
             // A line that dips where no margin lies ran round a wrong
             // axis or the roots: it cannot be the margin, whatever its
             // merit.
-            let candidate =
-                crown_of_loop(&smoothed, &geo, &found, neck.is_some()).and_then(|c| {
-                    if c.report.cut_height_min < MIN_CUT_HEIGHT {
-                        Err((found.score, format!(
-                            "the best margin line found dips to {:.0} % of the tooth's length above the apex, where no cervical margin lies: the tooth's axis was not found",
-                            100.0 * c.report.cut_height_min
-                        )))
-                    } else {
-                        Ok(c)
-                    }
-                });
+            let candidate = crown_of_loop(&smoothed, &geo, &found, neck.is_some()).and_then(|c| {
+                if c.report.cut_height_min < MIN_CUT_HEIGHT {
+                    Err(Rejection {
+                        score: found.score,
+                        reason: CrownRefusal::TooLow {
+                            height: c.report.cut_height_min,
+                        },
+                    })
+                } else {
+                    Ok(c)
+                }
+            });
             match &candidate {
                 Ok(c) => tracing::debug!(
                     neck = neck.is_some(),
@@ -817,8 +881,8 @@ pub fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
                     cut_high = c.report.cut_height_max,
                     "margin candidate"
                 ),
-                Err((_, reason)) => {
-                    tracing::debug!(neck = neck.is_some(), reason = %reason, "margin refused")
+                Err(r) => {
+                    tracing::debug!(neck = neck.is_some(), reason = %r.reason, "margin refused")
                 }
             }
             match candidate {
@@ -832,11 +896,12 @@ pub fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
     }
     let best = best_candidate(candidates);
     let Some(best) = best else {
+        // Every axis searched leaves a candidate or a rejection, so the
+        // fallback only guards an empty set of axes.
         let reason = reasons
             .into_iter()
-            .max_by(|a, b| a.0.total_cmp(&b.0))
-            .map(|r| r.1)
-            .unwrap_or_default();
+            .max_by(|a, b| a.score.total_cmp(&b.score))
+            .map_or(CrownRefusal::NoMarginLine, |r| r.reason);
         return Err(CrownError::NoCrown(reason));
     };
     let faces: Vec<[u32; 3]> = oriented
@@ -864,4 +929,29 @@ pub fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
         mesh: crown,
         report,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn refusals_print_what_they_measured() {
+        let said = |r: CrownRefusal| CrownError::NoCrown(r).to_string();
+        assert_eq!(
+            CrownRefusal::NoCrease { degrees: 7.26 }.to_string(),
+            "no cervical crease: the surface turns by 7.3° on average along the best margin line, at least 15° is needed"
+        );
+        assert_eq!(
+            CrownRefusal::ShortCrease { coverage: 0.314 }.to_string(),
+            "the best margin line runs along a crease for 31 % of its length only, not around the tooth"
+        );
+        assert_eq!(
+            CrownRefusal::CrownShare { share: 0.956 }.to_string(),
+            "the best margin line leaves 96 % of the surface as crown"
+        );
+        assert!(said(CrownRefusal::TooLow { height: 0.12 }).starts_with(
+            "no recognisable tooth crown on this closed surface (the best margin line found dips to 12 % of the tooth's length above the apex,"
+        ));
+    }
 }
