@@ -695,10 +695,21 @@ impl Classifier {
         if landmarks.is_some() {
             timings_ms.insert("landmarks".into(), t.elapsed().as_secs_f64() * 1e3);
         }
+        let mut cleaning = serde_json::to_value(&surface.cleaning).unwrap_or_default();
+        // What the segmentation warns of (two specimens that may be fused)
+        // goes with the result, where a user reads it.
+        if let (Some(v), Some(map)) = (&surface.volume, cleaning.as_object_mut()) {
+            if !v.segmentation.warnings.is_empty() {
+                map.insert(
+                    "warnings".into(),
+                    serde_json::json!(v.segmentation.warnings),
+                );
+            }
+        }
         ScanOutcome {
             ranks: id.ranks,
             distances,
-            cleaning: serde_json::to_value(&surface.cleaning).unwrap_or_default(),
+            cleaning,
             timings_ms,
             landmarks,
             calibrating,

@@ -193,7 +193,18 @@ fn status_summary(r: &ScanRecord) -> String {
             } else {
                 ""
             };
-            format!("{}: {}{calibrating}{landmarks}", r.path, ranks.join(", "))
+            let warnings: String = r.cleaning["warnings"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .filter_map(|w| w.as_str())
+                .map(|w| format!("; warning: {w}"))
+                .collect();
+            format!(
+                "{}: {}{calibrating}{landmarks}{warnings}",
+                r.path,
+                ranks.join(", ")
+            )
         }
         ScanStatus::Error => format!(
             "{}: error: {}",

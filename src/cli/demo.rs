@@ -13,7 +13,9 @@ use morphoid::library::{Cache, Library};
 use morphoid::mesh::io;
 use morphoid::mesh::synth::{self, LibrarySpec, RigidMotion, WholeToothParams, CROWN_GENERA};
 use morphoid::store::Store;
-use morphoid::volume::synth::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
+use morphoid::volume::synth::{
+    batch_in_foam, phantom, write_volume, PhantomParams, StackSpec, SynthFormat,
+};
 use std::path::Path;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -92,12 +94,54 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
         .with_context(|| format!("writing {}", path.display()))?;
     expected.push((path, genus.name));
 
+    // A two-rooted whole tooth exported as a marching-cubes isosurface of
+    // its scan (the voxel staircase and all).
+    let genus = &CROWN_GENERA[4];
+    let two_rooted = {
+        let crown = synth::crown(genus, 1030, 4000);
+        let params = WholeToothParams {
+            root_count: [2, 2],
+            ..WholeToothParams::default()
+        };
+        synth::whole_tooth(&crown, &params, 1030)
+            .with_context(|| format!("building a whole {} tooth", genus.name))?
+    };
+    let grid = phantom(
+        &two_rooted,
+        &PhantomParams {
+            voxels_across: 200,
+            ..PhantomParams::default()
+        },
+    );
+    let path = export.join("scan09_two_rooted_isosurface.stl");
+    io::save(&path, &morphoid::mesh::isosurface(&grid, 0.3))?;
+    expected.push((path, genus.name));
+    // Three teeth scanned together, their roots in foam.
+    let batch_genera = [&CROWN_GENERA[0], &CROWN_GENERA[2], &CROWN_GENERA[1]];
+    let mut phantoms = Vec::new();
+    for (k, g) in batch_genera.iter().enumerate() {
+        let params = PhantomParams {
+            voxels_across: 130,
+            ..PhantomParams::default()
+        };
+        phantoms.push(phantom(
+            &whole_tooth(g, 1040 + k as u64)?.upright(),
+            &params,
+        ));
+    }
+    let grid = batch_in_foam(&phantoms, 6, 0.25, 0.06, 0.35, 1050);
+    let batch = export.join("scan10_batch_of_three");
+    write_volume(&grid, &batch, SynthFormat::Tiff16, &StackSpec::default())
+        .with_context(|| format!("writing {}", batch.display()))?;
+    let batch_expected: Vec<&str> = batch_genera.iter().map(|g| g.name).collect();
+
     let broken = export.join("scan08.ply");
     let good = std::fs::read(&expected[0].0)?;
     std::fs::write(&broken, &good[..good.len() / 3])?;
     println!(
-        "export: {} scans (a closed whole tooth, a folder of slices, one file cut short) in {}",
-        expected.len() + 1,
+        "export: {} scans (a closed whole tooth, a folder of slices, a two-rooted isosurface, \
+         three teeth in foam in one stack, one file cut short) in {}",
+        expected.len() + 2,
         export.display()
     );
 
@@ -110,6 +154,7 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     let mut store = Store::open(&root.join("morphoid.sqlite"))?;
     classifier.register(&mut store, &built)?;
     let mut files: Vec<_> = expected.iter().map(|(p, _)| p.clone()).collect();
+    files.push(batch.clone());
     files.push(broken.clone());
 
     println!();
@@ -129,15 +174,28 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
             .file_name()
             .map(|n| n.to_string_lossy())
             .unwrap_or_default();
-        let line = summary(&record).replacen(&record.path, &name, 1);
+        let line = summary(&record).replace(&record.path, &name);
+        if *f == batch {
+            for (s, t) in record.specimens.iter().zip(&batch_expected) {
+                let called = s.ranks.iter().find(|r| r.rank == "genus");
+                if called.is_some_and(|r| r.taxon == *t) {
+                    correct += 1;
+                }
+            }
+            println!(
+                "{line}\n    (generated as {}, left to right)",
+                batch_expected.join(", ")
+            );
+            continue;
+        }
         match truth {
             Some(t) => println!("{line}\n    (generated as {t})"),
             None => println!("{line}\n    (cut short on purpose: recorded as an error)"),
         }
     }
+    let total = expected.len() + batch_expected.len();
     println!(
-        "\n{correct} of {} scans identified to the right genus in {:.1} s; database {}",
-        expected.len(),
+        "\n{correct} of {total} specimens identified to the right genus in {:.1} s; database {}",
         started.elapsed().as_secs_f64(),
         if args.keep {
             root.join("morphoid.sqlite").display().to_string()
@@ -149,7 +207,7 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
         let kept = tmp.keep();
         println!("kept {}", Path::new(&kept).display());
     }
-    Ok(if correct == expected.len() {
+    Ok(if correct == total {
         ExitCode::SUCCESS
     } else {
         ExitCode::FAILURE

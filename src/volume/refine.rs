@@ -10,7 +10,7 @@
 //! the mount never enters).
 
 use super::segment::{connected_components, fill_cavities};
-use super::shape::dilate_cube;
+use super::shape::{dilate_cube, open_cube};
 use crate::mesh::{isosurface, Grid, Mesh};
 
 /// Most samples of the detail grid (128 MB of `f32`): a 300³ scan is kept
@@ -105,6 +105,9 @@ pub fn refined_surface(
             f64::from(crop.values[i]) > level && coarse_index(p).is_some_and(|k| region[k])
         })
         .collect();
+    // Bright crumbs of foam touching the specimen, thin at this
+    // resolution, go (the working grid's opening did the same).
+    let inside = open_cube(&inside, dims, 1);
     let (labels, sizes) = connected_components(&inside, dims);
     let (largest, _) = sizes.iter().enumerate().max_by_key(|(_, &n)| n)?;
     let specimen: Vec<bool> = labels.iter().map(|&l| l == largest as u32).collect();

@@ -146,6 +146,36 @@ fn frame(a: [f64; 3]) -> ([f64; 3], [f64; 3]) {
     (u, cross(a, u))
 }
 
+impl WholeTooth {
+    /// The same tooth turned so that its occlusal direction is +z (crown
+    /// up, roots down), as loose teeth are mounted for a scan.
+    pub fn upright(&self) -> WholeTooth {
+        let a = self.occlusal;
+        let z = [0.0, 0.0, 1.0];
+        let k = cross(a, z);
+        let s = (k[0] * k[0] + k[1] * k[1] + k[2] * k[2]).sqrt();
+        let c = dot(a, z);
+        // Rodrigues' rotation taking `a` to +z (or a half turn about x).
+        let rotate = |p: [f64; 3]| -> [f64; 3] {
+            if s < 1e-12 {
+                return if c > 0.0 { p } else { [p[0], -p[1], -p[2]] };
+            }
+            let k = k.map(|v| v / s);
+            let kxp = cross(k, p);
+            let kdp = dot(k, p);
+            [0, 1, 2].map(|i| p[i] * c + kxp[i] * s + k[i] * kdp * (1.0 - c))
+        };
+        WholeTooth {
+            mesh: Mesh::new(
+                self.mesh.vertices.iter().map(|&p| rotate(p)).collect(),
+                self.mesh.faces.clone(),
+            ),
+            crown_faces: self.crown_faces.clone(),
+            occlusal: z,
+        }
+    }
+}
+
 /// Build a closed whole tooth below `crown` (see the module documentation).
 /// The crown's faces are kept (reversed, all together, if the crown's
 /// normals pointed inward) and its vertices are unchanged.
