@@ -1,7 +1,8 @@
 //! `morphoid demo`, as a new user runs it: no data, no configuration; every
 //! scan it writes (cropped crowns in four formats, a closed whole tooth, a
-//! folder of TIFF slices) identified to the genus it was made as, and the
-//! broken file recorded as an error.
+//! folder of TIFF slices, a two-rooted isosurface, three teeth in foam in
+//! one stack) identified to the genus it was made as, and the broken file
+//! recorded as an error.
 
 use crate::support::daemon::BIN;
 use std::process::Command;
@@ -18,7 +19,14 @@ fn demo_identifies_a_closed_tooth_and_a_slice_stack_among_its_scans() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stdout}\n{stderr}");
-    for scan in ["scan06_whole_tooth.stl", "scan07_slices"] {
+    for scan in [
+        "scan06_whole_tooth.stl",
+        "scan07_slices",
+        "scan09_two_rooted_isosurface.stl",
+        "scan10_batch_of_three#1",
+        "scan10_batch_of_three#2",
+        "scan10_batch_of_three#3",
+    ] {
         let line = stdout
             .lines()
             .find(|l| l.contains(scan))
@@ -29,7 +37,7 @@ fn demo_identifies_a_closed_tooth_and_a_slice_stack_among_its_scans() {
         );
     }
     assert!(
-        stdout.contains("7 of 7 scans identified to the right genus"),
+        stdout.contains("11 of 11 specimens identified to the right genus"),
         "{stdout}"
     );
     assert!(

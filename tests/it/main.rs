@@ -60,6 +60,7 @@ mod store_basic;
 mod store_crash;
 mod store_landmarks;
 mod store_wal;
+mod volume_bad_batches;
 mod volume_batch;
 mod volume_mounted;
 mod volume_scans;
