@@ -239,3 +239,34 @@ fn each_specimen_of_a_batch_file_gets_its_own_row_result_and_report() {
     let index = std::fs::read_to_string(out_dir.join("index.html")).unwrap();
     assert!(index.contains("3 specimens") && index.contains("tray.ply%232.html"));
 }
+
+/// The daemon with a results folder: a batch file dropped into the export
+/// folder gets its three specimens' rows, each with its own report, and
+/// the overview lists them under the scan.
+#[test]
+fn the_daemon_identifies_each_specimen_of_a_batch_file() {
+    use crate::support::daemon::{env, rows, wait_until, Daemon};
+    let env = env(0.3, "", "");
+    let out = env.root.join("results");
+    let mut text = std::fs::read_to_string(&env.config).unwrap();
+    text = text.replace("[library]\n", "[library]\ncalibrate = false\n");
+    text.push_str(&format!("[results]\ndir = {out:?}\n"));
+    std::fs::write(&env.config, text).unwrap();
+    let d = Daemon::start(&env);
+    let staging = env.root.join("staging");
+    let (made, _) = batch_file(&staging);
+    std::fs::rename(&made, env.export.join("tray.ply")).unwrap();
+    let done = || {
+        rows(&env.db).iter().any(|r| {
+            r.specimens.len() == 3 && r.specimens.iter().all(|c| c.status.as_str() == "ok")
+        }) && (1..=3).all(|k| out.join(format!("tray.ply#{k}.html")).is_file())
+            && std::fs::read_to_string(out.join("index.html"))
+                .is_ok_and(|i| i.contains("tray.ply%233.html"))
+    };
+    assert!(
+        wait_until(std::time::Duration::from_secs(240), done),
+        "{}",
+        d.log_text()
+    );
+    assert!(d.log_text().contains("3 specimens"), "{}", d.log_text());
+}
