@@ -38,6 +38,14 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
         (None, Some(n)) => store.recent(n)?,
         (None, None) => bail!("give a scan id or --last N"),
     };
+    // A scan of several specimens: each specimen's page too.
+    let records: Vec<ScanRecord> = records
+        .into_iter()
+        .flat_map(|r| {
+            let specimens = r.specimens.clone();
+            std::iter::once(r).chain(specimens)
+        })
+        .collect();
     let files = ResultFiles::new(args.out.clone(), Some(config.watch.dir.clone()));
     // The library is needed only to draw identified scans.
     let mut classifier: Option<Classifier> = None;

@@ -238,6 +238,26 @@ fn each_specimen_of_a_batch_file_gets_its_own_row_result_and_report() {
     assert!(page.contains("tray.ply%233.html"), "no link to specimen 3");
     let index = std::fs::read_to_string(out_dir.join("index.html")).unwrap();
     assert!(index.contains("3 specimens") && index.contains("tray.ply%232.html"));
+
+    // `morphoid report` draws the pages again from the database, the
+    // specimens' too.
+    let again_dir = root.join("pages");
+    let out = Command::new(BIN)
+        .args(["report", "--last", "1", "--config"])
+        .arg(&config)
+        .arg("--out")
+        .arg(&again_dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let listed = String::from_utf8_lossy(&out.stdout);
+    for k in 1..=3 {
+        assert!(listed.contains(&format!("tray.ply#{k}.html")), "{listed}");
+    }
 }
 
 /// The daemon with a results folder: a batch file dropped into the export
