@@ -301,8 +301,9 @@ pub fn prepare_specimens(
         ..
     } = loaded;
     let several = specimens.len() > 1;
+    // The specimens of a batch are cleaned side by side.
     specimens
-        .into_iter()
+        .into_par_iter()
         .enumerate()
         .map(|(i, s)| {
             let name = if several {

@@ -162,7 +162,8 @@ fn two_teeth_in_merged_mounts_are_two_specimens() {
 
 /// All 116 teeth, three per stack (38 batches and one of two), each
 /// specimen identified against the other 115 original crowns: run by
-/// name, figures printed. `MORPHOID_BATCH_STEP=k` takes every k-th batch.
+/// name, figures printed. `MORPHOID_BATCH_STEP=k` takes every k-th batch,
+/// `MORPHOID_BATCH_ONLY=i,j` the batches numbered i and j.
 #[test]
 #[ignore = "real data, tens of minutes: run by name"]
 fn all_teeth_in_batches_of_three_are_identified() {
@@ -185,10 +186,15 @@ fn all_teeth_in_batches_of_three_are_identified() {
                 .collect()
         })
         .collect();
+    // MORPHOID_BATCH_ONLY=3,9 takes those batches only (numbered from 0).
+    let only: Option<Vec<usize>> = std::env::var("MORPHOID_BATCH_ONLY")
+        .ok()
+        .map(|v| v.split(',').filter_map(|k| k.trim().parse().ok()).collect());
     let tmp = tempfile::tempdir().unwrap();
     let batches: Vec<Batch> = groups
         .par_iter()
         .enumerate()
+        .filter(|(i, _)| only.as_ref().is_none_or(|o| o.contains(i)))
         .map(|(i, names)| {
             let across = 100 + (i * 23) % 60;
             batch(&dir, names, 500 + i as u64, across, 3, tmp.path())
