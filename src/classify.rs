@@ -936,9 +936,11 @@ pub fn run_job(
             Ok(Some(mut record)) => {
                 // Each specimen's files first, then the scan's (its page
                 // lists them) and the overview.
-                let specimens = std::mem::take(&mut record.specimens);
-                for (i, mut child) in specimens.into_iter().enumerate() {
-                    child.files_error = None;
+                for (i, child) in record.specimens.iter().enumerate() {
+                    let child = ScanRecord {
+                        files_error: None,
+                        ..child.clone()
+                    };
                     let scene = scenes.get(i).and_then(Option::as_ref);
                     let written = files
                         .write(&child)
@@ -953,9 +955,6 @@ pub fn run_job(
                     None => scenes.first().and_then(Option::as_ref),
                     Some(_) => None,
                 };
-                if let Ok(Some(again)) = store.scan(job.scan_id, NEAREST) {
-                    record = again;
-                }
                 // Written now, so no earlier failure belongs on the page.
                 record.files_error = None;
                 let written = write_result_files(store, files, &record, scene, None);

@@ -125,16 +125,26 @@ pub fn surface_specimens(mesh: &Mesh, weld_tolerance: f64) -> Option<SurfaceSpec
     // debris. Each test casts rays through a specimen, so a crowd of
     // crumbs is checked only as far as MAX_NESTED_CHECKS.
     let mut nested = nested;
-    let small: Vec<usize> = (0..count).filter(|c| !large.contains(c)).collect();
-    for &c in small.iter().take(MAX_NESTED_CHECKS) {
-        let p = part(c);
-        let Some((a, b)) = bounding_box(&p) else {
+    // Each small component's box and one of its vertices, in one pass.
+    let mut small_box: Vec<Option<([f64; 3], [f64; 3], [f64; 3])>> = vec![None; count];
+    for (f, &l) in m.faces.iter().zip(&labels) {
+        let l = l as usize;
+        if large.contains(&l) {
             continue;
-        };
+        }
+        for &v in f {
+            let p = m.vertices[v as usize];
+            let b = small_box[l].get_or_insert((p, p, p));
+            for i in 0..3 {
+                b.0[i] = b.0[i].min(p[i]);
+                b.1[i] = b.1[i].max(p[i]);
+            }
+        }
+    }
+    for (a, b, p) in small_box.into_iter().flatten().take(MAX_NESTED_CHECKS) {
         let within = order.iter().any(|&k| {
             let (lo, hi) = boxes[k];
-            (0..3).all(|i| a[i] >= lo[i] && b[i] <= hi[i])
-                && point_inside_by_parity(&closed[k], p.vertices[0])
+            (0..3).all(|i| a[i] >= lo[i] && b[i] <= hi[i]) && point_inside_by_parity(&closed[k], p)
         });
         if within {
             nested += 1;
@@ -154,27 +164,16 @@ pub fn surface_specimens(mesh: &Mesh, weld_tolerance: f64) -> Option<SurfaceSpec
 mod tests {
     use super::*;
 
-    /// A closed octahedron of radius `r` around `c`.
-    fn octahedron(c: [f64; 3], r: f64) -> Mesh {
-        let v = vec![
-            [c[0] + r, c[1], c[2]],
-            [c[0] - r, c[1], c[2]],
-            [c[0], c[1] + r, c[2]],
-            [c[0], c[1] - r, c[2]],
-            [c[0], c[1], c[2] + r],
-            [c[0], c[1], c[2] - r],
-        ];
-        let f = vec![
-            [0, 2, 4],
-            [2, 1, 4],
-            [1, 3, 4],
-            [3, 0, 4],
-            [2, 0, 5],
-            [1, 2, 5],
-            [3, 1, 5],
-            [0, 3, 5],
-        ];
-        Mesh::new(v, f)
+    /// A closed ball (an icosahedron) of radius `r` around `c`.
+    fn ball(c: [f64; 3], r: f64) -> Mesh {
+        let m = crate::mesh::synth::closed_sphere(12);
+        Mesh::new(
+            m.vertices
+                .iter()
+                .map(|p| [0, 1, 2].map(|i| c[i] + r * p[i]))
+                .collect(),
+            m.faces,
+        )
     }
 
     fn join(parts: &[Mesh]) -> Mesh {
@@ -191,13 +190,13 @@ mod tests {
     #[test]
     fn three_closed_specimens_come_in_order_with_the_nested_and_small_dropped() {
         let m = join(&[
-            octahedron([20.0, 0.0, 0.0], 3.0),
-            octahedron([0.0, 0.0, 0.0], 3.0),
+            ball([20.0, 0.0, 0.0], 3.0),
+            ball([0.0, 0.0, 0.0], 3.0),
             // A cavity inside the second specimen.
-            octahedron([0.0, 0.0, 0.0], 2.0),
-            octahedron([10.0, 0.5, 0.0], 2.5),
+            ball([0.0, 0.0, 0.0], 2.0),
+            ball([10.0, 0.5, 0.0], 2.5),
             // Debris.
-            octahedron([5.0, 5.0, 5.0], 0.3),
+            ball([5.0, 5.0, 5.0], 0.3),
         ]);
         let s = surface_specimens(&m, 1e-9).unwrap();
         assert_eq!((s.parts.len(), s.nested, s.debris), (3, 1, 1));
@@ -212,9 +211,9 @@ mod tests {
     #[test]
     fn one_specimen_with_a_cavity_or_debris_is_not_split() {
         let m = join(&[
-            octahedron([0.0, 0.0, 0.0], 3.0),
-            octahedron([0.0, 0.0, 0.0], 2.0),
-            octahedron([9.0, 0.0, 0.0], 0.5),
+            ball([0.0, 0.0, 0.0], 3.0),
+            ball([0.0, 0.0, 0.0], 2.0),
+            ball([9.0, 0.0, 0.0], 0.5),
         ]);
         assert_eq!(surface_specimens(&m, 1e-9), None);
     }

@@ -394,12 +394,6 @@ fn grid_surface(
         enamel: enamel_threshold(&interior),
     };
     let fg = fg as f32;
-    // The grey values give the surface its sub-voxel position; the mask
-    // decides which side each sample is on.
-    let margin = 1e-3
-        * (grid.values.iter().copied().fold(f32::MIN, f32::max) - fg)
-            .abs()
-            .max(1e-6);
     let mut report = GridSurfaceReport {
         segment_ms: ms(t),
         ..Default::default()
@@ -407,21 +401,12 @@ fn grid_surface(
     let mut out = Vec::with_capacity(masks.len());
     for (mask, bbox) in masks.iter().zip(boxes) {
         let t = Instant::now();
-        let mut field = grid.clone();
-        for (v, &m) in field.values.iter_mut().zip(mask) {
-            *v = if m {
-                v.max(fg + margin)
-            } else {
-                v.min(fg - margin)
-            };
-        }
         // A batch's specimens each at its own resolution, from the finer
         // grid when there is one.
         let refined = detail
             .filter(|_| masks.len() > 1)
             .and_then(|d| refined_surface(d, grid, mask, f64::from(fg), opts.working_voxels));
-        let closed = refined.unwrap_or_else(|| isosurface(&field, fg));
-        drop(field);
+        let closed = refined.unwrap_or_else(|| masked_isosurface(grid, mask, fg));
         report.isosurface_ms += ms(t);
         let t = Instant::now();
         report.isosurface_faces += closed.faces.len();
@@ -449,6 +434,25 @@ fn grid_surface(
         out.push((mesh, bbox));
     }
     Ok((out, th, seg, report))
+}
+
+/// The closed surface of the samples of `mask` on `grid`: the grey values
+/// give it its sub-voxel position around `level`, the mask decides which
+/// side of it each sample is on.
+fn masked_isosurface(grid: &Grid, mask: &[bool], level: f32) -> Mesh {
+    let margin = 1e-3
+        * (grid.values.iter().copied().fold(f32::MIN, f32::max) - level)
+            .abs()
+            .max(1e-6);
+    let mut field = grid.clone();
+    for (v, &m) in field.values.iter_mut().zip(mask) {
+        *v = if m {
+            v.max(level + margin)
+        } else {
+            v.min(level - margin)
+        };
+    }
+    isosurface(&field, level)
 }
 
 /// The samples of `mask` at least `depth` steps (6-connected) from any

@@ -11,7 +11,7 @@
 
 use super::segment::{connected_components, fill_cavities};
 use super::shape::{dilate_cube, open_cube};
-use crate::mesh::{isosurface, Grid, Mesh};
+use crate::mesh::{Grid, Mesh};
 
 /// Most samples of the detail grid (128 MB of `f32`): a 300³ scan is kept
 /// whole, a larger one block-averaged to fit.
@@ -112,19 +112,7 @@ pub fn refined_surface(
     let (largest, _) = sizes.iter().enumerate().max_by_key(|(_, &n)| n)?;
     let specimen: Vec<bool> = labels.iter().map(|&l| l == largest as u32).collect();
     let (specimen, _, _) = fill_cavities(specimen, dims);
-    let fg = level as f32;
-    let margin = 1e-3
-        * (crop.values.iter().copied().fold(f32::MIN, f32::max) - fg)
-            .abs()
-            .max(1e-6);
-    for (v, &m) in crop.values.iter_mut().zip(&specimen) {
-        *v = if m {
-            v.max(fg + margin)
-        } else {
-            v.min(fg - margin)
-        };
-    }
-    let mesh = isosurface(&crop, fg);
+    let mesh = super::masked_isosurface(&crop, &specimen, level as f32);
     (!mesh.faces.is_empty()).then_some(mesh)
 }
 

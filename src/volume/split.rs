@@ -59,8 +59,55 @@ pub enum Separation {
 /// Separate the object `mask` (one connected object on a grid of `dims`)
 /// at its thin necks (see the module documentation).
 pub fn separate_at_necks(mask: &[bool], dims: [usize; 3]) -> Separation {
+    // Within the object's box (outside it the grid is empty anyway): a
+    // specimen is a small part of a batch's grid.
+    let mut lo = [usize::MAX; 3];
+    let mut hi = [0usize; 3];
+    for (i, _) in mask.iter().enumerate().filter(|(_, &b)| b) {
+        let c = [
+            i % dims[0],
+            (i / dims[0]) % dims[1],
+            i / (dims[0] * dims[1]),
+        ];
+        for a in 0..3 {
+            lo[a] = lo[a].min(c[a]);
+            hi[a] = hi[a].max(c[a]);
+        }
+    }
+    if lo[0] == usize::MAX {
+        return Separation::Whole;
+    }
+    let bd = [0, 1, 2].map(|a| hi[a] - lo[a] + 1);
+    let full =
+        |c: [usize; 3]| (lo[0] + c[0]) + dims[0] * ((lo[1] + c[1]) + dims[1] * (lo[2] + c[2]));
+    let cropped: Vec<bool> = (0..bd[0] * bd[1] * bd[2])
+        .map(|i| mask[full([i % bd[0], (i / bd[0]) % bd[1], i / (bd[0] * bd[1])])])
+        .collect();
+    match separate_in_box(&cropped, bd) {
+        Separation::Cut { parts, radius } => Separation::Cut {
+            parts: parts
+                .iter()
+                .map(|p| {
+                    let mut out = vec![false; mask.len()];
+                    for (i, _) in p.iter().enumerate().filter(|(_, &b)| b) {
+                        out[full([i % bd[0], (i / bd[0]) % bd[1], i / (bd[0] * bd[1])])] = true;
+                    }
+                    out
+                })
+                .collect(),
+            radius,
+        },
+        other => other,
+    }
+}
+
+/// [`separate_at_necks`] on a grid of `dims` cropped to the object.
+fn separate_in_box(mask: &[bool], dims: [usize; 3]) -> Separation {
+    let mut eroded = mask.to_vec();
     for radius in 1..=FUSED_RADIUS {
-        let eroded = erode_cube(mask, dims, radius);
+        // Erosion by the cube of half-side r, one sample at a time (cubes
+        // add up: r then 1 is r + 1).
+        eroded = erode_cube(&eroded, dims, 1);
         let (labels, sizes) = connected_components(&eroded, dims);
         let largest = sizes.iter().copied().max().unwrap_or(0);
         if largest < MIN_CORE {

@@ -30,27 +30,16 @@ fn join(parts: &[Mesh]) -> Mesh {
     out
 }
 
-/// A closed octahedron of radius `r` around `c` (debris).
-fn octahedron(c: [f64; 3], r: f64) -> Mesh {
-    let v = vec![
-        [c[0] + r, c[1], c[2]],
-        [c[0] - r, c[1], c[2]],
-        [c[0], c[1] + r, c[2]],
-        [c[0], c[1] - r, c[2]],
-        [c[0], c[1], c[2] + r],
-        [c[0], c[1], c[2] - r],
-    ];
-    let f = vec![
-        [0, 2, 4],
-        [2, 1, 4],
-        [1, 3, 4],
-        [3, 0, 4],
-        [2, 0, 5],
-        [1, 2, 5],
-        [3, 1, 5],
-        [0, 3, 5],
-    ];
-    Mesh::new(v, f)
+/// A closed ball (an icosahedron) of radius `r` around `c`.
+fn ball(c: [f64; 3], r: f64) -> Mesh {
+    let m = synth::closed_sphere(12);
+    Mesh::new(
+        m.vertices
+            .iter()
+            .map(|p| [0, 1, 2].map(|i| c[i] + r * p[i]))
+            .collect(),
+        m.faces,
+    )
 }
 
 /// Three whole teeth of three genera in a row along x, a shrunken copy of
@@ -89,10 +78,7 @@ fn batch_file(dir: &Path) -> (std::path::PathBuf, Vec<&'static str>) {
     }
     for i in 0..30 {
         let t = i as f64;
-        parts.push(octahedron(
-            [x * t / 30.0, -3.0 - (t * 0.37) % 1.0, 2.0],
-            0.05,
-        ));
+        parts.push(ball([x * t / 30.0, -3.0 - (t * 0.37) % 1.0, 2.0], 0.05));
     }
     let path = dir.join("export").join("tray.ply");
     std::fs::create_dir_all(path.parent().unwrap()).unwrap();

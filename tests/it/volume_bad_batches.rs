@@ -4,7 +4,7 @@
 //! crumbs reported), a closed surface that is a sphere (a clear error).
 
 use morphoid::mesh::synth::{self, whole_tooth, WholeToothParams, CROWN_GENERA};
-use morphoid::mesh::{io, Grid, Mesh};
+use morphoid::mesh::{io, Grid};
 use morphoid::pipeline::{load_scan, prepare_file, Settings};
 use morphoid::volume::synth::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
 use morphoid::volume::DropReason;
@@ -143,52 +143,8 @@ fn thirty_crumbs_of_debris_around_a_tooth_are_reported_not_identified() {
 
 #[test]
 fn a_closed_sphere_is_refused_with_a_clear_message() {
-    // An icosphere: closed, smooth, no tooth.
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut v: Vec<[f64; 3]> = vec![
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ];
-    let f: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    let s = morphoid::mesh::subdivide_midpoint(&Mesh::new(v, f), 4);
-    v = s.vertices;
-    let f = s.faces;
-    for p in &mut v {
-        let r = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-        *p = p.map(|c| 5.0 * c / r);
-    }
-    let m = Mesh::new(v, f);
+    // An icosphere (2,562 vertices, radius 5): closed, smooth, no tooth.
+    let m = synth::scale(&synth::closed_sphere(2562), 5.0);
     let tmp = tempfile::tempdir().unwrap();
     let path = tmp.path().join("ball.ply");
     io::save(&path, &m).unwrap();
