@@ -27,6 +27,9 @@ pub const SPECIMEN_SHARE: f64 = 0.2;
 /// specimen; the rest count as debris.
 const MAX_NESTED_CHECKS: usize = 256;
 
+/// A component's lowest corner, highest corner and one of its vertices.
+type BoxAndPoint = ([f64; 3], [f64; 3], [f64; 3]);
+
 /// The specimens of a surface file that holds several.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SurfaceSpecimens {
@@ -126,7 +129,7 @@ pub fn surface_specimens(mesh: &Mesh, weld_tolerance: f64) -> Option<SurfaceSpec
     // crumbs is checked only as far as MAX_NESTED_CHECKS.
     let mut nested = nested;
     // Each small component's box and one of its vertices, in one pass.
-    let mut small_box: Vec<Option<([f64; 3], [f64; 3], [f64; 3])>> = vec![None; count];
+    let mut small_box: Vec<Option<BoxAndPoint>> = vec![None; count];
     for (f, &l) in m.faces.iter().zip(&labels) {
         let l = l as usize;
         if large.contains(&l) {
