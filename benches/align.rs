@@ -56,7 +56,7 @@ fn library(scratch: &Path) -> (PathBuf, String) {
                     .map(|p| {
                         let name = p.file_name().expect("file name");
                         std::os::unix::fs::symlink(p, lib.join(name)).expect("link");
-                        morphoid::pipeline::specimen_name(p)
+                        morphoid_data::pipeline::specimen_name(p)
                     })
                     .collect();
                 let labels = std::fs::read_to_string(dir.join("labels.csv")).expect("labels.csv");
@@ -73,13 +73,13 @@ fn library(scratch: &Path) -> (PathBuf, String) {
         },
         _ => {
             let lib = scratch.join("synthetic");
-            let spec = morphoid::mesh::synth::LibrarySpec {
+            let spec = morphoid_synth::mesh::LibrarySpec {
                 per_genus: 2,
                 target_vertices: 2000,
                 seed: 11,
                 random_pose: true,
             };
-            let n = morphoid::mesh::synth::write_synthetic_library(&lib, &spec)
+            let n = morphoid_synth::mesh::write_synthetic_library(&lib, &spec)
                 .expect("synthetic library")
                 .len();
             (lib, format!("{n} synthetic crowns (teeth not found)"))

@@ -8,8 +8,8 @@
 //!
 //! `cargo build --release && cargo bench --bench big_scan`
 
-use morphoid::mesh::io;
-use morphoid::mesh::synth::{self, LibrarySpec, CROWN_GENERA};
+use morphoid_data::mesh_io;
+use morphoid_synth::mesh::{self as synth, LibrarySpec, CROWN_GENERA};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -59,7 +59,7 @@ fn main() {
     let tmp = tempfile::tempdir().expect("temp dir");
     let (base, library) = match support::data::teeth_dir_if_present() {
         Some(dir) => (
-            io::load(&dir.join("meshes").join("J12.ply"))
+            mesh_io::load(&dir.join("meshes").join("J12.ply"))
                 .expect("J12 loads")
                 .mesh,
             dir,
@@ -74,7 +74,7 @@ fn main() {
     let scan = tmp.path().join("big.stl");
     {
         let dense = synth::subdivide_midpoint(&base, 4);
-        io::save(&scan, &dense).expect("write the big scan");
+        mesh_io::save(&scan, &dense).expect("write the big scan");
         println!(
             "scan: {} triangles, {:.0} MB binary STL",
             dense.face_count(),

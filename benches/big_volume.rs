@@ -14,10 +14,12 @@
 //! (`BIG_VOLUME_SIZE=512` for a smaller big stack; the stacks are written
 //! under `$TMPDIR`, 2.2 GB at the default size).
 
-use morphoid::mesh::io;
-use morphoid::mesh::synth::{self, whole_tooth, LibrarySpec, WholeToothParams, CROWN_GENERA};
-use morphoid::volume::synth::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
-use morphoid::volume::Grid;
+use morphoid_core::mesh::Grid;
+use morphoid_data::mesh_io;
+use morphoid_synth::mesh::{
+    self as synth, whole_tooth, LibrarySpec, WholeToothParams, CROWN_GENERA,
+};
+use morphoid_synth::volume::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
@@ -133,7 +135,7 @@ fn main() {
     let crown = synth::crown(genus, 7, 4000);
     let tooth = whole_tooth(&crown, &WholeToothParams::default(), 7).expect("whole tooth");
     let mesh_path = root.join("tooth.ply");
-    io::save(&mesh_path, &tooth.mesh).expect("write the tooth");
+    mesh_io::save(&mesh_path, &tooth.mesh).expect("write the tooth");
     let params = PhantomParams {
         voxels_across: 148,
         margin: 6,

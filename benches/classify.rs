@@ -10,13 +10,14 @@
 //! `cargo bench --bench classify`
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
-use morphoid::classify::{self, Classifier};
-use morphoid::hash::content_hash;
-use morphoid::library::{BuildOutcome, Cache, Library};
-use morphoid::mesh::synth::{self, LibrarySpec, RigidMotion};
-use morphoid::mesh::{io, Mesh};
-use morphoid::pipeline::Settings;
-use morphoid::store::{Enqueued, ScanStatus, Store};
+use morphoid_core::mesh::Mesh;
+use morphoid_data::hash::content_hash;
+use morphoid_data::library::{BuildOutcome, Cache, Library};
+use morphoid_data::mesh_io;
+use morphoid_data::pipeline::Settings;
+use morphoid_service::classify::{self, Classifier};
+use morphoid_service::store::{Enqueued, ScanStatus, Store};
+use morphoid_synth::mesh::{self as synth, LibrarySpec, RigidMotion};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -95,7 +96,7 @@ fn bench(c: &mut Criterion) {
     classifier
         .register(&mut store, &outcome)
         .expect("references recorded");
-    let source = io::load(lib.members()[0].path())
+    let source = mesh_io::load(lib.members()[0].path())
         .expect("a library surface loads")
         .mesh;
     let mut seed = 0u64;
@@ -146,7 +147,7 @@ fn bench_identify(
                 *seed += 1;
                 let scan = synth::scale(&RigidMotion::random(*seed, 5.0).apply(source), 1000.0);
                 let path = dir.join(format!("scan{seed}.ply"));
-                io::save(&path, &scan).expect("write scan");
+                mesh_io::save(&path, &scan).expect("write scan");
                 path
             },
             |path| {

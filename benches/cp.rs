@@ -8,7 +8,7 @@
 mod support;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use morphoid::cp::{self, CpParams};
+use morphoid_core::cp::{self, CpParams};
 use std::hint::black_box;
 
 fn bench(c: &mut Criterion) {

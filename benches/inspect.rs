@@ -6,9 +6,9 @@
 //! `cargo bench --bench inspect`
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use morphoid::clean::{clean, CleanOptions};
-use morphoid::mesh::io;
-use morphoid::mesh::synth::{self, CROWN_GENERA};
+use morphoid_core::clean::{clean, CleanOptions};
+use morphoid_data::mesh_io;
+use morphoid_synth::mesh::{self as synth, CROWN_GENERA};
 use std::hint::black_box;
 
 // The integration tests' helpers (real-data location, loading as users do);
@@ -18,9 +18,9 @@ use std::hint::black_box;
 mod support;
 use std::path::{Path, PathBuf};
 
-fn source_surface() -> morphoid::mesh::Mesh {
+fn source_surface() -> morphoid_core::mesh::Mesh {
     match support::data::teeth_dir_if_present().map(|d| d.join("meshes")) {
-        Some(dir) => io::load(&dir.join("J12.ply")).expect("J12 loads").mesh,
+        Some(dir) => mesh_io::load(&dir.join("J12.ply")).expect("J12 loads").mesh,
         None => {
             eprintln!("real teeth not found: using a synthetic crown");
             synth::crown(&CROWN_GENERA[0], 1, 5000)
@@ -29,7 +29,7 @@ fn source_surface() -> morphoid::mesh::Mesh {
 }
 
 fn inspect(path: &Path) -> usize {
-    let loaded = io::load(path).expect("bench input loads");
+    let loaded = mesh_io::load(path).expect("bench input loads");
     let cleaned = clean(&loaded.mesh, &CleanOptions::default()).expect("bench input cleans");
     cleaned.mesh.vertex_count()
 }
@@ -48,7 +48,7 @@ fn bench(c: &mut Criterion) {
     .into_iter()
     .map(|(label, m)| {
         let p = dir.join(format!("{}.ply", label.replace(' ', "_")));
-        io::save(&p, m).expect("write bench input");
+        mesh_io::save(&p, m).expect("write bench input");
         (
             format!("inspect {label} ({} vertices)", m.vertex_count()),
             p,

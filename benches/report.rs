@@ -7,11 +7,11 @@
 //! `cargo bench --bench report`
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use morphoid::classify::ResultFiles;
-use morphoid::mesh::synth::{self, CROWN_GENERA};
-use morphoid::pipeline::{self, Settings};
-use morphoid::report::{Scene, SceneReference};
-use morphoid::store::{Enqueued, Store};
+use morphoid_data::pipeline::{self, Settings};
+use morphoid_service::classify::ResultFiles;
+use morphoid_service::report::{Scene, SceneReference};
+use morphoid_service::store::{Enqueued, Store};
+use morphoid_synth::mesh::{self as synth, CROWN_GENERA};
 use std::time::Instant;
 
 // The integration tests' helpers (a filled store); a bench uses only some.

@@ -26,8 +26,8 @@
 //! that holds the database and the results folder, `8g`: a scan's result
 //! files take about 2.5 MB).
 
-use morphoid::mesh::io;
-use morphoid::mesh::synth::{self, LibrarySpec, RigidMotion, CROWN_GENERA};
+use morphoid_data::mesh_io;
+use morphoid_synth::mesh::{self as synth, LibrarySpec, RigidMotion, CROWN_GENERA};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rusqlite::Connection;
@@ -164,7 +164,7 @@ fn main() {
             let crown = synth::crown(genus, 10_000 + i as u64, vertices);
             let posed = RigidMotion::random(i as u64, 20.0).apply(&crown);
             let staged = staging.join(&name);
-            io::save(&staged, &posed).unwrap();
+            mesh_io::save(&staged, &posed).unwrap();
             std::fs::rename(&staged, export.join(&name)).unwrap();
             placed.push(name);
             i += 1;

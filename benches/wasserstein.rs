@@ -12,9 +12,9 @@
 mod support;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use morphoid::cp::{self, CpParams, Prepared};
-use morphoid::cw::{self, CwParams};
-use morphoid::cwn::{self, CwnParams};
+use morphoid_core::cp::{self, CpParams, Prepared};
+use morphoid_core::cw::{self, CwParams};
+use morphoid_core::cwn::{self, CwnParams};
 use rayon::ThreadPool;
 use std::hint::black_box;
 

@@ -3,9 +3,9 @@
 //!
 //! `cargo run --release --example clean_timing [TOOTH.ply]`
 
-use morphoid::clean::{clean, CleanOptions};
-use morphoid::mesh::subdivide_midpoint;
-use morphoid::mesh::{dot, norm, sub, Mesh};
+use morphoid_core::clean::{clean, CleanOptions};
+use morphoid_core::mesh::subdivide_midpoint;
+use morphoid_core::mesh::{dot, norm, sub, Mesh};
 use std::path::Path;
 use std::time::Instant;
 
@@ -44,7 +44,7 @@ fn main() {
         println!("skipped: data not found");
         return;
     }
-    let tooth = match morphoid::mesh::io::load(Path::new(&path)) {
+    let tooth = match morphoid_data::mesh_io::load(Path::new(&path)) {
         Ok(loaded) => loaded.mesh,
         Err(e) => {
             eprintln!("{e}");
@@ -59,7 +59,7 @@ fn main() {
         tooth.vertices.len(),
         100.0 * ob
     );
-    let cloud = morphoid::mesh::synth::to_point_cloud(&tooth);
+    let cloud = morphoid_synth::mesh::to_point_cloud(&tooth);
     for (label, m) in [
         ("tooth", &tooth),
         ("16x denser", &dense),

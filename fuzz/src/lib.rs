@@ -8,9 +8,11 @@
 //! file by path and replays the kept inputs through the same functions,
 //! so it uses nothing but `morphoid` and `std`.
 
-use morphoid::mesh::io::{encode, load_bytes, Encoding, Format};
-use morphoid::mesh::Mesh;
-use morphoid::volume::{Grid, VolumeFormat, VolumeOptions};
+use morphoid_core::mesh::Grid;
+use morphoid_core::mesh::Mesh;
+use morphoid_core::volume::VolumeOptions;
+use morphoid_data::mesh_io::{encode, load_bytes, Encoding, Format};
+use morphoid_data::volume::VolumeFormat;
 use std::path::Path;
 
 /// A target's entry point: whether the input was accepted.
@@ -84,7 +86,7 @@ pub fn off(data: &[u8]) -> bool {
 
 /// One slice file: what is accepted has one finite value per pixel.
 fn slice(data: &[u8], format: VolumeFormat, name: &str) -> bool {
-    match morphoid::volume::decode_slice_bytes(data, format, Path::new(name)) {
+    match morphoid_data::volume::decode_slice_bytes(data, format, Path::new(name)) {
         Ok(([w, h], values)) => {
             assert_eq!(values.len(), w * h, "{w}×{h} slice");
             assert!(values.iter().all(|v| v.is_finite()), "non-finite value");
@@ -125,7 +127,7 @@ fn volume_file(data: &[u8], name: &str) -> bool {
         working_voxels: FUZZ_WORKING_VOXELS,
         ..VolumeOptions::default()
     };
-    match morphoid::volume::working_grid_from_bytes(data, Path::new(name), &opts) {
+    match morphoid_data::volume::working_grid_from_bytes(data, Path::new(name), &opts) {
         Ok((grid, info)) => {
             let n: usize = grid.dims.iter().product();
             assert_eq!(grid.values.len(), n, "grid of {:?}", grid.dims);
@@ -158,11 +160,11 @@ pub fn nifti(data: &[u8]) -> bool {
 }
 
 /// A landmark file in `format`: what is accepted holds finite points.
-fn landmarks(data: &[u8], format: morphoid::landmarks::Format, name: &str) -> bool {
+fn landmarks(data: &[u8], format: morphoid_data::landmarks::Format, name: &str) -> bool {
     let Ok(text) = std::str::from_utf8(data) else {
         return false;
     };
-    match morphoid::landmarks::parse(text, format, Path::new(name)) {
+    match morphoid_data::landmarks::parse(text, format, Path::new(name)) {
         Ok(lm) => {
             assert!(!lm.is_empty());
             assert_eq!(lm.labels().len(), lm.len());
@@ -180,36 +182,44 @@ fn landmarks(data: &[u8], format: morphoid::landmarks::Format, name: &str) -> bo
 pub fn tps(data: &[u8]) -> bool {
     if let Ok(text) = std::str::from_utf8(data) {
         // The collection reader too (`morphoid align`'s TPS input).
-        let _ = morphoid::landmarks::parse_tps(text, Path::new("fuzz.tps"));
+        let _ = morphoid_data::landmarks::parse_tps(text, Path::new("fuzz.tps"));
     }
-    landmarks(data, morphoid::landmarks::Format::Tps, "fuzz.tps")
+    landmarks(data, morphoid_data::landmarks::Format::Tps, "fuzz.tps")
 }
 
 /// Morphologika.
 pub fn morphologika(data: &[u8]) -> bool {
     if let Ok(text) = std::str::from_utf8(data) {
-        let _ = morphoid::landmarks::parse_morphologika(text, Path::new("fuzz.txt"));
+        let _ = morphoid_data::landmarks::parse_morphologika(text, Path::new("fuzz.txt"));
     }
-    landmarks(data, morphoid::landmarks::Format::Morphologika, "fuzz.txt")
+    landmarks(
+        data,
+        morphoid_data::landmarks::Format::Morphologika,
+        "fuzz.txt",
+    )
 }
 
 /// 3D Slicer markups CSV.
 pub fn fcsv(data: &[u8]) -> bool {
-    landmarks(data, morphoid::landmarks::Format::Fcsv, "fuzz.fcsv")
+    landmarks(data, morphoid_data::landmarks::Format::Fcsv, "fuzz.fcsv")
 }
 
 /// 3D Slicer markups JSON.
 pub fn mrk_json(data: &[u8]) -> bool {
     landmarks(
         data,
-        morphoid::landmarks::Format::MarkupsJson,
+        morphoid_data::landmarks::Format::MarkupsJson,
         "fuzz.mrk.json",
     )
 }
 
 /// MeshLab picked points.
 pub fn pp(data: &[u8]) -> bool {
-    landmarks(data, morphoid::landmarks::Format::PickedPoints, "fuzz.pp")
+    landmarks(
+        data,
+        morphoid_data::landmarks::Format::PickedPoints,
+        "fuzz.pp",
+    )
 }
 
 /// The TOML configuration.
@@ -217,7 +227,7 @@ pub fn config(data: &[u8]) -> bool {
     let Ok(text) = std::str::from_utf8(data) else {
         return false;
     };
-    match morphoid::config::Config::parse(text, Path::new("fuzz.toml")) {
+    match morphoid_service::config::Config::parse(text, Path::new("fuzz.toml")) {
         Ok(c) => {
             let _ = c.settings();
             let _ = c.ranks();
@@ -234,8 +244,8 @@ pub fn labels(data: &[u8]) -> bool {
     };
     let path = Path::new("labels.csv");
     let genus = ["genus".to_string()];
-    let _ = morphoid::eval::Labels::parse(text, Some(&genus), path);
-    match morphoid::eval::Labels::parse(text, None, path) {
+    let _ = morphoid_data::table::Labels::parse(text, Some(&genus), path);
+    match morphoid_data::table::Labels::parse(text, None, path) {
         Ok(l) => {
             for name in l.names() {
                 for rank in l.ranks() {
@@ -253,7 +263,7 @@ pub fn matrix(data: &[u8]) -> bool {
     let Ok(text) = std::str::from_utf8(data) else {
         return false;
     };
-    match morphoid::eval::DistanceMatrix::parse_csv(text, Path::new("fuzz.csv")) {
+    match morphoid_data::table::DistanceMatrix::parse_csv(text, Path::new("fuzz.csv")) {
         Ok(m) => {
             assert_eq!(m.names().len(), m.len());
             assert!(m.values().iter().all(|row| row.len() == m.len()));
@@ -275,14 +285,14 @@ pub fn shard(data: &[u8]) -> bool {
         .enumerate()
         .filter_map(|(k, part)| {
             let path = std::path::PathBuf::from(format!("shard{k}.csv"));
-            let parsed = morphoid::eval::ShardFile::parse(part, &path).ok()?;
+            let parsed = morphoid_research::eval::ShardFile::parse(part, &path).ok()?;
             Some((path, parsed))
         })
         .collect();
     if shards.is_empty() {
         return false;
     }
-    match morphoid::eval::merge_shards(&shards) {
+    match morphoid_research::eval::merge_shards(&shards) {
         Ok(m) => {
             assert!(m.values().iter().all(|row| row.len() == m.len()));
             true
@@ -306,7 +316,7 @@ fn i16_at(data: &[u8], k: usize) -> i16 {
 /// modulo a little more than the vertex count, so some are out of range).
 /// What cleaning accepts must be a valid mesh.
 pub fn clean(data: &[u8]) -> bool {
-    use morphoid::clean::{CleanOptions, CrownMode};
+    use morphoid_core::clean::{CleanOptions, CrownMode};
     let [flags, count, rest @ ..] = data else {
         return false;
     };
@@ -334,7 +344,7 @@ pub fn clean(data: &[u8]) -> bool {
         },
         ..CleanOptions::default()
     };
-    match morphoid::clean::clean(&Mesh::new(vertices, faces), &opts) {
+    match morphoid_core::clean::clean(&Mesh::new(vertices, faces), &opts) {
         Ok(cleaned) => {
             let m = &cleaned.mesh;
             assert!(!m.faces.is_empty(), "a cleaned surface has faces");
@@ -364,7 +374,7 @@ pub fn volume_pipeline(data: &[u8]) -> bool {
         working_voxels: FUZZ_WORKING_VOXELS,
         enamel: flags & 8 != 0,
     };
-    match morphoid::volume::surface_from_grid(&grid, &opts, Path::new("fuzz")) {
+    match morphoid_data::volume::surface_from_grid(&grid, &opts, Path::new("fuzz")) {
         Ok(meshes) => {
             for m in meshes {
                 assert_eq!(m.first_non_finite_vertex(), None, "non-finite vertex");

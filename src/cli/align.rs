@@ -5,16 +5,16 @@
 
 use super::common::{progress_bar, ConfigFile};
 use anyhow::{bail, Context, Result};
-use morphoid::collection::{self, AlignParams, Consistency, OutputContext, SyncParams};
-use morphoid::eval::{DistanceMatrix, Labels};
-use morphoid::library::{self, Cache, Preparation};
+use morphoid_data::library::{self, Preparation};
+use morphoid_data::table::{DistanceMatrix, Labels};
+use morphoid_research::collection::{self, AlignParams, Consistency, OutputContext, SyncParams};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
 /// How the correspondences are made consistent.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum ConsistentArg {
+pub(super) enum ConsistentArg {
     /// Compose the cP maps along the minimum spanning tree of the distances.
     Mst,
     /// One cP map from the template to each specimen.
@@ -27,7 +27,7 @@ pub enum ConsistentArg {
 
 /// Arguments of `morphoid align`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(super) struct Args {
     /// Folder of surfaces (a library folder; `meshes/` is used when the
     /// folder itself holds none). `labels.csv` in it, when present, colours
     /// the morphospace.
@@ -69,7 +69,7 @@ pub struct Args {
 }
 
 /// Run `morphoid align`.
-pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
+pub(super) fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     let config = file.load()?;
     let settings = config.settings();
     super::configure_threads(args.threads)?;
@@ -85,8 +85,7 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
             args.library.display()
         );
     }
-    let root = args.cache.as_deref().or(config.library.cache.as_deref());
-    let cache = Cache::for_folder(root, &args.library)?;
+    let cache = config.cache_for(&args.library, args.cache.as_deref())?;
     let preparation = Preparation::new(Some(&cache), &settings);
     let bar = progress_bar(members.len() as u64, "preparing");
     let (prepared, failures) =

@@ -12,7 +12,7 @@ use std::process::ExitCode;
 
 /// Arguments of `morphoid assets`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(super) struct Args {
     /// Folder to write `man/*.1.gz` and `completions/{morphoid.bash,
     /// _morphoid,morphoid.fish}` into (created when missing).
     #[arg(long, value_name = "DIR")]
@@ -20,7 +20,7 @@ pub struct Args {
 }
 
 /// Run `morphoid assets`.
-pub fn run(args: Args) -> Result<ExitCode> {
+pub(super) fn run(args: Args) -> Result<ExitCode> {
     let man = args.out.join("man");
     let completions = args.out.join("completions");
     for dir in [&man, &completions] {

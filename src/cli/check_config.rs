@@ -8,14 +8,14 @@ use std::process::ExitCode;
 /// Arguments of `morphoid check-config` (the file is `--config`; without
 /// it, the built-in defaults are checked).
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(super) struct Args {
     /// Print the effective configuration as TOML.
     #[arg(long)]
     print: bool,
 }
 
 /// Run `morphoid check-config`.
-pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
+pub(super) fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     let path = file
         .path()
         .unwrap_or(std::path::Path::new("(built-in defaults)"));

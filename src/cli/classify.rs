@@ -3,14 +3,14 @@
 
 use super::common::{progress_bar, ConfigArgs, ConfigFile};
 use anyhow::{Context, Result};
-use morphoid::classify::{self, Classifier, ResultFiles};
-use morphoid::store::{ScanRecord, ScanStatus, Store};
+use morphoid_service::classify::{self, Classifier, ResultFiles};
+use morphoid_service::store::{ScanRecord, ScanStatus, Store};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 /// Arguments of `morphoid classify`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(super) struct Args {
     /// Surface files to identify.
     #[arg(required = true)]
     scans: Vec<PathBuf>,
@@ -29,7 +29,7 @@ pub struct Args {
 }
 
 /// Run `morphoid classify`.
-pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
+pub(super) fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     let config = args.config.load(file)?;
     let lib = config.open_library()?;
     let cache = config.open_cache()?;
@@ -57,7 +57,7 @@ pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
             Ok(r) => r,
             Err(e) => {
                 all_ok = false;
-                let message = morphoid::present::error_chain(&e);
+                let message = morphoid_data::present::error_chain(&e);
                 if args.json {
                     println!(
                         "{}",
@@ -134,7 +134,7 @@ fn write_known(
 /// calibration was ready (and how many landmarks were carried onto the
 /// scan); then why its result files could not be written, if they could
 /// not.
-pub fn summary(r: &ScanRecord) -> String {
+pub(super) fn summary(r: &ScanRecord) -> String {
     let line = status_summary(r);
     let mut out = match &r.files_error {
         Some(e) => format!("{line}; result files not written: {e}"),

@@ -8,12 +8,14 @@
 use super::classify::summary;
 use super::common::{progress_bar, ConfigFile};
 use anyhow::{Context, Result};
-use morphoid::classify::{self, Classifier};
-use morphoid::library::{Cache, Library};
-use morphoid::mesh::io;
-use morphoid::mesh::synth::{self, LibrarySpec, RigidMotion, WholeToothParams, CROWN_GENERA};
-use morphoid::store::Store;
-use morphoid::volume::synth::{
+use morphoid_data::library::{Cache, Library};
+use morphoid_data::mesh_io;
+use morphoid_service::classify::{self, Classifier};
+use morphoid_service::store::Store;
+use morphoid_synth::mesh::{
+    self as synth, LibrarySpec, RigidMotion, WholeToothParams, CROWN_GENERA,
+};
+use morphoid_synth::volume::{
     batch_in_foam, phantom, write_volume, PhantomParams, StackSpec, SynthFormat,
 };
 use std::path::Path;
@@ -22,14 +24,14 @@ use std::time::Instant;
 
 /// Arguments of `morphoid demo`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(super) struct Args {
     /// Keep the temporary folder (library, scans, database) and print its path.
     #[arg(long)]
     keep: bool,
 }
 
 /// Run `morphoid demo`.
-pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
+pub(super) fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     // The library, scans and database are the demo's own; the cleaning and
     // engine settings come from the configuration.
     let settings = config.load()?.settings();
@@ -69,7 +71,7 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
             1000.0,
         );
         let path = export.join(format!("scan{:02}.{ext}", i + 1));
-        io::save(&path, &posed)?;
+        mesh_io::save(&path, &posed)?;
         expected.push((path, genus.name));
     }
     // Whole teeth (crown, cervical neck, roots) below new crowns.
@@ -83,7 +85,7 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     let genus = &CROWN_GENERA[1];
     let whole = whole_tooth(genus, 1010)?;
     let path = export.join("scan06_whole_tooth.stl");
-    io::save(&path, &RigidMotion::random(1010, 20.0).apply(&whole.mesh))?;
+    mesh_io::save(&path, &RigidMotion::random(1010, 20.0).apply(&whole.mesh))?;
     expected.push((path, genus.name));
     // A reconstructed slice stack of another whole tooth: 16-bit TIFF
     // slices with a brighter enamel cap, blur and noise.
@@ -114,7 +116,7 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
         },
     );
     let path = export.join("scan09_two_rooted_isosurface.stl");
-    io::save(&path, &morphoid::mesh::isosurface(&grid, 0.3))?;
+    mesh_io::save(&path, &morphoid_core::mesh::isosurface(&grid, 0.3))?;
     expected.push((path, genus.name));
     // Three teeth scanned together, their roots in foam.
     let batch_genera = [&CROWN_GENERA[0], &CROWN_GENERA[2], &CROWN_GENERA[1]];

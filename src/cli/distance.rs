@@ -5,12 +5,12 @@
 use super::common::{write_output, ConfigFile};
 use super::method::{CwArgs, CwnArgs, Method};
 use anyhow::{bail, Context, Result};
-use morphoid::cp;
-use morphoid::cw;
-use morphoid::cwn;
-use morphoid::landmarks;
-use morphoid::library::{self, SurfaceDistance};
-use morphoid::pipeline::{self, PreparedSurface, Settings, StageTimings};
+use morphoid_core::cp;
+use morphoid_core::cw;
+use morphoid_core::cwn;
+use morphoid_data::landmarks;
+use morphoid_data::pipeline::{self, PreparedSurface, Settings, StageTimings};
+use morphoid_research::surfaces::SurfaceDistance;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -18,7 +18,7 @@ use std::time::Instant;
 
 /// Arguments of `morphoid distance`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(super) struct Args {
     /// First surface.
     a: PathBuf,
     /// Second surface.
@@ -101,7 +101,7 @@ struct CwnTimings {
 }
 
 /// Run `morphoid distance`.
-pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
+pub(super) fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     let settings = config.load()?.settings();
     super::configure_threads(args.threads)?;
     match args.method {
@@ -145,8 +145,8 @@ fn run_cwn(args: Args, settings: &Settings) -> Result<ExitCode> {
     let (a, b) = prepare_both(&args, settings)?;
     let t = Instant::now();
     let (la, lb) = rayon::join(
-        || library::landscape(&a.prepared, &params),
-        || library::landscape(&b.prepared, &params),
+        || morphoid_research::surfaces::landscape(&a.prepared, &params),
+        || morphoid_research::surfaces::landscape(&b.prepared, &params),
     );
     let (la, lb) = (la?, lb?);
     let landscapes_ms = t.elapsed().as_secs_f64() * 1e3;

@@ -3,7 +3,8 @@
 
 use super::common::{write_output, ConfigFile};
 use anyhow::{bail, Context, Result};
-use morphoid::eval::{self, DistanceMatrix, Labels, Mantel, DEFAULT_PERMUTATIONS, DEFAULT_SEED};
+use morphoid_data::table::{DistanceMatrix, Labels};
+use morphoid_research::eval::{self, Mantel, DEFAULT_PERMUTATIONS, DEFAULT_SEED};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -12,7 +13,7 @@ use std::process::ExitCode;
 /// `--compare`, `--heatmap` says what to do.
 #[derive(Debug, clap::Args)]
 #[command(group(clap::ArgGroup::new("task").required(true).multiple(true).args(["labels", "compare", "heatmap", "mds", "tree"])))]
-pub struct Args {
+pub(super) struct Args {
     /// Distance matrix CSV (as written by `morphoid matrix`).
     #[arg(long)]
     matrix: PathBuf,
@@ -69,7 +70,7 @@ struct RankJson {
 }
 
 /// Run `morphoid evaluate`.
-pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
+pub(super) fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     let config = file.load()?;
     let ranks = match (&args.ranks, file.0) {
         (Some(r), _) => Some(r.clone()),

@@ -2,10 +2,11 @@
 
 use super::common::ConfigFile;
 use anyhow::{Context, Result};
-use morphoid::clean::{self, CleanOptions, CleanReport, CrownReport};
-use morphoid::mesh::io::{self, Format};
-use morphoid::pipeline::{self, Position, Settings, SplitReport};
-use morphoid::volume::{VolumeOptions, VolumeReport};
+use morphoid_core::clean::{self, CleanOptions, CleanReport, CrownReport};
+use morphoid_core::volume::VolumeOptions;
+use morphoid_data::mesh_io::{self, Format};
+use morphoid_data::pipeline::{self, Position, Settings, SplitReport};
+use morphoid_data::volume::VolumeReport;
 use serde::Serialize;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -13,7 +14,7 @@ use std::time::Instant;
 
 /// Arguments of `morphoid inspect`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(super) struct Args {
     /// The surface file (OBJ, PLY, STL or OFF), or a volume: a folder of
     /// TIFF/PNG/BMP slices or a DICOM series, `.nrrd`, `.nii`, `.nii.gz`.
     mesh: PathBuf,
@@ -52,7 +53,7 @@ struct Report {
     repairs: Repairs,
     /// Point clouds: points in, outliers removed, triangles made.
     #[serde(skip_serializing_if = "Option::is_none")]
-    cloud: Option<morphoid::clean::CloudReport>,
+    cloud: Option<morphoid_core::clean::CloudReport>,
     /// The crown cut from a closed whole tooth (absent for a crop).
     #[serde(skip_serializing_if = "Option::is_none")]
     crown: Option<CrownReport>,
@@ -150,7 +151,7 @@ struct Timings {
 }
 
 /// Run `morphoid inspect`.
-pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
+pub(super) fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     let _span = tracing::info_span!("inspect", scan = %args.mesh.display()).entered();
     let config = config.load()?;
     let mut opts = config.clean;
@@ -237,7 +238,7 @@ fn inspect(args: &Args, opts: &CleanOptions, volume_opts: &VolumeOptions) -> Res
         );
     };
     if let Some(out) = &args.write_clean {
-        io::save(out, &cleaned.mesh)
+        mesh_io::save(out, &cleaned.mesh)
             .with_context(|| format!("writing the cleaned surface of {}", args.mesh.display()))?;
     }
     let mut report = Report::new(

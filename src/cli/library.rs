@@ -2,13 +2,16 @@
 
 use super::common::{progress_bar, ConfigArgs, ConfigFile};
 use anyhow::Result;
-use morphoid::library;
+use indicatif::ProgressBar;
+use morphoid_data::library;
+use morphoid_service::app::{self, Progress};
 use std::process::ExitCode;
+use std::sync::Mutex;
 use std::time::Instant;
 
 /// Arguments of `morphoid library`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(super) struct Args {
     #[command(subcommand)]
     action: Action,
 }
@@ -23,7 +26,7 @@ enum Action {
 }
 
 /// Run `morphoid library`.
-pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
+pub(super) fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     match args.action {
         Action::Build(c) => build(&c, config),
         Action::List(c) => list(&c, config),
@@ -32,12 +35,33 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
 
 fn build(args: &ConfigArgs, file: ConfigFile) -> Result<ExitCode> {
     let config = args.load(file)?;
-    let lib = config.open_library()?;
-    let cache = config.open_cache()?;
     let started = Instant::now();
-    let bar = progress_bar(lib.members().len() as u64, "preparing");
-    let out = library::build(&lib, &cache, &config.settings(), |_| bar.inc(1))?;
-    bar.finish_and_clear();
+    let bars: Mutex<Option<(ProgressBar, bool)>> = Mutex::new(None);
+    let built = app::build_library(&config, |p| {
+        let (done, total, calibrating) = match p {
+            Progress::Preparing { done, total } => (done, total, false),
+            Progress::Calibrating { done, total } => (done, total, true),
+        };
+        let Ok(mut bar) = bars.lock() else { return };
+        if bar.as_ref().is_none_or(|(_, c)| *c != calibrating) {
+            if let Some((old, _)) = bar.take() {
+                old.finish_and_clear();
+            }
+            let what = if calibrating {
+                "calibrating"
+            } else {
+                "preparing"
+            };
+            *bar = Some((progress_bar(total as u64, what), calibrating));
+        }
+        if let Some((b, _)) = bar.as_ref() {
+            b.set_position(done as u64);
+        }
+    })?;
+    if let Ok(Some((bar, _))) = bars.into_inner() {
+        bar.finish_and_clear();
+    }
+    let out = &built.outcome;
     for f in out.failures() {
         eprintln!("morphoid: error: reference {}: {}", f.name(), f.error());
     }
@@ -48,39 +72,24 @@ fn build(args: &ConfigArgs, file: ConfigFile) -> Result<ExitCode> {
     }
     println!(
         "{}: {} references ({} prepared, {} from the cache, {} failed; {} stale cache entries removed) in {:.1} s; cache {}",
-        lib.dir().display(),
+        built.library.dir().display(),
         out.references().len(),
         out.prepared(),
         out.reused(),
         out.failures().len(),
         out.removed(),
         started.elapsed().as_secs_f64(),
-        cache.dir().display()
+        built.cache.dir().display()
     );
-    // The confidence calibration is part of the library: its distances
-    // among the references are computed now (once; then from the cache),
-    // not at the first scan; not at all with `[library] calibrate = false`.
-    if config.library.calibrate && out.references().len() >= library::MIN_HELD {
-        let n = out.references().len();
-        let bar = progress_bar(library::calibration_pairs(n) as u64, "calibrating");
-        let distances = library::reference_distances(
-            out.references(),
-            &config.settings(),
-            Some(&cache),
-            |_| bar.inc(1),
+    for r in built.calibration.iter().flat_map(|c| c.ranks()) {
+        let threshold = match r.threshold {
+            Some(t) => format!("no close match above novelty {t:.3}"),
+            None => "no threshold (too few shared taxa)".to_string(),
+        };
+        println!(
+            "calibration {}: {}/{} right in leave-one-out; {threshold}",
+            r.rank, r.right, r.held
         );
-        bar.finish_and_clear();
-        let calibration = library::Calibration::fit(distances, lib.labels());
-        for r in calibration.ranks() {
-            let threshold = match r.threshold {
-                Some(t) => format!("no close match above novelty {t:.3}"),
-                None => "no threshold (too few shared taxa)".to_string(),
-            };
-            println!(
-                "calibration {}: {}/{} right in leave-one-out; {threshold}",
-                r.rank, r.right, r.held
-            );
-        }
     }
     if let Some(count) = out.landmarks().count() {
         println!(

@@ -8,10 +8,11 @@
 use super::common::{progress_bar, ConfigFile};
 use super::method::{CwArgs, CwnArgs, Method};
 use anyhow::{bail, Context, Result};
-use morphoid::eval::{self, Shard, ShardFile};
-use morphoid::landmarks;
-use morphoid::library::{self, Cache, Member, Preparation, SurfaceDistance};
-use morphoid::pipeline::Settings;
+use morphoid_data::landmarks;
+use morphoid_data::library::{self, Member, Preparation};
+use morphoid_data::pipeline::Settings;
+use morphoid_research::eval::{self, Shard, ShardFile};
+use morphoid_research::surfaces::SurfaceDistance;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -19,7 +20,7 @@ use std::time::Instant;
 /// Arguments of `morphoid matrix`.
 #[derive(Debug, clap::Args)]
 #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
-pub struct Args {
+pub(super) struct Args {
     /// Folder of surfaces (OBJ, PLY, STL, OFF); names are the file stems.
     /// When it holds no surface but has a `meshes/` folder, that is used.
     #[arg(long, required = true)]
@@ -32,9 +33,10 @@ pub struct Args {
     /// cluster job array; combine the parts with `morphoid matrix merge`.
     #[arg(long, value_name = "K/N")]
     shard: Option<Shard>,
-    /// Cache of prepared surfaces: the cache folder (the `[library] cache`
-    /// of the configuration) or the library's own folder in it, as
-    /// `library build` and this command print it. Surfaces whose file and
+    /// Cache of prepared surfaces (default: the `[library] cache` of the
+    /// configuration, else the default cache folder): the cache folder or
+    /// the library's own folder in it, as `library build` and this command
+    /// print it. Surfaces whose file and
     /// settings are unchanged are taken from it, the others are prepared
     /// and stored in it. Saves every shard of a job array, and every later
     /// run, from preparing the whole library again.
@@ -83,14 +85,15 @@ struct MergeArgs {
 }
 
 /// Run `morphoid matrix`.
-pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
+pub(super) fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     if let Some(MatrixCommand::Merge(m)) = args.command {
         return merge(m);
     }
     let (Some(library), Some(out)) = (args.library, args.out) else {
         bail!("`morphoid matrix` needs --library and --out (or the `merge` subcommand)");
     };
-    let settings = config.load()?.settings();
+    let config = config.load()?;
+    let settings = config.settings();
     super::configure_threads(args.threads)?;
     let members = library::members(&library)?;
     let distance = match args.method {
@@ -99,7 +102,7 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
         Method::Cw => SurfaceDistance::Cw(args.cw.params()),
         Method::Landmarks => {
             if args.shard.is_some() || args.cache.is_some() {
-                bail!("--shard and --cache apply to --method cp only");
+                bail!("--shard and --cache apply to the surface distances only");
             }
             return run_landmarks(&library, &members, &out, args.allow_reflection);
         }
@@ -112,11 +115,8 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
             distance.name()
         );
     }
-    let cache = match &args.cache {
-        Some(root) => Some(Cache::for_folder(Some(root), &library)?),
-        None => None,
-    };
-    let preparation = Preparation::new(cache.as_ref(), &settings);
+    let cache = config.cache_for(&library, args.cache.as_deref())?;
+    let preparation = Preparation::new(Some(&cache), &settings);
     let code = match args.shard {
         Some(shard) => run_shard(&members, &out, shard, &preparation, &settings)?,
         None => run_whole(&members, &out, &preparation, &settings, &distance)?,
@@ -129,7 +129,7 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
             preparation.reused() + preparation.prepared(),
             preparation.stored()
         );
-        if preparation.reused() == 0 && preparation.prepared() > 0 {
+        if args.cache.is_some() && preparation.reused() == 0 && preparation.prepared() > 0 {
             eprintln!(
                 "note: nothing was found in the cache: give --cache the folder `morphoid library build` \
                  printed, and the same --config (preparation settings key the entries)"

@@ -1,12 +1,12 @@
 //! `--method`: which distance `distance` and `matrix` compute, and the
 //! options of the cWn and cW distances.
 
-use morphoid::cw::CwParams;
-use morphoid::cwn::CwnParams;
+use morphoid_core::cw::CwParams;
+use morphoid_core::cwn::CwnParams;
 
 /// The distance between two surfaces.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
-pub enum Method {
+pub(super) enum Method {
     /// Continuous Procrustes distance (extrinsic; the default).
     #[default]
     Cp,
@@ -25,7 +25,7 @@ pub enum Method {
 
 impl Method {
     /// The name used in outputs (`cp`, `cwn`, `cw`, `landmarks`).
-    pub fn name(self) -> &'static str {
+    pub(super) fn name(self) -> &'static str {
         match self {
             Method::Cp => "cp",
             Method::Cwn => "cwn",
@@ -37,7 +37,7 @@ impl Method {
 
 /// Options of the cWn distance (ignored by the other methods).
 #[derive(Debug, Clone, clap::Args)]
-pub struct CwnArgs {
+pub(super) struct CwnArgs {
     /// cWn: Euclidean radius R of the neighbourhoods in the disk (0 < R < 1).
     #[arg(long, value_name = "R", default_value_t = CwnParams::default().radius)]
     cwn_radius: f64,
@@ -48,7 +48,7 @@ pub struct CwnArgs {
 
 impl CwnArgs {
     /// The cWn parameters these options select (checked when used).
-    pub fn params(&self) -> CwnParams {
+    pub(super) fn params(&self) -> CwnParams {
         CwnParams {
             radius: self.cwn_radius,
             reflections: !self.cwn_no_reflections,
@@ -59,7 +59,7 @@ impl CwnArgs {
 
 /// Options of the cW distance (ignored by the other methods).
 #[derive(Debug, Clone, clap::Args)]
-pub struct CwArgs {
+pub(super) struct CwArgs {
     /// cW: search orientation-preserving maps only, not mirror images.
     #[arg(long)]
     cw_no_reflections: bool,
@@ -67,7 +67,7 @@ pub struct CwArgs {
 
 impl CwArgs {
     /// The cW parameters these options select (checked when used).
-    pub fn params(&self) -> CwParams {
+    pub(super) fn params(&self) -> CwParams {
         CwParams {
             reflections: !self.cw_no_reflections,
             ..CwParams::default()

@@ -85,7 +85,7 @@ enum Command {
 }
 
 /// Parse the command line, run the subcommand, map errors to an exit code.
-pub fn main() -> ExitCode {
+pub(crate) fn main() -> ExitCode {
     let cli = Cli::parse();
     // The daemon logs one info line per scan by default.
     let daemon = matches!(cli.command, Command::Run(_));
@@ -121,7 +121,7 @@ pub fn main() -> ExitCode {
 /// by the library's one rule (a cause whose text the line already ends
 /// with is not repeated).
 fn one_line(e: &anyhow::Error) -> String {
-    morphoid::present::error_chain(e.as_ref())
+    morphoid_data::present::error_chain(e.as_ref())
 }
 
 /// Logs go to stderr so that `--json` output on stdout stays parseable.
@@ -172,8 +172,9 @@ mod tests {
     #[test]
     fn an_error_line_names_the_os_error_once() {
         let os = "(os error 2)";
-        let shard = morphoid::eval::ShardFile::read(std::path::Path::new("/nonexistent/s.csv"))
-            .unwrap_err();
+        let shard =
+            morphoid_research::eval::ShardFile::read(std::path::Path::new("/nonexistent/s.csv"))
+                .unwrap_err();
         let e = anyhow::Error::new(shard).context("merging");
         let line = one_line(&e);
         assert_eq!(line.matches(os).count(), 1, "{line}");

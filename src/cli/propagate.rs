@@ -5,16 +5,16 @@
 
 use super::common::ConfigFile;
 use anyhow::Result;
-use morphoid::eval::DistanceMatrix;
-use morphoid::landmarks::{self, Landmarks, Specimens};
-use morphoid::library;
-use morphoid::pipeline::{self, PreparedSurface, Settings};
+use morphoid_data::landmarks::{self, Landmarks, Specimens};
+use morphoid_data::library;
+use morphoid_data::pipeline::{self, PreparedSurface, Settings};
+use morphoid_data::table::DistanceMatrix;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// Arguments of `morphoid propagate`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(super) struct Args {
     /// The reference surface the landmarks belong to.
     #[arg(long)]
     from: PathBuf,
@@ -50,7 +50,7 @@ pub struct Args {
 }
 
 /// Run `morphoid propagate`.
-pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
+pub(super) fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     let settings = config.load()?.settings();
     super::configure_threads(args.threads)?;
     let input = landmarks::read(&args.landmarks, args.count)?;

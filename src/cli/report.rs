@@ -3,15 +3,15 @@
 
 use super::common::{progress_bar, ConfigArgs, ConfigFile};
 use anyhow::{bail, Context, Result};
-use morphoid::classify::{Classifier, ResultFiles, NEAREST};
-use morphoid::config::Config;
-use morphoid::store::{ScanRecord, Store};
+use morphoid_service::classify::{Classifier, ResultFiles, NEAREST};
+use morphoid_service::config::Config;
+use morphoid_service::store::{ScanRecord, Store};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 /// Arguments of `morphoid report`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(super) struct Args {
     /// The scan's id (as `morphoid results` shows it).
     #[arg(conflicts_with = "last", required_unless_present = "last")]
     scan_id: Option<i64>,
@@ -26,7 +26,7 @@ pub struct Args {
 }
 
 /// Run `morphoid report`.
-pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
+pub(super) fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     let config = args.config.load(file)?;
     let db = &config.database.path;
     let mut store = Store::open(db).with_context(|| format!("opening {}", db.display()))?;

@@ -2,12 +2,12 @@
 
 use super::common::{ConfigArgs, ConfigFile};
 use anyhow::Result;
-use morphoid::store::Store;
+use morphoid_service::store::Store;
 use std::process::ExitCode;
 
 /// Arguments of `morphoid results`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(super) struct Args {
     /// How many scans to show.
     #[arg(long, default_value_t = 20)]
     last: usize,
@@ -19,7 +19,7 @@ pub struct Args {
 }
 
 /// Run `morphoid results`.
-pub fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
+pub(super) fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     let config = args.config.load(file)?;
     let mut store = Store::open(&config.database.path)?;
     for record in store.recent(args.last)? {

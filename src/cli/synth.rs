@@ -3,14 +3,14 @@
 
 use super::common::ConfigFile;
 use anyhow::{Context, Result};
-use morphoid::mesh::io;
-use morphoid::mesh::synth::{self, CROWN_GENERA};
+use morphoid_data::mesh_io;
+use morphoid_synth::mesh::{self as synth, CROWN_GENERA};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 /// Arguments of `morphoid synth`.
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub(super) struct Args {
     /// Output file; the format follows the extension (.ply, .obj, .stl, .off).
     #[arg(long)]
     out: PathBuf,
@@ -26,7 +26,7 @@ pub struct Args {
 }
 
 /// Run `morphoid synth`.
-pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
+pub(super) fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     // Nothing here depends on the configuration; a broken one is still
     // reported, as by every command.
     config.load()?;
@@ -39,7 +39,7 @@ pub fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
         )
     })?;
     let mesh = synth::crown(genus, args.seed, args.vertices);
-    io::save(&args.out, &mesh)?;
+    mesh_io::save(&args.out, &mesh)?;
     println!(
         "{}: {} crown, seed {}, {} vertices, {} faces",
         args.out.display(),

@@ -5,13 +5,14 @@
 //! any number of threads, and leaves out (and names) a specimen that
 //! cannot be prepared.
 
-use morphoid::collection::{self, AlignParams, Alignment, Consistency};
-use morphoid::cp::{self, Prepared};
-use morphoid::eval::{DistanceMatrix, Labels};
-use morphoid::landmarks::{self, Landmarks, Surface};
-use morphoid::mesh::synth::{write_synthetic_library, LibrarySpec, Specimen};
-use morphoid::mesh::{bbox_diagonal, io, norm, sub};
-use morphoid::pipeline::{self, Settings};
+use morphoid_core::cp::{self, Prepared};
+use morphoid_core::mesh::{bbox_diagonal, norm, sub};
+use morphoid_data::landmarks::{self, Landmarks, Surface};
+use morphoid_data::mesh_io;
+use morphoid_data::pipeline::{self, Settings};
+use morphoid_data::table::{DistanceMatrix, Labels};
+use morphoid_research::collection::{self, AlignParams, Alignment, Consistency};
+use morphoid_synth::mesh::{write_synthetic_library, LibrarySpec, Specimen};
 use rayon::prelude::*;
 use std::path::Path;
 use std::process::Command;
@@ -158,7 +159,7 @@ fn carried_error(
     let t = al.template;
     let template = Surface::from_normalized(&prepared[t]).unwrap();
     let known = |i: usize| -> Vec<[f64; 3]> {
-        let mesh = io::load(&specimens[i].path).unwrap().mesh;
+        let mesh = mesh_io::load(&specimens[i].path).unwrap().mesh;
         KNOWN.iter().map(|&v| mesh.vertices[v]).collect()
     };
     let from = known(t);
@@ -259,7 +260,7 @@ fn consistent_maps_close_cycles_and_carry_known_landmarks() {
     let pd = mst.procrustes_distances();
     let ranks = vec!["genus".to_string()];
     let labels = Labels::read(&dir.path().join("labels.csv"), Some(&ranks)).unwrap();
-    let loo = morphoid::eval::leave_one_out(&pd, &labels, &ranks);
+    let loo = morphoid_research::eval::leave_one_out(&pd, &labels, &ranks);
     println!(
         "LOO genus on Procrustes distances of pseudolandmarks: {}/{}",
         loo[0].correct, loo[0].total
@@ -355,7 +356,7 @@ fn align_command_writes_every_output_the_same_for_any_thread_count() {
         for (p, q) in set.landmarks.points().iter().zip(fcsv.points()) {
             assert!(norm(sub(*p, *q)) < 1e-9);
         }
-        let mesh = io::load(&s.path).unwrap().mesh;
+        let mesh = mesh_io::load(&s.path).unwrap().mesh;
         let surface = Surface::new(mesh.clone()).unwrap();
         let worst = set
             .landmarks
@@ -364,7 +365,7 @@ fn align_command_writes_every_output_the_same_for_any_thread_count() {
             .map(|&p| norm(sub(p, surface.closest(p))))
             .fold(0.0, f64::max);
         assert!(worst < 0.01 * bbox_diagonal(&mesh), "{}: {worst}", s.name);
-        let aligned = io::load(&one.join("aligned").join(format!("{}.ply", s.name)))
+        let aligned = mesh_io::load(&one.join("aligned").join(format!("{}.ply", s.name)))
             .unwrap()
             .mesh;
         assert!(aligned.face_count() > 100);
@@ -428,10 +429,11 @@ fn teeth_cycle_consistency_and_classification() {
     };
     let prepared = match std::env::var_os("MORPHOID_ALIGN_CACHE") {
         Some(root) => {
-            let cache = morphoid::library::Cache::for_folder(Some(Path::new(&root)), &dir).unwrap();
+            let cache =
+                morphoid_data::library::Cache::for_folder(Some(Path::new(&root)), &dir).unwrap();
             let settings = Settings::default();
-            let preparation = morphoid::library::Preparation::new(Some(&cache), &settings);
-            let members = morphoid::library::members(&dir).unwrap();
+            let preparation = morphoid_data::library::Preparation::new(Some(&cache), &settings);
+            let members = morphoid_data::library::members(&dir).unwrap();
             let (prepared, failed) = collection::prepare_collection(&members, &preparation, |_| {});
             assert!(failed.is_empty(), "{failed:?}");
             println!(

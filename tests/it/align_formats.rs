@@ -3,7 +3,7 @@
 //! classical MDS (coordinates and plot) and the average-linkage tree
 //! (Newick and dendrogram).
 
-use morphoid::landmarks::{self, LandmarkError, Landmarks, NamedLandmarks};
+use morphoid_data::landmarks::{self, LandmarkError, Landmarks, NamedLandmarks};
 use std::process::Command;
 
 #[test]

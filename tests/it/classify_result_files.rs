@@ -4,8 +4,8 @@
 //! the daemon watching the folder recursively.
 
 use crate::support::daemon::*;
-use morphoid::mesh::io;
-use morphoid::mesh::synth::{self, RigidMotion, CROWN_GENERA};
+use morphoid_data::mesh_io;
+use morphoid_synth::mesh::{self as synth, RigidMotion, CROWN_GENERA};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
@@ -20,7 +20,7 @@ fn put_scan(env: &Env, rel: &str, g: usize) -> PathBuf {
     let posed = RigidMotion::random(60 + g as u64, 20.0).apply(&crown);
     let staging = tempfile::tempdir().unwrap();
     let staged = staging.path().join(Path::new(rel).file_name().unwrap());
-    io::save(&staged, &posed).unwrap();
+    mesh_io::save(&staged, &posed).unwrap();
     let path = env.export.join(rel);
     std::fs::create_dir_all(path.parent().unwrap()).unwrap();
     put(env, &path, &std::fs::read(&staged).unwrap());

@@ -5,12 +5,12 @@
 //! are refused.
 
 use crate::support::clean::mean_max_distance;
-use morphoid::clean::{clean, CleanError, CleanOptions, CrownError, CrownMode};
-use morphoid::mesh::synth::{
+use morphoid_core::clean::{clean, CleanError, CleanOptions, CrownError, CrownMode};
+use morphoid_core::mesh::{bbox_diagonal, surface_area, Mesh};
+use morphoid_synth::mesh::{
     closed_sphere, crown, punch_hole, scale, whole_tooth, RigidMotion, WholeToothParams,
     CROWN_GENERA,
 };
-use morphoid::mesh::{bbox_diagonal, surface_area, Mesh};
 
 /// Distances between an extracted crown and the original: the mean of the
 /// two directed mean distances, the larger maximum, and the area ratio.
@@ -83,12 +83,12 @@ fn clean_crown_synthetic_whole_teeth_give_back_their_crowns() {
 
 #[test]
 fn clean_crown_identifies_synthetic_whole_teeth() {
-    use morphoid::pipeline::{prepare_mesh, Settings};
+    use morphoid_data::pipeline::{prepare_mesh, Settings};
     let settings = Settings {
         clean: auto(),
         ..Default::default()
     };
-    let library: Vec<(usize, morphoid::cp::Prepared)> = CROWN_GENERA
+    let library: Vec<(usize, morphoid_core::cp::Prepared)> = CROWN_GENERA
         .iter()
         .enumerate()
         .flat_map(|(g, genus)| {
@@ -113,7 +113,7 @@ fn clean_crown_identifies_synthetic_whole_teeth() {
             .iter()
             .map(|(lg, p)| {
                 (
-                    morphoid::cp::compare(&query, p, &settings.cp.compare).distance,
+                    morphoid_core::cp::compare(&query, p, &settings.cp.compare).distance,
                     *lg,
                 )
             })
@@ -261,7 +261,7 @@ fn clean_crown_fills_holes_of_a_nearly_closed_tooth() {
     holed = punch_hole(&holed, side(-1.0), 0.06);
     holed = punch_hole(&holed, top, 0.05);
     // Each hole is at least one loop (a punch may pinch one into two).
-    let holes = morphoid::mesh::boundary_loops(&holed).len();
+    let holes = morphoid_core::mesh::boundary_loops(&holed).len();
     assert!(holes >= 3, "{holes}");
     let cleaned = clean(&holed, &auto()).unwrap_or_else(|e| panic!("{e}"));
     let report = cleaned.report.crown.expect("crown report");
@@ -312,7 +312,7 @@ fn real_whole_teeth(step: usize) -> Option<WholeTeeth> {
         .map(std::path::PathBuf::from)
         .unwrap_or_else(|| tmp.path().to_path_buf());
     std::fs::create_dir_all(&out_dir).unwrap();
-    let settings = morphoid::pipeline::Settings {
+    let settings = morphoid_data::pipeline::Settings {
         clean: auto(),
         ..Default::default()
     };
@@ -332,8 +332,8 @@ fn real_whole_teeth(step: usize) -> Option<WholeTeeth> {
     type Outcome = (
         String,
         Fit,
-        morphoid::clean::CrownReport,
-        morphoid::cp::Prepared,
+        morphoid_core::clean::CrownReport,
+        morphoid_core::cp::Prepared,
         f64,
     );
     let outcomes: Vec<Result<Outcome, String>> = picked
@@ -341,19 +341,20 @@ fn real_whole_teeth(step: usize) -> Option<WholeTeeth> {
         .map(|&(i, name)| {
             let original = crate::support::cp::load_tooth(&dir, name);
             let raw_ratio = {
-                let raw = morphoid::mesh::io::load(&dir.join("meshes").join(format!("{name}.ply")))
-                    .unwrap()
-                    .mesh;
-                morphoid::mesh::widest_boundary_loop_extent(&raw).unwrap_or(0.0)
-                    / morphoid::mesh::bbox_diagonal(&raw)
+                let raw =
+                    morphoid_data::mesh_io::load(&dir.join("meshes").join(format!("{name}.ply")))
+                        .unwrap()
+                        .mesh;
+                morphoid_core::mesh::widest_boundary_loop_extent(&raw).unwrap_or(0.0)
+                    / morphoid_core::mesh::bbox_diagonal(&raw)
             };
             let seed = 7000 + i as u64;
             let tooth = whole_tooth(&original, &WholeToothParams::default(), seed)
                 .unwrap_or_else(|e| panic!("{name}: {e}"));
             let mv = motion(seed, &original);
             let path = out_dir.join(format!("{name}.ply"));
-            morphoid::mesh::io::write_ply(&path, &moved(&tooth.mesh, &mv)).unwrap();
-            let out = morphoid::pipeline::prepare_file(&path, &settings)
+            morphoid_data::mesh_io::write_ply(&path, &moved(&tooth.mesh, &mv)).unwrap();
+            let out = morphoid_data::pipeline::prepare_file(&path, &settings)
                 .map_err(|e| format!("{name}: {e}"))?;
             let f = fit(&out.cleaned, &moved(&original, &mv));
             let report = out.cleaning.crown.clone().expect("crown report");
@@ -414,7 +415,7 @@ fn real_whole_teeth(step: usize) -> Option<WholeTeeth> {
         min_ratio
     );
     assert!(
-        min_ratio > 1.5 * morphoid::clean::NEARLY_CLOSED,
+        min_ratio > 1.5 * morphoid_core::clean::NEARLY_CLOSED,
         "a real crop is near the nearly-closed threshold: {min_ratio}"
     );
     Some(WholeTeeth {
@@ -426,7 +427,7 @@ fn real_whole_teeth(step: usize) -> Option<WholeTeeth> {
 
 /// What [`real_whole_teeth`] found.
 struct WholeTeeth {
-    prepared: Vec<morphoid::cp::Prepared>,
+    prepared: Vec<morphoid_core::cp::Prepared>,
     refused: Vec<String>,
     off_target: Vec<String>,
 }
@@ -460,7 +461,7 @@ fn clean_crown_real_teeth_all() {
     let variants = &run.prepared;
     let dir = crate::support::data::teeth_dir().unwrap();
     let names = crate::support::cp::tooth_names(&dir);
-    let params = morphoid::cp::CpParams::default();
+    let params = morphoid_core::cp::CpParams::default();
     let originals = crate::support::cp::prepare_teeth(&dir, &names, &params);
     let scores = crate::support::cp::heldout_scores(&dir, variants, &originals, &params.compare);
     for s in &scores {

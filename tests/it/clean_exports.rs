@@ -7,8 +7,8 @@
 
 use crate::support::clean::mean_max_distance;
 use crate::support::exports::{exported_tooth, Junction, ToothForm};
-use morphoid::mesh::synth::{scale, RigidMotion};
-use morphoid::mesh::{bbox_diagonal, surface_area, Mesh};
+use morphoid_core::mesh::{bbox_diagonal, surface_area, Mesh};
+use morphoid_synth::mesh::{scale, RigidMotion};
 use std::time::Instant;
 
 /// A kind of export: roots, junction and resolution.
@@ -78,7 +78,7 @@ fn fit(extracted: &Mesh, original: &Mesh) -> Fit {
 /// fraction of `whole`'s length along it (0 at the root end): where the
 /// cut should lie, in the terms of `CrownReport::cut_height_min`/`max`.
 fn crop_line_heights(whole: &Mesh, crop: &Mesh, axis: [f64; 3]) -> (f64, f64) {
-    let h = |p: [f64; 3]| morphoid::mesh::dot(p, axis);
+    let h = |p: [f64; 3]| morphoid_core::mesh::dot(p, axis);
     let lo = whole
         .vertices
         .iter()
@@ -89,7 +89,7 @@ fn crop_line_heights(whole: &Mesh, crop: &Mesh, axis: [f64; 3]) -> (f64, f64) {
         .iter()
         .map(|&p| h(p))
         .fold(f64::MIN, f64::max);
-    let rim = morphoid::mesh::longest_boundary_loop(crop).unwrap_or_default();
+    let rim = morphoid_core::mesh::longest_boundary_loop(crop).unwrap_or_default();
     let t: Vec<f64> = rim
         .iter()
         .map(|&v| (h(crop.vertices[v as usize]) - lo) / (hi - lo))
@@ -102,7 +102,7 @@ fn crop_line_heights(whole: &Mesh, crop: &Mesh, axis: [f64; 3]) -> (f64, f64) {
 
 /// What one run found.
 struct Run {
-    prepared: Vec<morphoid::cp::Prepared>,
+    prepared: Vec<morphoid_core::cp::Prepared>,
     refused: Vec<String>,
     off_target: Vec<String>,
     total: usize,
@@ -130,7 +130,7 @@ fn run_kind(kind: Kind, step: usize, through_binary: bool) -> Option<Run> {
             .collect(),
         None => names.iter().enumerate().step_by(step).collect(),
     };
-    let settings = morphoid::pipeline::Settings::default();
+    let settings = morphoid_data::pipeline::Settings::default();
     let mut run = Run {
         prepared: Vec::new(),
         refused: Vec::new(),
@@ -149,11 +149,11 @@ fn run_kind(kind: Kind, step: usize, through_binary: bool) -> Option<Run> {
             let s = 2f64.powf(((seed * 7919) % 200) as f64 / 100.0 - 1.0);
             let moved = |x: &Mesh| m.apply(&scale(x, s));
             let path = out_dir.join(format!("{name}.ply"));
-            morphoid::mesh::io::write_ply(&path, &moved(&tooth.mesh)).unwrap();
+            morphoid_data::mesh_io::write_ply(&path, &moved(&tooth.mesh)).unwrap();
             if std::env::var_os("MORPHOID_EXPORT_DIR").is_some() {
                 // Kept beside the export, for `clean_exports_from_dir`.
                 let crop = out_dir.join(format!("{name}.crop.ply"));
-                morphoid::mesh::io::write_ply(&crop, &moved(&original)).unwrap();
+                morphoid_data::mesh_io::write_ply(&crop, &moved(&original)).unwrap();
             }
             let started = Instant::now();
             let line = |seconds: f64| {
@@ -183,12 +183,12 @@ fn run_kind(kind: Kind, step: usize, through_binary: bool) -> Option<Run> {
                     println!("{}: REFUSED {}", line(seconds), String::from_utf8_lossy(&out.stderr).trim());
                     return Err(name.clone());
                 }
-                let crown = morphoid::mesh::io::load(&crown_path).expect("the crown written").mesh;
+                let crown = morphoid_data::mesh_io::load(&crown_path).expect("the crown written").mesh;
                 let f = fit(&crown, &moved(&original));
                 println!("{}: mean {:.4} area {:.3}", line(seconds), f.mean, f.area_ratio);
                 return Ok((name.clone(), f, None));
             }
-            let out = morphoid::pipeline::prepare_file(&path, &settings);
+            let out = morphoid_data::pipeline::prepare_file(&path, &settings);
             let seconds = started.elapsed().as_secs_f64();
             match out {
                 Ok(out) => {
@@ -238,10 +238,10 @@ fn run_kind(kind: Kind, step: usize, through_binary: bool) -> Option<Run> {
 }
 
 /// The held-out identification of a run's teeth against the other crowns.
-fn identify(run: &Run) -> Vec<morphoid::eval::RankScore> {
+fn identify(run: &Run) -> Vec<morphoid_research::eval::RankScore> {
     let dir = crate::support::data::teeth_dir().unwrap();
     let names = crate::support::cp::tooth_names(&dir);
-    let params = morphoid::cp::CpParams::default();
+    let params = morphoid_core::cp::CpParams::default();
     let originals = crate::support::cp::prepare_teeth(&dir, &names, &params);
     let scores =
         crate::support::cp::heldout_scores(&dir, &run.prepared, &originals, &params.compare);
@@ -312,16 +312,17 @@ fn clean_exports_from_dir() {
         .filter_map(|f| f.strip_suffix(".crop.ply").map(str::to_string))
         .collect();
     names.sort();
-    let settings = morphoid::pipeline::Settings::default();
+    let settings = morphoid_data::pipeline::Settings::default();
     use rayon::prelude::*;
     let results: Vec<(String, Option<Fit>)> = names
         .par_iter()
         .map(|name| {
-            let crop = morphoid::mesh::io::load(&dir.join(format!("{name}.crop.ply")))
+            let crop = morphoid_data::mesh_io::load(&dir.join(format!("{name}.crop.ply")))
                 .unwrap()
                 .mesh;
             let started = Instant::now();
-            match morphoid::pipeline::prepare_file(&dir.join(format!("{name}.ply")), &settings) {
+            match morphoid_data::pipeline::prepare_file(&dir.join(format!("{name}.ply")), &settings)
+            {
                 Ok(out) => {
                     let f = fit(&out.cleaned, &crop);
                     let c = out.cleaning.crown.clone();

@@ -1,9 +1,11 @@
 //! The whole cleaning pipeline on synthetic surfaces (no outside data).
 
 use crate::support::clean::mean_max_distance;
-use morphoid::clean::{clean, CleanError, CleanOptions};
-use morphoid::mesh::synth;
-use morphoid::mesh::{bbox_diagonal, boundary_loops, edge_face_map, euler_characteristic, Mesh};
+use morphoid_core::clean::{clean, CleanError, CleanOptions};
+use morphoid_core::mesh::{
+    bbox_diagonal, boundary_loops, edge_face_map, euler_characteristic, Mesh,
+};
+use morphoid_synth::mesh as synth;
 
 fn crown(n: usize) -> Mesh {
     let g = synth::crown_genus("Quadricuspis").expect("genus");
@@ -15,7 +17,7 @@ fn vector_area(m: &Mesh) -> [f64; 3] {
     let mut s = [0.0; 3];
     for f in &m.faces {
         let p = f.map(|v| m.vertices[v as usize]);
-        let n = morphoid::mesh::triangle_normal2(p[0], p[1], p[2]);
+        let n = morphoid_core::mesh::triangle_normal2(p[0], p[1], p[2]);
         for d in 0..3 {
             s[d] += n[d];
         }
@@ -46,7 +48,7 @@ fn sphere_is_rejected_as_closed() {
     // with what to do; with it on (the default), no tooth crown is found.
     let sphere = synth::closed_sphere(642);
     let off = CleanOptions {
-        crown: morphoid::clean::CrownMode::Off,
+        crown: morphoid_core::clean::CrownMode::Off,
         ..CleanOptions::default()
     };
     let err = clean(&sphere, &off).unwrap_err();
@@ -213,7 +215,7 @@ fn cleaning_is_deterministic() {
 fn report_round_trips_through_json() {
     let c = clean(&crown(3000), &CleanOptions::default()).expect("clean");
     let json = serde_json::to_string(&c.report).expect("json");
-    let mut back: morphoid::clean::CleanReport = serde_json::from_str(&json).expect("parse");
+    let mut back: morphoid_core::clean::CleanReport = serde_json::from_str(&json).expect("parse");
     // JSON floats may differ in the last bit.
     assert!((back.area - c.report.area).abs() <= 1e-12 * c.report.area);
     assert!((back.bbox_diagonal - c.report.bbox_diagonal).abs() <= 1e-12 * c.report.bbox_diagonal);
@@ -241,8 +243,8 @@ fn a_surface_far_above_the_working_resolution_is_decimated_first_and_stays_on_th
     // so the early decimation comes before welding.
     let dir = tempfile::tempdir().expect("temp dir");
     let path = dir.path().join("dense.stl");
-    morphoid::mesh::io::save(&path, &dense).expect("write stl");
-    let loaded = morphoid::mesh::io::load(&path).expect("load stl").mesh;
+    morphoid_data::mesh_io::save(&path, &dense).expect("write stl");
+    let loaded = morphoid_data::mesh_io::load(&path).expect("load stl").mesh;
     assert_eq!(loaded.vertices.len(), dense.vertices.len());
     let c = clean(&loaded, &opts).expect("dense stl cleans");
     assert_eq!(c.report.predecimated_faces, dense.faces.len());

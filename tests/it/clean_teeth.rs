@@ -1,10 +1,14 @@
 //! Cleaning the real teeth (needs the data set, see `support::data`).
 
 use crate::support::clean::*;
-use morphoid::clean::{clean, CleanOptions};
-use morphoid::mesh::{bbox_diagonal, boundary_loops, edge_face_map, euler_characteristic};
+use morphoid_core::clean::{clean, CleanOptions};
+use morphoid_core::mesh::{bbox_diagonal, boundary_loops, edge_face_map, euler_characteristic};
 
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn all_teeth_clean_to_disks_on_their_surface() {
     let Some(teeth) = all_teeth() else {
         return;
@@ -67,8 +71,8 @@ fn all_teeth_clean_to_disks_on_their_surface() {
 }
 
 /// Largest triangle angle (degrees) and fraction of obtuse triangles.
-fn max_angles(m: &morphoid::mesh::Mesh) -> (f64, f64) {
-    use morphoid::mesh::{dot, norm, sub};
+fn max_angles(m: &morphoid_core::mesh::Mesh) -> (f64, f64) {
+    use morphoid_core::mesh::{dot, norm, sub};
     let mut worst: f64 = 0.0;
     let mut obtuse = 0;
     for f in &m.faces {
@@ -88,6 +92,10 @@ fn max_angles(m: &morphoid::mesh::Mesh) -> (f64, f64) {
 }
 
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn every_third_tooth_as_a_point_cloud_cleans_to_a_disk_covering_the_tooth() {
     use rayon::prelude::*;
     let Some(teeth) = all_teeth() else {
@@ -100,7 +108,7 @@ fn every_third_tooth_as_a_point_cloud_cleans_to_a_disk_covering_the_tooth() {
         .par_iter()
         .step_by(3)
         .map(|(name, mesh)| {
-            let cloud = morphoid::mesh::synth::to_point_cloud(mesh);
+            let cloud = morphoid_synth::mesh::to_point_cloud(mesh);
             let c = clean(&cloud, &opts).unwrap_or_else(|e| panic!("{name}: {e}"));
             assert_eq!(boundary_loops(&c.mesh).len(), 1, "{name}");
             assert_eq!(euler_characteristic(&c.mesh), 1, "{name}");
@@ -109,7 +117,7 @@ fn every_third_tooth_as_a_point_cloud_cleans_to_a_disk_covering_the_tooth() {
             let (mean, _) = mean_max_distance(&c.mesh.vertices, mesh);
             assert!(mean < 0.005 * bbox_diagonal(mesh), "{name}");
             (
-                c.report.area / morphoid::mesh::surface_area(mesh),
+                c.report.area / morphoid_core::mesh::surface_area(mesh),
                 name.clone(),
             )
         })

@@ -2,9 +2,11 @@
 //! on the tooth's surface (needs the data set, see `support::data`).
 
 use crate::support::clean::*;
-use morphoid::clean::{clean, CleanOptions, Cleaned};
-use morphoid::mesh::synth;
-use morphoid::mesh::{bbox_diagonal, boundary_loops, euler_characteristic, surface_area, Mesh};
+use morphoid_core::clean::{clean, CleanOptions, Cleaned};
+use morphoid_core::mesh::{
+    bbox_diagonal, boundary_loops, euler_characteristic, surface_area, Mesh,
+};
+use morphoid_synth::mesh as synth;
 
 fn tooth() -> Option<Mesh> {
     let dir = teeth_dir()?;
@@ -32,6 +34,10 @@ fn check(label: &str, c: &Cleaned, surface: &Mesh) -> f64 {
 }
 
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn stl_soup_with_debris_cleans_back() {
     let Some(t) = tooth() else {
         return;
@@ -39,8 +45,8 @@ fn stl_soup_with_debris_cleans_back() {
     let soup = synth::triangle_soup(&synth::add_debris(&t, 3, 11));
     let dir = tempfile::tempdir().expect("temp dir");
     let path = dir.path().join("soup.stl");
-    morphoid::mesh::io::write_stl(&path, &soup).expect("write stl");
-    let loaded = morphoid::mesh::io::load(&path).expect("load stl").mesh;
+    morphoid_data::mesh_io::write_stl(&path, &soup).expect("write stl");
+    let loaded = morphoid_data::mesh_io::load(&path).expect("load stl").mesh;
     // Binary STL shares identical corners as it is read.
     assert!(loaded.vertices.len() < loaded.faces.len());
     let c = clean(&loaded, &CleanOptions::default()).expect("clean soup");
@@ -48,8 +54,8 @@ fn stl_soup_with_debris_cleans_back() {
     check("binary stl soup + 3 debris", &c, &t);
     // ASCII STL stays a soup, which cleaning welds.
     let path = dir.path().join("soup_ascii.stl");
-    morphoid::mesh::io::write_stl_ascii(&path, &soup).expect("write ascii stl");
-    let loaded = morphoid::mesh::io::load(&path)
+    morphoid_data::mesh_io::write_stl_ascii(&path, &soup).expect("write ascii stl");
+    let loaded = morphoid_data::mesh_io::load(&path)
         .expect("load ascii stl")
         .mesh;
     assert_eq!(loaded.vertices.len(), 3 * loaded.faces.len());
@@ -60,6 +66,10 @@ fn stl_soup_with_debris_cleans_back() {
 }
 
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn mirrored_flipped_cloud_and_dense_variants_clean_back() {
     let Some(t) = tooth() else {
         return;

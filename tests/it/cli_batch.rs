@@ -4,9 +4,11 @@
 //! `inspect`, the result files and the overview show them together; a
 //! surface nested inside a specimen and small debris are not specimens.
 
-use morphoid::mesh::io;
-use morphoid::mesh::synth::{self, whole_tooth, LibrarySpec, WholeToothParams, CROWN_GENERA};
-use morphoid::mesh::Mesh;
+use morphoid_core::mesh::Mesh;
+use morphoid_data::mesh_io;
+use morphoid_synth::mesh::{
+    self as synth, whole_tooth, LibrarySpec, WholeToothParams, CROWN_GENERA,
+};
 use std::path::Path;
 use std::process::Command;
 
@@ -56,11 +58,11 @@ fn batch_file(dir: &Path) -> (std::path::PathBuf, Vec<&'static str>) {
         let tooth = whole_tooth(&crown, &WholeToothParams::default(), 40 + k as u64)
             .expect("a whole tooth")
             .mesh;
-        let (lo, hi) = morphoid::mesh::bounding_box(&tooth).unwrap();
+        let (lo, hi) = morphoid_core::mesh::bounding_box(&tooth).unwrap();
         let placed = shifted(&tooth, x - lo[0]);
         if k == 1 {
             // The cavity: the tooth shrunk by half about its centre.
-            let (a, b) = morphoid::mesh::bounding_box(&placed).unwrap();
+            let (a, b) = morphoid_core::mesh::bounding_box(&placed).unwrap();
             let c = [0, 1, 2].map(|i| (a[i] + b[i]) / 2.0);
             let inner = Mesh::new(
                 placed
@@ -82,7 +84,7 @@ fn batch_file(dir: &Path) -> (std::path::PathBuf, Vec<&'static str>) {
     }
     let path = dir.join("export").join("tray.ply");
     std::fs::create_dir_all(path.parent().unwrap()).unwrap();
-    io::save(&path, &join(&parts)).unwrap();
+    mesh_io::save(&path, &join(&parts)).unwrap();
     (path, names)
 }
 

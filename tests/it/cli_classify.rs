@@ -1,8 +1,8 @@
 //! `morphoid classify` and `results` as a user runs them, and the promise
 //! that a kill at any moment leaves each scan with its whole result or none.
 
-use morphoid::mesh::io;
-use morphoid::mesh::synth::{self, LibrarySpec, RigidMotion, CROWN_GENERA};
+use morphoid_data::mesh_io;
+use morphoid_synth::mesh::{self as synth, LibrarySpec, RigidMotion, CROWN_GENERA};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::Duration;
@@ -37,7 +37,7 @@ fn setup(scans_per_genus: usize) -> Setup {
             let crown = synth::crown(genus, seed, 1500);
             let posed = RigidMotion::random(seed, 20.0).apply(&crown);
             let path = root.join("export").join(format!("s{g}{k}.ply"));
-            io::save(&path, &posed).unwrap();
+            mesh_io::save(&path, &posed).unwrap();
             scans.push((path, genus.name));
         }
     }

@@ -2,8 +2,8 @@
 //! surfaces is one place for every command: `library build` fills it,
 //! `matrix --cache` finds and fills the same entries.
 
-use morphoid::mesh::io;
-use morphoid::mesh::synth::{self, write_synthetic_library, LibrarySpec};
+use morphoid_data::mesh_io;
+use morphoid_synth::mesh::{self as synth, write_synthetic_library, LibrarySpec};
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -92,8 +92,8 @@ fn distance_reads_the_configuration() {
     let crown = synth::crown(genus, 4, 1500);
     let a = dir.path().join("a.ply");
     let b = dir.path().join("b.ply");
-    io::save(&a, &crown).unwrap();
-    io::save(&b, &synth::mirror(&crown)).unwrap();
+    mesh_io::save(&a, &crown).unwrap();
+    mesh_io::save(&b, &synth::mirror(&crown)).unwrap();
     let json = |extra: &[&str]| {
         let o = morphoid(&[&["distance", s(&a), s(&b), "--json"], extra].concat());
         assert!(o.status.success(), "{}", stderr(&o));
@@ -138,7 +138,7 @@ fn names_with_commas_quotes_and_line_breaks_round_trip() {
     for (i, name) in names.iter().enumerate() {
         let genus = &synth::CROWN_GENERA[i % 2];
         let mesh = synth::crown(genus, 30 + i as u64, 900);
-        io::save(&lib.path().join(format!("{name}.ply")), &mesh).unwrap();
+        mesh_io::save(&lib.path().join(format!("{name}.ply")), &mesh).unwrap();
         labels.push_str(&format!(
             "\"{}\",{}\n",
             name.replace('"', "\"\""),
@@ -150,7 +150,7 @@ fn names_with_commas_quotes_and_line_breaks_round_trip() {
     let full = work.path().join("full.csv");
     let o = morphoid(&["matrix", "--library", s(lib.path()), "--out", s(&full)]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let m = morphoid::eval::DistanceMatrix::read_csv(&full).unwrap();
+    let m = morphoid_data::table::DistanceMatrix::read_csv(&full).unwrap();
     let mut sorted = names.map(String::from).to_vec();
     sorted.sort();
     assert_eq!(m.names(), sorted);

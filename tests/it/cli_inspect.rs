@@ -1,8 +1,8 @@
 //! The real `morphoid` binary on real files: `inspect` on good surfaces and
 //! on the eight bad inputs the product must survive.
 
-use morphoid::mesh::io;
-use morphoid::mesh::synth::{self, CROWN_GENERA};
+use morphoid_data::mesh_io;
+use morphoid_synth::mesh::{self as synth, CROWN_GENERA};
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -83,7 +83,7 @@ fn inspect_reports_a_disk_for_a_soup_with_debris() {
     // ASCII STL: a soup as stored, which cleaning welds (binary STL shares
     // identical corners as it is read).
     let path = dir.path().join("messy.stl");
-    io::write_stl_ascii(&path, &messy).unwrap();
+    mesh_io::write_stl_ascii(&path, &messy).unwrap();
     let clean_path = dir.path().join("clean.ply");
     let out = morphoid(&[
         "inspect",
@@ -110,7 +110,7 @@ fn inspect_reports_a_disk_for_a_soup_with_debris() {
         assert!(v.get(key).is_some(), "missing {key}");
     }
     // The written surface is the cleaned one.
-    let written = io::load(Path::new(&clean_path)).unwrap().mesh;
+    let written = mesh_io::load(Path::new(&clean_path)).unwrap().mesh;
     assert_eq!(written.vertex_count() as f64, n);
-    assert_eq!(morphoid::mesh::boundary_loops(&written).len(), 1);
+    assert_eq!(morphoid_core::mesh::boundary_loops(&written).len(), 1);
 }

@@ -1,10 +1,16 @@
 //! Flattening of all 116 teeth after the cleaning pipeline (which also
 //! repairs J12 and S09); needs the data set, see `support::data`.
 
-use morphoid::clean::{clean, CleanOptions};
-use morphoid::conformal::{flatten_to_disk, flipped_triangles, normalize, quasi_conformal_ratios};
+use morphoid_core::clean::{clean, CleanOptions};
+use morphoid_core::conformal::{
+    flatten_to_disk, flipped_triangles, normalize, quasi_conformal_ratios,
+};
 
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn all_cleaned_teeth_flatten_without_flips() {
     let Some(paths) = crate::support::data::tooth_paths() else {
         return;
@@ -13,7 +19,7 @@ fn all_cleaned_teeth_flatten_without_flips() {
     let mut ratios = Vec::new();
     for path in &paths {
         let name = path.file_stem().unwrap().to_string_lossy().to_string();
-        let raw = morphoid::mesh::io::load(path).unwrap().mesh;
+        let raw = morphoid_data::mesh_io::load(path).unwrap().mesh;
         let cleaned = clean(&raw, &CleanOptions::default())
             .unwrap_or_else(|e| panic!("{name}: {e}"))
             .mesh;

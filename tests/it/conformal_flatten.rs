@@ -1,11 +1,11 @@
 //! Conformal flattening against surfaces whose conformal map to the disk is
 //! known in closed form, plus the error cases.
 
-use morphoid::conformal::{
+use morphoid_core::conformal::{
     conformal_factor, cotangent_edge_weights, flatten_to_disk, flatten_to_disk_with,
     flipped_triangles, normalize, quasi_conformal_ratios, FlattenError, LaplacianWeights,
 };
-use morphoid::mesh::Mesh;
+use morphoid_core::mesh::Mesh;
 use std::f64::consts::{PI, TAU};
 
 type C = (f64, f64);
@@ -101,7 +101,7 @@ fn error_up_to_rotation(got: &[C], want: &[C], keep: impl Fn(usize) -> bool) -> 
 fn check_disk_invariants(mesh: &Mesh, uv: &[[f64; 2]]) {
     assert_eq!(flipped_triangles(&mesh.faces, uv), 0);
     let mut on_boundary = vec![false; mesh.vertices.len()];
-    for v in morphoid::mesh::boundary_loops(mesh).concat() {
+    for v in morphoid_core::mesh::boundary_loops(mesh).concat() {
         on_boundary[v as usize] = true;
     }
     for (v, z) in uv.iter().enumerate() {
@@ -444,7 +444,7 @@ fn disk_map_round_trips_through_json() {
     let (pts, faces) = ring_disk(4);
     let map = flatten_to_disk(&planar(&pts, faces)).unwrap();
     let json = serde_json::to_string(&map).unwrap();
-    let back: morphoid::conformal::DiskMap = serde_json::from_str(&json).unwrap();
+    let back: morphoid_core::conformal::DiskMap = serde_json::from_str(&json).unwrap();
     assert_eq!(back.center, map.center);
     for (a, b) in back.uv.iter().zip(&map.uv) {
         // serde_json's default float parser may be off by one unit in the

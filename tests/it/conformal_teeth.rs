@@ -1,11 +1,11 @@
 //! Conformal flattening of the 116 real teeth (needs the data set, see
 //! `support::data`).
 
-use morphoid::conformal::{
+use morphoid_core::conformal::{
     conformal_factor, flatten_to_disk, flatten_to_disk_with, flipped_triangles, normalize,
     quasi_conformal_ratios, FlattenError, LaplacianWeights,
 };
-use morphoid::mesh::Mesh;
+use morphoid_core::mesh::Mesh;
 use std::path::{Path, PathBuf};
 
 /// Teeth with a non-manifold edge, which only cleaning repairs.
@@ -13,7 +13,7 @@ const NEEDS_CLEANING: [&str; 2] = ["J12", "S09"];
 
 /// A tooth as stored (the library's PLY reader).
 fn read_tooth(path: &Path) -> Mesh {
-    morphoid::mesh::io::load(path).unwrap().mesh
+    morphoid_data::mesh_io::load(path).unwrap().mesh
 }
 
 fn tooth_paths() -> Option<Vec<PathBuf>> {
@@ -25,6 +25,10 @@ fn percentile(sorted: &[f64], q: f64) -> f64 {
 }
 
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn all_teeth_flatten_without_flips() {
     let Some(paths) = tooth_paths() else {
         return;
@@ -87,7 +91,7 @@ fn all_teeth_flatten_without_flips() {
 
 fn boundary_vertices(mesh: &Mesh) -> Vec<bool> {
     let mut on = vec![false; mesh.vertices.len()];
-    for lp in morphoid::mesh::boundary_loops(mesh) {
+    for lp in morphoid_core::mesh::boundary_loops(mesh) {
         for v in lp {
             on[v as usize] = true;
         }
@@ -98,6 +102,10 @@ fn boundary_vertices(mesh: &Mesh) -> Vec<bool> {
 /// Compares the two Laplacians on all teeth (prints; asserts only that each
 /// method either succeeds or reports flips).
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn compare_laplacians_on_teeth() {
     let Some(paths) = tooth_paths() else {
         return;
@@ -133,6 +141,10 @@ fn compare_laplacians_on_teeth() {
 }
 
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn rotated_and_scaled_teeth_flatten_identically() {
     let Some(paths) = tooth_paths() else {
         return;

@@ -8,8 +8,8 @@
 //! overrides the `[cp]` settings.
 
 use crate::support::cp::{data_dir, params_from_env, prepare_teeth, tooth_names};
-use morphoid::cp::CpParams;
-use morphoid::eval::distance_matrix;
+use morphoid_core::cp::CpParams;
+use morphoid_data::table::distance_matrix;
 
 #[test]
 #[ignore]

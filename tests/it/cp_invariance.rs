@@ -1,10 +1,10 @@
 //! Invariance of the cP distance on real teeth: rigid motions, uniform
 //! scalings, mirror images and remeshing.
 
-use morphoid::clean::{clean, CleanOptions};
-use morphoid::cp::{self, CpParams};
-use morphoid::mesh::synth::subdivide_midpoint;
-use morphoid::mesh::Mesh;
+use morphoid_core::clean::{clean, CleanOptions};
+use morphoid_core::cp::{self, CpParams};
+use morphoid_core::mesh::Mesh;
+use morphoid_synth::mesh::subdivide_midpoint;
 use nalgebra::{Rotation3, Vector3};
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
@@ -40,6 +40,10 @@ fn mirrored(m: &Mesh) -> Mesh {
 }
 
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn rigid_motions_scalings_and_mirrors_are_at_distance_zero() {
     let Some(dir) = crate::support::cp::data_dir() else {
         return;
@@ -77,6 +81,10 @@ fn rigid_motions_scalings_and_mirrors_are_at_distance_zero() {
 }
 
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn distance_is_symmetric_and_positive_between_different_teeth() {
     let Some(dir) = crate::support::cp::data_dir() else {
         return;
@@ -117,6 +125,10 @@ fn remeshed(m: &Mesh) -> Mesh {
 }
 
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn remeshing_moves_a_tooth_less_than_a_quarter_of_the_nearest_neighbour_distance() {
     let Some(dir) = crate::support::cp::data_dir() else {
         return;

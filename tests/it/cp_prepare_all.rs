@@ -1,9 +1,13 @@
 //! Every real tooth can be prepared (needs the data set, see
 //! `support::data`).
 
-use morphoid::cp::CpParams;
+use morphoid_core::cp::CpParams;
 
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn every_real_tooth_is_prepared() {
     let Some(dir) = crate::support::cp::data_dir() else {
         return;

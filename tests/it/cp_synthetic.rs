@@ -1,8 +1,9 @@
 //! The cP distance on synthetic crowns (no outside data needed).
 
-use morphoid::cp::{self, CpParams};
-use morphoid::eval::{distance_matrix, leave_one_out, DistanceMatrix, Labels};
-use morphoid::mesh::synth::{self, CROWN_GENERA};
+use morphoid_core::cp::{self, CpParams};
+use morphoid_data::table::{distance_matrix, DistanceMatrix, Labels};
+use morphoid_research::eval::leave_one_out;
+use morphoid_synth::mesh::{self as synth, CROWN_GENERA};
 
 #[test]
 fn rigid_copies_and_mirror_images_are_at_distance_zero() {
@@ -103,9 +104,9 @@ fn the_final_descent_lowers_the_distance_of_different_crowns() {
 /// poses) were matched as mirror images at about 0.0047.
 #[test]
 fn moved_remeshed_copies_of_a_crown_are_never_matched_as_mirror_images() {
-    use morphoid::mesh::bbox_diagonal;
-    use morphoid::mesh::synth::RigidMotion;
-    use morphoid::pipeline::{self, Settings};
+    use morphoid_core::mesh::bbox_diagonal;
+    use morphoid_data::pipeline::{self, Settings};
+    use morphoid_synth::mesh::RigidMotion;
     use rayon::prelude::*;
     let settings = Settings::default();
     let genus = synth::crown_genus("Lophodon").expect("genus");

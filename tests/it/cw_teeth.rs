@@ -5,9 +5,9 @@
 //! `cargo test --release --test it cw_teeth -- --nocapture`; the whole
 //! matrix: `cargo test --release --test it cw_teeth -- --ignored --nocapture`.
 
-use morphoid::cp::{self, CpParams, Prepared};
-use morphoid::cw::{self, CwParams};
-use morphoid::mesh::synth;
+use morphoid_core::cp::{self, CpParams, Prepared};
+use morphoid_core::cw::{self, CwParams};
+use morphoid_synth::mesh as synth;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rayon::prelude::*;
@@ -28,6 +28,10 @@ fn random_teeth(seed: u64) -> Option<(std::path::PathBuf, Vec<Prepared>)> {
 /// the triangle inequality, within the tolerance of the search (which
 /// returns an upper bound of the minimum over maps).
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn cw_is_symmetric_and_satisfies_the_triangle_inequality_on_real_teeth() {
     let Some((_, teeth)) = random_teeth(17) else {
         return;
@@ -76,11 +80,16 @@ fn cw_is_symmetric_and_satisfies_the_triangle_inequality_on_real_teeth() {
 /// A real tooth and its mirror image: near zero through a reflection,
 /// far without reflections.
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn a_real_mirror_image_is_at_cw_zero_only_with_reflections() {
     let Some(dir) = crate::support::cp::data_dir() else {
         return;
     };
-    let prepare = |m: &morphoid::mesh::Mesh| cp::prepare(m, &CpParams::default().prepare).unwrap();
+    let prepare =
+        |m: &morphoid_core::mesh::Mesh| cp::prepare(m, &CpParams::default().prepare).unwrap();
     let tooth = crate::support::cp::load_tooth(&dir, "H10");
     let (a, mirrored) = (prepare(&tooth), prepare(&synth::mirror(&tooth)));
     let other = prepare(&crate::support::cp::load_tooth(&dir, "H16"));
@@ -189,12 +198,13 @@ fn cw_leave_one_out_on_real_teeth() {
     };
     let names = crate::support::cp::tooth_names(&dir);
     let teeth = crate::support::cp::prepare_teeth(&dir, &names, &CpParams::default());
-    let matrix = cw::distance_matrix(&teeth, &CwParams::default(), |_| {}).unwrap();
+    let matrix =
+        morphoid_research::surfaces::cw_matrix(&teeth, &CwParams::default(), |_| {}).unwrap();
     let scores = crate::support::cp::leave_one_out_scores(&dir, &matrix);
     if let Ok(path) = std::env::var("CP_MATRIX") {
         let cp_matrix =
-            morphoid::eval::DistanceMatrix::read_csv(std::path::Path::new(&path)).unwrap();
-        let m = morphoid::eval::mantel_test(&matrix, &cp_matrix, 999, 1).unwrap();
+            morphoid_data::table::DistanceMatrix::read_csv(std::path::Path::new(&path)).unwrap();
+        let m = morphoid_research::eval::mantel_test(&matrix, &cp_matrix, 999, 1).unwrap();
         println!("Mantel cW vs cP: {m:?}");
     }
     // cWn reaches 107/116 at order; cW should be in that range.

@@ -7,13 +7,17 @@
 //! `CWN_PARAMS` (CwnParams JSON) overrides the parameters;
 //! `CWN_MATRIX_OUT` writes the matrix CSV.
 
-use morphoid::cp::CpParams;
-use morphoid::cwn::{self, CwnParams};
+use morphoid_core::cp::CpParams;
+use morphoid_core::cwn::{self, CwnParams};
 use rayon::prelude::*;
 
 /// Every third tooth (39): the matrix is well defined and nearest
 /// neighbours are far better than chance.
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn leave_one_out_on_a_third_of_the_real_teeth() {
     leave_one_out_on_teeth(3, |order, genus, total| {
         assert!(order >= 30, "order {order}/39");
@@ -51,7 +55,7 @@ fn leave_one_out_on_teeth(step: usize, floors: impl Fn(usize, usize, usize)) {
             .collect();
     println!("prepared {} in {:.1?}", landscapes.len(), t0.elapsed());
     let t0 = std::time::Instant::now();
-    let m = cwn::distance_matrix(&landscapes, &params, |_| {}).expect("matrix");
+    let m = morphoid_research::surfaces::cwn_matrix(&landscapes, &params, |_| {}).expect("matrix");
     let n = landscapes.len();
     let pairs = n * (n - 1) / 2;
     let elapsed = t0.elapsed();

@@ -9,7 +9,7 @@
 
 use crate::support::daemon::*;
 use crate::support::faults::{fill, have_root, Mount};
-use morphoid::store::ScanStatus;
+use morphoid_service::store::ScanStatus;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -46,7 +46,7 @@ fn drop_scan(env: &Env, i: usize) -> String {
 /// has exactly one row, identified as its genus, and nothing else is
 /// recorded.
 fn assert_exactly_once(env: &Env, d: &Daemon, names: &[String], within: Duration) {
-    let done = |rows: &[morphoid::store::ScanRecord]| {
+    let done = |rows: &[morphoid_service::store::ScanRecord]| {
         names.iter().all(|n| {
             rows.iter()
                 .any(|r| r.path.ends_with(&format!("/{n}")) && r.status == ScanStatus::Ok)
@@ -101,6 +101,10 @@ fn assert_quiet(during: &[String], what: &str) {
 }
 
 #[test]
+#[cfg_attr(
+    morphoid_skip_root,
+    ignore = "needs root (MORPHOID_SKIP_ROOT=1 and not root)"
+)]
 fn a_full_disk_under_the_database_loses_and_repeats_nothing() {
     if !have_root("a_full_disk_under_the_database_loses_and_repeats_nothing") {
         return;
@@ -134,6 +138,10 @@ fn a_full_disk_under_the_database_loses_and_repeats_nothing() {
 /// checkpointed and cut to nothing on SQLITE_FULL) and, once the space is
 /// free again, records every scan exactly once within a minute.
 #[test]
+#[cfg_attr(
+    morphoid_skip_root,
+    ignore = "needs root (MORPHOID_SKIP_ROOT=1 and not root)"
+)]
 fn a_nearly_full_small_disk_recovers_once_space_is_free() {
     if !have_root("a_nearly_full_small_disk_recovers_once_space_is_free") {
         return;
@@ -166,6 +174,10 @@ fn a_nearly_full_small_disk_recovers_once_space_is_free() {
 }
 
 #[test]
+#[cfg_attr(
+    morphoid_skip_root,
+    ignore = "needs root (MORPHOID_SKIP_ROOT=1 and not root)"
+)]
 fn io_errors_under_the_database_and_the_results_folder_are_survived() {
     if !have_root("io_errors_under_the_database_and_the_results_folder_are_survived") {
         return;
@@ -208,6 +220,10 @@ fn io_errors_under_the_database_and_the_results_folder_are_survived() {
 }
 
 #[test]
+#[cfg_attr(
+    morphoid_skip_root,
+    ignore = "needs root (MORPHOID_SKIP_ROOT=1 and not root)"
+)]
 fn the_database_deleted_under_the_daemon_comes_back_whole() {
     if !have_root("the_database_deleted_under_the_daemon_comes_back_whole") {
         return;
@@ -243,7 +259,7 @@ fn a_database_replaced_under_the_daemon_is_used_and_gets_what_it_lacks() {
     assert!(wait_until(Duration::from_secs(60), || finished(&env.db) >= 1));
     // An operator's backup, taken now: it has s0 but will lack s1.
     let backup = env.root.join("backup.sqlite");
-    morphoid::store::Store::open(&env.db)
+    morphoid_service::store::Store::open(&env.db)
         .unwrap()
         .copy_to(&backup)
         .unwrap();
@@ -284,6 +300,10 @@ fn a_database_locked_by_another_process_delays_but_loses_nothing() {
 }
 
 #[test]
+#[cfg_attr(
+    morphoid_skip_root,
+    ignore = "needs root (MORPHOID_SKIP_ROOT=1 and not root)"
+)]
 fn a_read_only_results_folder_gets_every_result_file_once_writable() {
     if !have_root("a_read_only_results_folder_gets_every_result_file_once_writable") {
         return;

@@ -2,7 +2,7 @@
 //! bad inputs, restarts.
 
 use crate::support::daemon::*;
-use morphoid::store::ScanStatus;
+use morphoid_service::store::ScanStatus;
 use std::io::Write;
 use std::time::Duration;
 
@@ -84,7 +84,7 @@ fn the_eight_bad_inputs_become_error_rows_and_the_next_scan_is_identified() {
     // caught empty between its creation and its write would be taken as a
     // scan of its own.
     let staging = env.root.join("bad");
-    let bad = morphoid::mesh::synth::write_bad_inputs(&staging).unwrap();
+    let bad = morphoid_synth::mesh::write_bad_inputs(&staging).unwrap();
     assert_eq!(bad.len(), 8);
     for (path, _) in &bad {
         std::fs::rename(path, env.export.join(path.file_name().unwrap())).unwrap();

@@ -6,11 +6,11 @@
 //! row of it is `superseded`, pointing at a later row.
 
 use crate::support::daemon::*;
-use morphoid::hash::content_hash_file;
-use morphoid::mesh::io;
-use morphoid::mesh::synth::{self, RigidMotion, CROWN_GENERA};
-use morphoid::store::{ScanRecord, ScanStatus};
-use morphoid::volume::synth::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
+use morphoid_data::hash::content_hash_file;
+use morphoid_data::mesh_io;
+use morphoid_service::store::{ScanRecord, ScanStatus};
+use morphoid_synth::mesh::{self as synth, RigidMotion, CROWN_GENERA};
+use morphoid_synth::volume::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -76,7 +76,7 @@ fn off_scan(g: usize, seed: u64) -> Vec<u8> {
     let crown = synth::crown(&CROWN_GENERA[g % CROWN_GENERA.len()], seed, 1500);
     let posed = RigidMotion::random(seed, 20.0).apply(&crown);
     let path = dir.path().join("s.off");
-    io::save(&path, &posed).unwrap();
+    mesh_io::save(&path, &posed).unwrap();
     std::fs::read(&path).unwrap()
 }
 
@@ -136,7 +136,7 @@ fn staged_volume(env: &Env, g: usize, seed: u64, format: SynthFormat) -> Vec<Pat
     };
     let grid = phantom(&tooth, &params);
     write_volume(&grid, &staged, format, &StackSpec::default()).unwrap();
-    morphoid::volume::slice_paths(&staged).unwrap()
+    morphoid_data::volume::slice_paths(&staged).unwrap()
 }
 
 /// The total size of `files` in bytes.

@@ -2,7 +2,7 @@
 //! `MORPHOID_DAEMON_SCANS` sets the count (default 100).
 
 use crate::support::daemon::*;
-use morphoid::store::ScanStatus;
+use morphoid_service::store::ScanStatus;
 use std::time::{Duration, Instant};
 
 #[test]
@@ -73,6 +73,10 @@ fn scans_dropped_at_once_are_all_identified_once_in_bounded_memory() {
 /// library teeth, each identified as itself), peak memory under 300 MB.
 /// `MORPHOID_DAEMON_REAL_SCANS` sets how many (default 5, at most 116).
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn the_real_library_identifies_its_own_teeth_in_bounded_memory() {
     let Some(data) = crate::support::data::teeth_dir() else {
         return;

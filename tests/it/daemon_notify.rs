@@ -49,7 +49,7 @@ fn ready_status_watchdog_and_stopping_reach_the_service_manager() {
         ),
         "{got:?}"
     );
-    let utc_day = || morphoid::store::utc_day_start_ms(morphoid::store::now_ms());
+    let utc_day = || morphoid_service::store::utc_day_start_ms(morphoid_service::store::now_ms());
     let day_of_put = utc_day();
     // Where the lines that come after the scan begin.
     let mark = std::cell::Cell::new(0);

@@ -6,8 +6,8 @@
 //! identified.
 
 use crate::support::daemon::*;
-use morphoid::mesh::synth::LibrarySpec;
-use morphoid::store::{ScanRecord, ScanStatus};
+use morphoid_service::store::{ScanRecord, ScanStatus};
+use morphoid_synth::mesh::LibrarySpec;
 use std::collections::BTreeSet;
 use std::os::unix::net::UnixDatagram;
 use std::path::Path;
@@ -160,7 +160,10 @@ fn the_daemon_writes_a_report_per_scan_and_the_overview_newest_first() {
         .unwrap();
     assert!(error.contains("broken.ply"), "{error}");
     assert!(html.contains("id=\"error\""), "{html}");
-    assert!(html.contains(&morphoid::present::escape(&error)), "{html}");
+    assert!(
+        html.contains(&morphoid_data::present::escape(&error)),
+        "{html}"
+    );
 
     // The overview lists the three newest first, the failed one with its
     // error, each linking to its report.
@@ -174,7 +177,7 @@ fn the_daemon_writes_a_report_per_scan_and_the_overview_newest_first() {
     .map(|l| index.find(&format!("href=\"{l}\"")).unwrap())
     .collect();
     assert!(at.windows(2).all(|w| w[0] < w[1]), "{at:?}");
-    assert!(index.contains(&morphoid::present::escape(&error)));
+    assert!(index.contains(&morphoid_data::present::escape(&error)));
     assert!(index.contains("class=\"bad\""));
     assert!(index.contains("tooth%201.ply.png") && index.contains("tooth%204.ply.png"));
     assert!(!index.contains("result files not written"));

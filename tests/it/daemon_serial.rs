@@ -1,8 +1,8 @@
 //! A pseudo-terminal pair stands in for the scanner's serial line.
 
 use crate::support::daemon::*;
-use morphoid::daemon::BACKOFF_MAX;
-use morphoid::store::ScanStatus;
+use morphoid_service::daemon::BACKOFF_MAX;
+use morphoid_service::store::ScanStatus;
 use std::fs::File;
 use std::io::Write;
 use std::os::fd::FromRawFd;

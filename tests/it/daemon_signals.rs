@@ -1,7 +1,7 @@
 //! `morphoid run` killed or stopped in the middle of a job.
 
 use crate::support::daemon::*;
-use morphoid::store::ScanStatus;
+use morphoid_service::store::ScanStatus;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -160,9 +160,9 @@ fn a_scan_that_killed_the_daemon_three_times_is_failed_not_retried_for_ever() {
 fn sigterm_without_grace_abandons_the_job_which_the_next_start_identifies() {
     let env = env(0.2, "", "");
     // A large surface (400k vertices): its job lasts long enough to be cut.
-    let big = morphoid::mesh::synth::crown(&morphoid::mesh::synth::CROWN_GENERA[4], 915, 400_000);
+    let big = morphoid_synth::mesh::crown(&morphoid_synth::mesh::CROWN_GENERA[4], 915, 400_000);
     let staging = env.root.join("big.ply");
-    morphoid::mesh::io::save(&staging, &big).unwrap();
+    morphoid_data::mesh_io::save(&staging, &big).unwrap();
     let mut d = Daemon::start_with(&env, &[("MORPHOID_STOP_GRACE", "0")]);
     let refs = d.references();
     std::fs::rename(&staging, env.export.join("big.ply")).unwrap();

@@ -1,7 +1,7 @@
 //! `morphoid matrix --shard`, `matrix merge` and `evaluate` from the
 //! command line.
 
-use morphoid::mesh::synth::{write_synthetic_library, LibrarySpec};
+use morphoid_synth::mesh::{write_synthetic_library, LibrarySpec};
 use std::path::Path;
 use std::process::Command;
 
@@ -81,10 +81,10 @@ fn sharded_cli_run_equals_unsharded_and_evaluate_reports_mantel() {
     // folder the user gives; the library picks its subfolder), a shard is
     // the same, byte for byte.
     let cache_dir = out.path().join("cache");
-    let cache = morphoid::library::Cache::for_folder(Some(&cache_dir), lib.path()).unwrap();
-    let library = morphoid::library::Library::open(lib.path(), None).unwrap();
-    let settings = morphoid::pipeline::Settings::default();
-    morphoid::library::build(&library, &cache, &settings, |_| {}).unwrap();
+    let cache = morphoid_data::library::Cache::for_folder(Some(&cache_dir), lib.path()).unwrap();
+    let library = morphoid_data::library::Library::open(lib.path(), None).unwrap();
+    let settings = morphoid_data::pipeline::Settings::default();
+    morphoid_data::library::build(&library, &cache, &settings, |_| {}).unwrap();
     let cached = out.path().join("cached2.csv");
     let o = morphoid(&[
         "matrix",

@@ -1,11 +1,10 @@
 //! A sharded matrix run, merged, equals the unsharded matrix exactly.
 
-use morphoid::eval::{
-    compute_shard, distance_matrix, merge_shards, DistanceMatrix, Shard, ShardFile,
-};
-use morphoid::library;
-use morphoid::mesh::synth::{write_synthetic_library, LibrarySpec};
-use morphoid::pipeline::{prepare_file, Settings};
+use morphoid_data::library;
+use morphoid_data::pipeline::{prepare_file, Settings};
+use morphoid_data::table::{distance_matrix, DistanceMatrix};
+use morphoid_research::eval::{compute_shard, merge_shards, Shard, ShardFile};
+use morphoid_synth::mesh::{write_synthetic_library, LibrarySpec};
 use std::path::PathBuf;
 
 #[test]
@@ -43,7 +42,7 @@ fn three_shards_merge_to_the_unsharded_matrix() {
             shard,
             |k| {
                 calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                let hash = morphoid::hash::content_hash_file(&files[k]).unwrap().0;
+                let hash = morphoid_data::hash::content_hash_file(&files[k]).unwrap().0;
                 prepare_file(&files[k], &settings).map(|p| (p.prepared, hash))
             },
             &settings.cp.compare,

@@ -1,7 +1,7 @@
 //! Malformed input: every failure is one line naming the file, never a panic.
 
-use morphoid::mesh::io::{encode, load, load_bytes, Encoding, Format, LoadError};
-use morphoid::mesh::synth::{crown, write_bad_inputs, CROWN_GENERA};
+use morphoid_data::mesh_io::{encode, load, load_bytes, Encoding, Format, LoadError};
+use morphoid_synth::mesh::{crown, write_bad_inputs, CROWN_GENERA};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::path::Path;
@@ -24,7 +24,7 @@ fn bad_inputs_fail_to_load_or_load_as_expected() {
         match name {
             "closed_sphere.ply" => {
                 let m = result.unwrap().mesh;
-                assert_eq!(morphoid::mesh::euler_characteristic(&m), 2);
+                assert_eq!(morphoid_core::mesh::euler_characteristic(&m), 2);
             }
             "three_points.ply" => {
                 let m = result.unwrap().mesh;

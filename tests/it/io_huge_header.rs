@@ -28,14 +28,14 @@ static ALLOCATOR: Counting = Counting;
 #[test]
 fn four_billion_vertices_fail_without_allocating() {
     let dir = tempfile::tempdir().unwrap();
-    let files = morphoid::mesh::synth::write_bad_inputs(dir.path()).unwrap();
+    let files = morphoid_synth::mesh::write_bad_inputs(dir.path()).unwrap();
     let (path, _) = files
         .iter()
         .find(|(p, _)| p.ends_with("four_billion.ply"))
         .unwrap();
     let before = CURRENT.load(Ordering::SeqCst);
     PEAK.store(before, Ordering::SeqCst);
-    let err = morphoid::mesh::io::load(path).unwrap_err().to_string();
+    let err = morphoid_data::mesh_io::load(path).unwrap_err().to_string();
     let peak = PEAK.load(Ordering::SeqCst) - before;
     println!("{err}\npeak extra memory: {peak} bytes");
     assert!(

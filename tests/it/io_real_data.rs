@@ -1,9 +1,13 @@
 //! All 116 molars of the reference data set load with plausible sizes.
 
-use morphoid::mesh::io::{load, Format};
-use morphoid::mesh::{boundary_loops, euler_characteristic};
+use morphoid_core::mesh::{boundary_loops, euler_characteristic};
+use morphoid_data::mesh_io::{load, Format};
 
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn all_real_teeth_load() {
     let Some(data) = crate::support::data::teeth_dir() else {
         return;

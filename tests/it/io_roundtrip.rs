@@ -1,7 +1,7 @@
 //! Write then read back every format and variant.
 
-use morphoid::mesh::io::{encode, load, load_bytes, save, save_as, Encoding, Format};
-use morphoid::mesh::Mesh;
+use morphoid_core::mesh::Mesh;
+use morphoid_data::mesh_io::{encode, load, load_bytes, save, save_as, Encoding, Format};
 use std::path::Path;
 
 fn square_pyramid() -> Mesh {
@@ -197,7 +197,7 @@ fn stl_binary_and_ascii_detection() {
 /// A realistic mesh survives every encoding.
 #[test]
 fn synthetic_crown_round_trips() {
-    let m = morphoid::mesh::synth::crown(&morphoid::mesh::synth::CROWN_GENERA[1], 8, 5000);
+    let m = morphoid_synth::mesh::crown(&morphoid_synth::mesh::CROWN_GENERA[1], 8, 5000);
     for enc in ALL {
         let back = load_bytes(&encode(&m, enc).unwrap(), enc.format(), Path::new("c")).unwrap();
         assert_eq!(back.mesh.face_count(), m.face_count());

@@ -1,17 +1,17 @@
 //! Synthetic crowns: disk-type, well shaped, deterministic, and the
 //! configurations differ more than individuals of one configuration.
 
-use morphoid::mesh::synth::{crown, crown_genus, CROWN_GENERA};
-use morphoid::mesh::{
+use morphoid_core::mesh::{
     boundary_loops, bounding_box, edge_face_map, euler_characteristic, norm, sub, triangle_normal2,
     Mesh,
 };
+use morphoid_synth::mesh::{crown, crown_genus, CROWN_GENERA};
 
 /// Smallest interior angle of a triangle (degrees).
 fn min_angle(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
     let ang = |p: [f64; 3], q: [f64; 3], r: [f64; 3]| {
         let (u, v) = (sub(q, p), sub(r, p));
-        let cos = morphoid::mesh::dot(u, v) / (norm(u) * norm(v));
+        let cos = morphoid_core::mesh::dot(u, v) / (norm(u) * norm(v));
         cos.clamp(-1.0, 1.0).acos().to_degrees()
     };
     ang(a, b, c).min(ang(b, c, a)).min(ang(c, a, b))
@@ -121,7 +121,7 @@ fn configurations_differ_more_than_individuals() {
 
 #[test]
 fn synthetic_library_is_complete_and_reproducible() {
-    use morphoid::mesh::synth::{write_synthetic_library, LibrarySpec};
+    use morphoid_synth::mesh::{write_synthetic_library, LibrarySpec};
     let spec = LibrarySpec {
         per_genus: 2,
         target_vertices: 400,
@@ -147,7 +147,7 @@ fn synthetic_library_is_complete_and_reproducible() {
                 s.name, s.genus.order, s.genus.family, s.genus.name
             )
         );
-        let m = morphoid::mesh::io::load(&s.path).unwrap().mesh;
+        let m = morphoid_data::mesh_io::load(&s.path).unwrap().mesh;
         assert_eq!(euler_characteristic(&m), 1);
         let other = b.path().join(s.path.file_name().unwrap());
         assert_eq!(
@@ -161,10 +161,11 @@ fn synthetic_library_is_complete_and_reproducible() {
         ..spec
     };
     let g = &CROWN_GENERA[0];
-    let plain = morphoid::mesh::synth::specimen_mesh(g, 9, &spec);
-    let moved = morphoid::mesh::synth::specimen_mesh(g, 9, &posed);
+    let plain = morphoid_synth::mesh::specimen_mesh(g, 9, &spec);
+    let moved = morphoid_synth::mesh::specimen_mesh(g, 9, &posed);
     assert_eq!(plain.faces, moved.faces);
-    let ratio = morphoid::mesh::surface_area(&moved) / morphoid::mesh::surface_area(&plain);
+    let ratio =
+        morphoid_core::mesh::surface_area(&moved) / morphoid_core::mesh::surface_area(&plain);
     assert!((0.25 - 1e-9..=4.0 + 1e-9).contains(&ratio), "{ratio}");
     let edge = |m: &Mesh, i: usize| norm(sub(m.vertices[i], m.vertices[0]));
     let s0 = edge(&moved, 1) / edge(&plain, 1);

@@ -2,15 +2,16 @@
 //! lacks one configuration (cheap, in CI), and the leave-one-genus-out
 //! measurement on the 116 real teeth (`#[ignore]`, run by name).
 
-use morphoid::classify::{self, Classifier};
-use morphoid::eval::Labels;
-use morphoid::library::{
-    self, expected_calibration_error, reliability, roc_auc, share_caught_at, Cache, Calibration,
-    DistanceRow, Library, ReferenceDistances,
+use morphoid_data::library::{Cache, Library};
+use morphoid_data::pipeline::Settings;
+use morphoid_data::table::Labels;
+use morphoid_service::classify::{self, Classifier};
+use morphoid_service::identify::{
+    expected_calibration_error, reliability, roc_auc, share_caught_at, Calibration, DistanceRow,
+    ReferenceDistances,
 };
-use morphoid::mesh::synth::{self, LibrarySpec};
-use morphoid::pipeline::Settings;
-use morphoid::store::Store;
+use morphoid_service::store::Store;
+use morphoid_synth::mesh::{self as synth, LibrarySpec};
 use std::path::Path;
 
 /// A synthetic library of four of the five configurations (four crowns
@@ -80,7 +81,7 @@ fn a_scan_of_a_missing_taxon_is_flagged_and_one_of_a_held_taxon_is_not() {
     let held = classify::identify_file(&mut store, &classifier, &held_scan).unwrap();
     let novel = classify::identify_file(&mut store, &classifier, &novel_scan).unwrap();
 
-    let genus_of = |r: &morphoid::store::ScanRecord| {
+    let genus_of = |r: &morphoid_service::store::ScanRecord| {
         r.ranks.iter().find(|k| k.rank == "genus").unwrap().clone()
     };
     let h = genus_of(&held);
@@ -273,7 +274,7 @@ fn measure(table: &ReferenceDistances, labels: &Labels) -> Measured {
     for i in 0..n {
         let others: Vec<usize> = (0..n).filter(|&j| j != i).collect();
         let rows = rows_of(table, &full, i, &others);
-        let id = library::identify(&rows, labels, 1);
+        let id = morphoid_service::identify::identify(&rows, labels, 1);
         for (k, rank) in ["order", "family", "genus"].iter().enumerate() {
             let got = id
                 .ranks
@@ -295,7 +296,7 @@ fn measure(table: &ReferenceDistances, labels: &Labels) -> Measured {
                     .map(|r| r.weight),
             );
             let rows = rows_of(table, &full, i, keep);
-            let mut id = library::identify(&rows, labels, 1);
+            let mut id = morphoid_service::identify::identify(&rows, labels, 1);
             cal.assess(&rows, &mut id.ranks);
             let r = id.ranks.iter().find(|r| r.rank == "genus").unwrap();
             let c = r.confidence.clone().expect("genus confidence");

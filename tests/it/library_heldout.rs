@@ -2,15 +2,19 @@
 //! leave the library, come back as new scans (rigid motion, millimetres to
 //! micrometres, remeshed) and must be identified to the right genus.
 
-use morphoid::classify::Classifier;
-use morphoid::clean::{clean, CleanOptions, CleanReport};
-use morphoid::eval::Labels;
-use morphoid::library::CachedReference;
-use morphoid::mesh::io;
-use morphoid::mesh::synth::{self, RigidMotion};
-use morphoid::pipeline::Settings;
+use morphoid_core::clean::{clean, CleanOptions, CleanReport};
+use morphoid_data::library::CachedReference;
+use morphoid_data::mesh_io;
+use morphoid_data::pipeline::Settings;
+use morphoid_data::table::Labels;
+use morphoid_service::classify::Classifier;
+use morphoid_synth::mesh::{self as synth, RigidMotion};
 
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn held_out_teeth_are_identified_to_genus() {
     let Some(data) = crate::support::data::teeth_dir() else {
         return;
@@ -53,7 +57,7 @@ fn held_out_teeth_are_identified_to_genus() {
     let tmp = tempfile::tempdir().unwrap();
     let mut correct = 0;
     for (i, name) in held_out.iter().enumerate() {
-        let tooth = io::load(&data.join("meshes").join(format!("{name}.ply")))
+        let tooth = mesh_io::load(&data.join("meshes").join(format!("{name}.ply")))
             .unwrap()
             .mesh;
         // Remesh: refine, then let cleaning decimate back to the working
@@ -68,7 +72,7 @@ fn held_out_teeth_are_identified_to_genus() {
         let moved = RigidMotion::random(100 + i as u64, 5.0).apply(&remeshed);
         let scan = synth::scale(&moved, 1000.0);
         let path = tmp.path().join(format!("{name}_scan.stl"));
-        io::save(&path, &scan).unwrap();
+        mesh_io::save(&path, &scan).unwrap();
         let outcome = classifier.classify_file(&path).unwrap();
         let genus = outcome.ranks.iter().find(|r| r.rank == "genus").unwrap();
         let truth = labels.get(name, "genus").unwrap();

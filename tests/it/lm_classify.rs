@@ -9,9 +9,9 @@
 use crate::support::lm::{
     json_landmarks, moved_copy, relative_errors, true_position, write_library_landmarks,
 };
-use morphoid::landmarks::{self, Landmarks};
-use morphoid::mesh::io;
-use morphoid::mesh::synth::{self, LibrarySpec, Specimen};
+use morphoid_data::landmarks::{self, Landmarks};
+use morphoid_data::mesh_io;
+use morphoid_synth::mesh::{self as synth, LibrarySpec, Specimen};
 use rusqlite::Connection;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -92,10 +92,10 @@ fn json_lines(o: &Output) -> Vec<serde_json::Value> {
 fn classify_carries_the_nearest_references_landmarks() {
     let s = setup();
     let source = &s.specimens[0];
-    let mesh = io::load(&source.path).unwrap().mesh;
+    let mesh = mesh_io::load(&source.path).unwrap().mesh;
     let (copy, motion) = moved_copy(&mesh, 71);
     let scan = s.root.join("scan_a.ply");
-    io::save(&scan, &copy).unwrap();
+    mesh_io::save(&scan, &copy).unwrap();
     let reference_lm = crate::support::lm::landmarks_of(&source.path);
     let truth: Vec<[f64; 3]> = reference_lm
         .points()
@@ -128,8 +128,8 @@ fn classify_carries_the_nearest_references_landmarks() {
     assert!(mean < 0.01, "mean error {mean}");
     // On the scan surface (the cleaned one lies on the original within
     // resampling tolerance), not at the reference's place.
-    let on = morphoid::clean::point_to_surface_distances(&points, &copy);
-    let diag = morphoid::mesh::bbox_diagonal(&copy);
+    let on = morphoid_core::clean::point_to_surface_distances(&points, &copy);
+    let diag = morphoid_core::mesh::bbox_diagonal(&copy);
     assert!(on.iter().all(|&d| d < 0.01 * diag), "{on:?}");
 
     // The results folder: the JSON line and the Slicer markups.
@@ -183,7 +183,7 @@ fn classify_carries_the_nearest_references_landmarks() {
     let version: i64 = conn
         .query_row("PRAGMA user_version", [], |r| r.get(0))
         .unwrap();
-    assert_eq!(version, i64::from(morphoid::store::SCHEMA_VERSION));
+    assert_eq!(version, i64::from(morphoid_service::store::SCHEMA_VERSION));
 
     // `results --json` shows them too.
     let o = morphoid(&["results", "--json", "--config"], &[&s.config]);
@@ -211,9 +211,9 @@ fn classify_carries_the_nearest_references_landmarks() {
     )
     .unwrap();
     assert_eq!(landmarks::library_files(&s.lib, &fourth.name).len(), 2);
-    let (copy_b, _) = moved_copy(&io::load(&second.path).unwrap().mesh, 72);
+    let (copy_b, _) = moved_copy(&mesh_io::load(&second.path).unwrap().mesh, 72);
     let scan_b = s.root.join("scan_b.ply");
-    io::save(&scan_b, &copy_b).unwrap();
+    mesh_io::save(&scan_b, &copy_b).unwrap();
     std::fs::remove_file(out_dir.join("scan_a.ply.fcsv")).unwrap();
     let o = morphoid(
         &["classify", "--json", "--out-dir"],
@@ -282,7 +282,7 @@ fn landmark_matrix_and_mantel_against_cp() {
     );
     assert!(o.status.success(), "{}", stderr(&o));
 
-    let read = |p: &Path| morphoid::eval::DistanceMatrix::read_csv(p).unwrap();
+    let read = |p: &Path| morphoid_data::table::DistanceMatrix::read_csv(p).unwrap();
     let (mcp, mlm, mrefl) = (read(&cp), read(&lm), read(&lm_refl));
     assert_eq!(mcp.names(), mlm.names());
     for i in 0..mlm.names().len() {

@@ -5,8 +5,8 @@
 
 use crate::support::daemon::*;
 use crate::support::lm::{moved_copy, relative_errors, true_position, write_library_landmarks};
-use morphoid::landmarks;
-use morphoid::mesh::io;
+use morphoid_data::landmarks;
+use morphoid_data::mesh_io;
 use std::time::Duration;
 
 #[test]
@@ -31,9 +31,9 @@ fn the_daemon_writes_the_carried_landmarks_next_to_the_json() {
 
     // A moved, remeshed, rescaled copy of one reference.
     let source = lib.join(format!("{}.ply", names[5]));
-    let (copy, motion) = moved_copy(&io::load(&source).unwrap().mesh, 81);
+    let (copy, motion) = moved_copy(&mesh_io::load(&source).unwrap().mesh, 81);
     let tmp = env.root.join("staging.ply");
-    io::save(&tmp, &copy).unwrap();
+    mesh_io::save(&tmp, &copy).unwrap();
     std::fs::rename(&tmp, env.export.join("tooth_7.ply")).unwrap();
 
     let fcsv = out_dir.join("tooth_7.ply.fcsv");

@@ -5,11 +5,12 @@
 //! present, always on synthetic crowns, through the library and through
 //! the command line.
 
-use morphoid::cp;
-use morphoid::landmarks::{self, Landmarks, Surface};
-use morphoid::mesh::synth::{self, RigidMotion};
-use morphoid::mesh::{bbox_diagonal, io, norm, sub, Mesh};
-use morphoid::pipeline::{self, PreparedSurface, Settings};
+use morphoid_core::cp;
+use morphoid_core::mesh::{bbox_diagonal, norm, sub, Mesh};
+use morphoid_data::landmarks::{self, Landmarks, Surface};
+use morphoid_data::mesh_io;
+use morphoid_data::pipeline::{self, PreparedSurface, Settings};
+use morphoid_synth::mesh::{self as synth, RigidMotion};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::path::Path;
@@ -59,7 +60,7 @@ fn true_position(p: [f64; 3], motion: &RigidMotion, mirrored: bool) -> [f64; 3] 
 /// on the target surface.
 fn errors(got: &Landmarks, truth: &[[f64; 3]], target: &Mesh) -> (f64, f64) {
     let diag = bbox_diagonal(target);
-    let on = morphoid::clean::point_to_surface_distances(got.points(), target);
+    let on = morphoid_core::clean::point_to_surface_distances(got.points(), target);
     for d in on {
         assert!(
             d <= 1e-9 * diag,
@@ -153,6 +154,10 @@ fn synthetic_crown_through_an_intermediate() {
 }
 
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn real_teeth_to_moved_remeshed_copies() {
     let Some(files) = crate::support::data::tooth_paths() else {
         return;
@@ -160,7 +165,7 @@ fn real_teeth_to_moved_remeshed_copies() {
     let (mut sum, mut worst, mut count) = (0.0, 0.0f64, 0);
     // Every 20th tooth: six teeth across the taxa.
     for (k, f) in files.iter().step_by(20).enumerate() {
-        let mesh = io::load(f).expect("tooth loads").mesh;
+        let mesh = mesh_io::load(f).expect("tooth loads").mesh;
         let (mean, max) = self_propagation(&mesh, 100 + k as u64, false);
         println!(
             "{}: landmark error / diagonal: mean {mean:.5}, max {max:.5}",
@@ -188,8 +193,8 @@ fn command_line_propagates_to_a_moved_copy() {
     let copy = moved_copy(&source.cleaned, &motion, false);
     let dir = tempfile::tempdir().unwrap();
     let (ref_path, mesh_path) = (dir.path().join("ref.ply"), dir.path().join("scan.ply"));
-    io::save(&ref_path, &source.cleaned).unwrap();
-    io::save(&mesh_path, &copy).unwrap();
+    mesh_io::save(&ref_path, &source.cleaned).unwrap();
+    mesh_io::save(&mesh_path, &copy).unwrap();
     let lm_path = dir.path().join("ref.fcsv");
     landmarks::write(&lm_path, &lm).unwrap();
     let out_path = dir.path().join("scan.mrk.json");
@@ -257,14 +262,14 @@ fn command_line_follows_the_spanning_tree_of_a_given_matrix() {
     let dir = tempfile::tempdir().unwrap();
     let lib = dir.path().join("lib");
     std::fs::create_dir(&lib).unwrap();
-    io::save(&lib.join("ref.ply"), &source.cleaned).unwrap();
+    mesh_io::save(&lib.join("ref.ply"), &source.cleaned).unwrap();
     // b, c and scan: moved remeshed copies; the matrix makes the tree the
     // chain ref – c – b – scan.
     let diag = bbox_diagonal(&source.cleaned);
     let mut motions = Vec::new();
     for (k, name) in ["b", "c"].iter().enumerate() {
         let m = RigidMotion::random(46 + k as u64, 2.0 * SCALE * diag);
-        io::save(
+        mesh_io::save(
             &lib.join(format!("{name}.ply")),
             &moved_copy(&source.cleaned, &m, false),
         )
@@ -273,7 +278,7 @@ fn command_line_follows_the_spanning_tree_of_a_given_matrix() {
     }
     let motion = RigidMotion::random(52, 2.0 * SCALE * diag);
     let scan = dir.path().join("scan.ply");
-    io::save(&scan, &moved_copy(&source.cleaned, &motion, false)).unwrap();
+    mesh_io::save(&scan, &moved_copy(&source.cleaned, &motion, false)).unwrap();
     let matrix = dir.path().join("m.csv");
     std::fs::write(
         &matrix,
@@ -336,7 +341,7 @@ fn two_moved_remeshed_copies_are_matched_without_reflection() {
         pipeline::prepare_mesh(&mesh, &format!("copy{seed}"), &settings).unwrap()
     };
     let (c, b) = (copy(41), copy(40));
-    let map = morphoid::cp::compare_directed(&c.prepared, &b.prepared, &settings.cp.compare);
+    let map = morphoid_core::cp::compare_directed(&c.prepared, &b.prepared, &settings.cp.compare);
     println!(
         "copy41 -> copy40: {:.5}, reflected {}",
         map.distance, map.reflected
@@ -356,6 +361,10 @@ fn two_moved_remeshed_copies_are_matched_without_reflection() {
 /// the nearest feature point of B; the features themselves are not stable
 /// landmarks between specimens, so this is a loose indication.
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn real_teeth_of_one_genus_cusps_and_round_trips() {
     let Some(dir) = crate::support::data::teeth_meshes() else {
         return;
@@ -370,7 +379,7 @@ fn real_teeth_of_one_genus_cusps_and_round_trips() {
         ("U13", "V08"),
     ] {
         let load = |n: &str| {
-            let m = io::load(&dir.join(format!("{n}.ply")))
+            let m = mesh_io::load(&dir.join(format!("{n}.ply")))
                 .expect("tooth loads")
                 .mesh;
             pipeline::prepare_mesh(&m, n, &settings).expect("tooth prepares")

@@ -8,7 +8,7 @@ use std::process::Command;
 
 /// A deployment with two identified scans and one that failed, classified
 /// with `--out-dir`: the environment, the results folder and the scans.
-pub struct Reported {
+pub(crate) struct Reported {
     pub env: Env,
     pub out: PathBuf,
     /// `(path, genus index)` of the identified scans.
@@ -17,7 +17,7 @@ pub struct Reported {
 }
 
 /// Classify two synthetic crowns and a broken file into a results folder.
-pub fn reported() -> Reported {
+pub(crate) fn reported() -> Reported {
     let env = env(0.5, "", "");
     let good: Vec<(PathBuf, usize)> = [(1usize, 71u64), (4, 72)]
         .iter()
@@ -59,7 +59,7 @@ pub fn reported() -> Reported {
 }
 
 /// The report of the scan at `scan` (in the export folder) under `out`.
-pub fn report_path(out: &Path, scan: &Path) -> PathBuf {
+pub(crate) fn report_path(out: &Path, scan: &Path) -> PathBuf {
     out.join(format!(
         "{}.html",
         scan.file_name().unwrap().to_string_lossy()
@@ -114,7 +114,7 @@ fn reports_show_the_answer_the_pictures_and_the_error() {
             None => assert!(novelty.contains("not calibrated"), "{novelty}"),
         }
         // File name and hash, cleaning report and timings.
-        let hash = morphoid::hash::content_hash(&std::fs::read(scan).unwrap());
+        let hash = morphoid_data::hash::content_hash(&std::fs::read(scan).unwrap());
         assert!(element(&html, "scan").contains(&hash));
         assert!(element(&html, "scan").contains(&format!("tooth {g}.ply")));
         assert!(element(&html, "cleaning").contains("output_vertices"));
@@ -218,6 +218,6 @@ fn an_unwritable_results_folder_is_an_error_and_the_identification_stands() {
     );
     let rows = rows(&env.db);
     assert_eq!(rows.len(), 1);
-    assert_eq!(rows[0].status, morphoid::store::ScanStatus::Ok);
+    assert_eq!(rows[0].status, morphoid_service::store::ScanStatus::Ok);
     assert_eq!(genus_of(&rows[0]), Some(genus(2)));
 }

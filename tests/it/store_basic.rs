@@ -2,9 +2,9 @@
 //! queue's transitions, atomic results, concurrent readers, JSON form.
 
 use crate::support::store::{outcome, reference_name, register_references, RANKS};
-use morphoid::hash::content_hash;
-use morphoid::library::DistanceRow;
-use morphoid::store::{
+use morphoid_data::hash::content_hash;
+use morphoid_service::identify::DistanceRow;
+use morphoid_service::store::{
     migrate, now_ms, utc_day_start_ms, Enqueued, Labels, ReferenceState, ScanStatus, Store,
     StoreError, SCHEMA_VERSION,
 };
@@ -853,12 +853,16 @@ fn a_version_4_database_opens_and_gains_the_new_columns() {
     let (_dir, path) = temp_db();
     {
         let conn = Connection::open(&path).expect("raw open");
-        for sql in &morphoid::store::MIGRATIONS[..4] {
+        for sql in &morphoid_service::store::MIGRATIONS[..4] {
             conn.execute_batch(sql).expect("schema");
         }
         conn.pragma_update(None, "user_version", 4).expect("v4");
-        conn.pragma_update(None, "application_id", morphoid::store::APPLICATION_ID)
-            .expect("app id");
+        conn.pragma_update(
+            None,
+            "application_id",
+            morphoid_service::store::APPLICATION_ID,
+        )
+        .expect("app id");
         conn.execute(
             "INSERT INTO scan (id, path, content_hash, size, status, error, attempts,
                                created_at, started_at, finished_at, files_due)
@@ -885,7 +889,7 @@ fn a_version_4_database_opens_and_gains_the_new_columns() {
 /// the row it already had); the superseded content may be queued again.
 #[test]
 fn a_superseded_scan_points_at_the_content_read() {
-    use morphoid::store::{Enqueued, ScanStatus, Store};
+    use morphoid_service::store::{Enqueued, ScanStatus, Store};
     let dir = tempfile::tempdir().unwrap();
     let mut store = Store::open(&dir.path().join("db.sqlite")).unwrap();
     let Enqueued::New(a) = store.enqueue("e/x.ply", "h1", 10).unwrap() else {

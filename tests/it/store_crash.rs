@@ -6,8 +6,8 @@
 //! `CRASH_CHILD_DB` set, executing the ignored test `crash_child_writer`.
 
 use crate::support::store::{outcome, register_references};
-use morphoid::hash::content_hash;
-use morphoid::store::{ScanStatus, Store};
+use morphoid_data::hash::content_hash;
+use morphoid_service::store::{ScanStatus, Store};
 use rand::Rng;
 use rusqlite::Connection;
 use std::path::Path;

@@ -4,8 +4,10 @@
 //! at all.
 
 use crate::support::store::{outcome, reference_name, register_references};
-use morphoid::library::{LandmarkPoint, ScanLandmarks};
-use morphoid::store::{ScanStatus, Store, StoreError, APPLICATION_ID, MIGRATIONS, SCHEMA_VERSION};
+use morphoid_service::identify::{LandmarkPoint, ScanLandmarks};
+use morphoid_service::store::{
+    ScanStatus, Store, StoreError, APPLICATION_ID, MIGRATIONS, SCHEMA_VERSION,
+};
 use rusqlite::{params, Connection};
 
 fn temp_db() -> (tempfile::TempDir, std::path::PathBuf) {

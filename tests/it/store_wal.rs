@@ -4,8 +4,8 @@
 //! let the log file grow past [`WAL_BOUND`].
 
 use crate::support::store::{outcome, register_references};
-use morphoid::hash::content_hash;
-use morphoid::store::Store;
+use morphoid_data::hash::content_hash;
+use morphoid_service::store::Store;
 
 /// The bound the log must keep: far below SQLite's default of a 4 MB log
 /// before its first checkpoint.

@@ -3,11 +3,12 @@
 //! over a wide junction (one result, with a warning), thirty crumbs of debris around a tooth (one specimen, the
 //! crumbs reported), a closed surface that is a sphere (a clear error).
 
-use morphoid::mesh::synth::{self, whole_tooth, WholeToothParams, CROWN_GENERA};
-use morphoid::mesh::{io, Grid};
-use morphoid::pipeline::{load_scan, prepare_file, Settings};
-use morphoid::volume::synth::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
-use morphoid::volume::DropReason;
+use morphoid_core::mesh::Grid;
+use morphoid_core::volume::DropReason;
+use morphoid_data::mesh_io;
+use morphoid_data::pipeline::{load_scan, prepare_file, Settings};
+use morphoid_synth::mesh::{self as synth, whole_tooth, WholeToothParams, CROWN_GENERA};
+use morphoid_synth::volume::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
 
 /// The phantom of a whole synthetic tooth of genus `g`, crown up.
 fn tooth_grid(g: usize, seed: u64, across: usize) -> Grid {
@@ -147,7 +148,7 @@ fn a_closed_sphere_is_refused_with_a_clear_message() {
     let m = synth::scale(&synth::closed_sphere(2562), 5.0);
     let tmp = tempfile::tempdir().unwrap();
     let path = tmp.path().join("ball.ply");
-    io::save(&path, &m).unwrap();
+    mesh_io::save(&path, &m).unwrap();
     let e = prepare_file(&path, &Settings::default())
         .unwrap_err()
         .to_string();

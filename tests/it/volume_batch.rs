@@ -5,8 +5,8 @@
 //! its crown on the real crown, and its own identification.
 
 use super::support::{cp as cps, data, mounting::*};
-use morphoid::clean::point_to_surface_distances;
-use morphoid::pipeline::{load_scan, prepare_specimens, PreparedSurface, Settings};
+use morphoid_core::clean::point_to_surface_distances;
+use morphoid_data::pipeline::{load_scan, prepare_specimens, PreparedSurface, Settings};
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -29,7 +29,7 @@ fn mean(d: Vec<f64>) -> f64 {
 fn batch(dir: &Path, names: &[String], seed: u64, across: usize, gap: i64, out: &Path) -> Batch {
     let crowns: Vec<_> = names.iter().map(|n| cps::load_tooth(dir, n)).collect();
     let first = Mount::varied(seed, across);
-    let teeth: Vec<(&morphoid::mesh::Mesh, Mount)> = crowns
+    let teeth: Vec<(&morphoid_core::mesh::Mesh, Mount)> = crowns
         .iter()
         .enumerate()
         .map(|(i, c)| {
@@ -124,6 +124,10 @@ fn print_batch(b: &Batch) {
 /// specimens, in order along x (the stack's longest axis), each box
 /// holding its own tooth and each crown within two voxels of the truth.
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn three_teeth_scanned_together_are_three_specimens_in_order() {
     let Some(dir) = data::teeth_dir() else {
         return;
@@ -147,6 +151,10 @@ fn three_teeth_scanned_together_are_three_specimens_in_order() {
 /// Two teeth whose mounts are pushed into each other (tubes and foam
 /// merged): still two specimens, each on its own tooth.
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn two_teeth_in_merged_mounts_are_two_specimens() {
     let Some(dir) = data::teeth_dir() else {
         return;
@@ -214,7 +222,7 @@ fn all_teeth_in_batches_of_three_are_identified() {
         .count();
     // Each specimen named after the tooth its box holds, in x order: the
     // batch's teeth stand in the order they were given.
-    let mut prepared: Vec<morphoid::cp::Prepared> = Vec::new();
+    let mut prepared: Vec<morphoid_core::cp::Prepared> = Vec::new();
     for b in batches
         .iter()
         .filter(|b| b.specimens.len() == b.names.len())
@@ -227,7 +235,7 @@ fn all_teeth_in_batches_of_three_are_identified() {
             }
         }
     }
-    let params = morphoid::cp::CpParams::default();
+    let params = morphoid_core::cp::CpParams::default();
     let originals = cps::prepare_teeth(&dir, &all, &params);
     let s = cps::heldout_scores(&dir, &prepared, &originals, &params.compare);
     let genus = s

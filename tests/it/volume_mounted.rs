@@ -6,10 +6,11 @@
 //! crown is, and it is identified against the other real crowns.
 
 use super::support::{cp as cps, data, mounting::*};
-use morphoid::clean::point_to_surface_distances;
-use morphoid::mesh::Mesh;
-use morphoid::pipeline::{prepare_file, PreparedSurface, Settings};
-use morphoid::volume::{DropReason, VolumeReport};
+use morphoid_core::clean::point_to_surface_distances;
+use morphoid_core::mesh::Mesh;
+use morphoid_core::volume::DropReason;
+use morphoid_data::pipeline::{prepare_file, PreparedSurface, Settings};
+use morphoid_data::volume::VolumeReport;
 use rayon::prelude::*;
 use std::path::Path;
 use std::process::Command;
@@ -117,6 +118,10 @@ fn print_outcome(o: &Outcome) {
 /// is kept and its crown lies on the real crown; the foam and the tube are
 /// reported dropped with their reasons.
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn teeth_in_foam_and_a_tube_are_kept_and_the_mount_is_reported() {
     let Some(dir) = data::teeth_dir() else {
         return;
@@ -176,6 +181,10 @@ fn teeth_in_foam_and_a_tube_are_kept_and_the_mount_is_reported() {
 /// Foam in a tube with no tooth, and a tube with nothing in it: refused,
 /// naming the folder and saying what was found instead.
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn foam_alone_and_an_empty_tube_are_no_specimen() {
     let Some(dir) = data::teeth_dir() else {
         return;
@@ -229,6 +238,10 @@ fn foam_alone_and_an_empty_tube_are_no_specimen() {
 /// `inspect --json` on a mounted tooth lists each object with its grey
 /// level, size, bounding box (in the stack's voxels) and reason.
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn inspect_json_lists_what_was_kept_and_dropped() {
     let Some(dir) = data::teeth_dir() else {
         return;
@@ -322,22 +335,22 @@ fn identify_mounted(names: &[String], across: Option<usize>) -> (usize, usize, u
         worst.0,
         worst.1
     );
-    let params = morphoid::cp::CpParams::default();
+    let params = morphoid_core::cp::CpParams::default();
     let originals = cps::prepare_teeth(&dir, &all, &params);
-    let stacks: Vec<morphoid::cp::Prepared> = kept
+    let stacks: Vec<morphoid_core::cp::Prepared> = kept
         .iter()
         .map(|o| o.prepared.as_ref().unwrap().prepared.clone())
         .collect();
     println!("mounted stacks:");
     let s = cps::heldout_scores(&dir, &stacks, &originals, &params.compare);
-    let crops: Vec<morphoid::cp::Prepared> = originals
+    let crops: Vec<morphoid_core::cp::Prepared> = originals
         .iter()
         .filter(|p| names.iter().any(|n| n == p.name()))
         .cloned()
         .collect();
     println!("their crops:");
     let c = cps::heldout_scores(&dir, &crops, &originals, &params.compare);
-    let genus = |s: &[morphoid::eval::RankScore]| {
+    let genus = |s: &[morphoid_research::eval::RankScore]| {
         s.iter()
             .find(|r| r.rank == "genus")
             .map(|r| (r.correct, r.total))

@@ -4,10 +4,10 @@
 //! `pipeline::prepare_file`.
 
 use crate::support::daemon::*;
-use morphoid::mesh::synth::{self, whole_tooth, WholeToothParams, CROWN_GENERA};
-use morphoid::store::ScanStatus;
-use morphoid::volume::synth::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
-use morphoid::volume::Grid;
+use morphoid_core::mesh::Grid;
+use morphoid_service::store::ScanStatus;
+use morphoid_synth::mesh::{self as synth, whole_tooth, WholeToothParams, CROWN_GENERA};
+use morphoid_synth::volume::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
 use std::path::Path;
 use std::process::Command;
 use std::time::Duration;
@@ -69,7 +69,7 @@ fn classify_takes_a_slice_folder_and_knows_it_again_by_content() {
     assert!(first["ranks"]["genus"]["taxon"].is_string(), "{first}");
     let rows1 = rows(&env.db);
     assert_eq!(rows1.len(), 1, "{rows1:?}");
-    let slices = morphoid::volume::slice_paths(&stack).unwrap();
+    let slices = morphoid_data::volume::slice_paths(&stack).unwrap();
     let bytes: u64 = slices
         .iter()
         .map(|p| std::fs::metadata(p).unwrap().len())
@@ -95,7 +95,7 @@ fn classify_takes_a_slice_folder_and_knows_it_again_by_content() {
     assert_eq!(dup["ranks"], first["ranks"]);
 
     // One slice replaced by its neighbour: new content, a new scan.
-    let copied = morphoid::volume::slice_paths(&copy).unwrap();
+    let copied = morphoid_data::volume::slice_paths(&copy).unwrap();
     let mid = copied.len() / 2;
     std::fs::copy(&copied[mid + 1], &copied[mid]).unwrap();
     let changed = classify_json(&env, &copy);
@@ -114,7 +114,7 @@ fn daemon_takes_a_slice_folder_once_after_its_last_slice() {
     let d = Daemon::start(&env);
     let staged = env.root.join("staged");
     write(&small_phantom(1, 77), &staged, SynthFormat::Tiff16);
-    let slices = morphoid::volume::slice_paths(&staged).unwrap();
+    let slices = morphoid_data::volume::slice_paths(&staged).unwrap();
     assert!(slices.len() > 20, "{}", slices.len());
     let target = env.export.join("stack_b");
     std::fs::create_dir(&target).unwrap();
@@ -151,8 +151,8 @@ fn daemon_takes_a_slice_folder_once_after_its_last_slice() {
 fn nrrd_and_nifti_files_are_prepared_as_the_same_crown() {
     let tmp = tempfile::tempdir().unwrap();
     let grid = small_phantom(3, 19);
-    let mut settings = morphoid::pipeline::Settings::default();
-    settings.clean.crown = morphoid::clean::CrownMode::Auto;
+    let mut settings = morphoid_data::pipeline::Settings::default();
+    settings.clean.crown = morphoid_core::clean::CrownMode::Auto;
     let mut areas = Vec::new();
     for (name, format) in [
         ("t.nrrd", SynthFormat::Nrrd { gzip: true }),
@@ -165,7 +165,7 @@ fn nrrd_and_nifti_files_are_prepared_as_the_same_crown() {
             ..Default::default()
         };
         let voxel = write_volume(&grid, &path, format, &spec).unwrap();
-        let p = morphoid::pipeline::prepare_file(&path, &settings).unwrap();
+        let p = morphoid_data::pipeline::prepare_file(&path, &settings).unwrap();
         let v = p.volume.as_ref().expect("a volume report");
         for (got, written) in v.input.voxel_size.iter().zip(voxel) {
             assert!((got / written - 1.0).abs() < 1e-4, "{name}: {v:?}");
@@ -173,7 +173,7 @@ fn nrrd_and_nifti_files_are_prepared_as_the_same_crown() {
         assert!(v.isosurface_faces > 1000, "{name}: {v:?}");
         assert!(!p.cleaned.faces.is_empty());
         // The voxel size comes from the file: the crown is in its units.
-        let extent = morphoid::mesh::bbox_diagonal(&p.cleaned);
+        let extent = morphoid_core::mesh::bbox_diagonal(&p.cleaned);
         let grid_extent = (0..3)
             .map(|a| (grid.dims[a] as f64 * voxel[a]).powi(2))
             .sum::<f64>()
@@ -234,7 +234,7 @@ const DICOM: SynthFormat = SynthFormat::Dicom {
 /// (as exports named by instance UID are), so that only the positions in
 /// the files can order them.
 fn scramble_names(dir: &Path) {
-    let files = morphoid::volume::slice_paths(dir).unwrap();
+    let files = morphoid_data::volume::slice_paths(dir).unwrap();
     let n = files.len();
     for (k, f) in files.iter().enumerate() {
         let name = format!("1.3.6.1.4.{}", (k * 37 + 11) % (n * 41) + 1000);
@@ -252,17 +252,17 @@ fn a_dicom_series_gives_the_crown_and_genus_of_the_tiff_stack() {
     write_volume(&grid, &tiff, SynthFormat::Tiff16, &spec).unwrap();
     let voxel = write_volume(&grid, &dicom, DICOM, &spec).unwrap();
     scramble_names(&dicom);
-    assert!(morphoid::volume::slice_paths(&dicom)
+    assert!(morphoid_data::volume::slice_paths(&dicom)
         .unwrap()
         .iter()
         .all(|p| !p.to_string_lossy().ends_with(".dcm")));
 
-    let mut settings = morphoid::pipeline::Settings::default();
-    settings.clean.crown = morphoid::clean::CrownMode::Auto;
-    let t = morphoid::pipeline::prepare_file(&tiff, &settings).unwrap();
-    let d = morphoid::pipeline::prepare_file(&dicom, &settings).unwrap();
+    let mut settings = morphoid_data::pipeline::Settings::default();
+    settings.clean.crown = morphoid_core::clean::CrownMode::Auto;
+    let t = morphoid_data::pipeline::prepare_file(&tiff, &settings).unwrap();
+    let d = morphoid_data::pipeline::prepare_file(&dicom, &settings).unwrap();
     let (tv, dv) = (t.volume.unwrap(), d.volume.unwrap());
-    assert_eq!(dv.input.format, morphoid::volume::VolumeFormat::Dicom);
+    assert_eq!(dv.input.format, morphoid_data::volume::VolumeFormat::Dicom);
     assert_eq!(dv.input.dims, tv.input.dims);
     assert_eq!(dv.input.unit, "mm");
     for (got, written) in dv.input.voxel_size.iter().zip(voxel) {
@@ -272,8 +272,9 @@ fn a_dicom_series_gives_the_crown_and_genus_of_the_tiff_stack() {
     let h2 = voxel[0] * voxel[1];
     let iso = dv.isosurface_area / h2 / tv.isosurface_area;
     assert!((iso - 1.0).abs() < 0.01, "isosurface area ratio {iso}");
-    let crown =
-        morphoid::mesh::surface_area(&d.cleaned) / h2 / morphoid::mesh::surface_area(&t.cleaned);
+    let crown = morphoid_core::mesh::surface_area(&d.cleaned)
+        / h2
+        / morphoid_core::mesh::surface_area(&t.cleaned);
     assert!((crown - 1.0).abs() < 0.03, "crown area ratio {crown}");
 
     // The same identification (a phantom this small is not always put in
@@ -312,7 +313,7 @@ fn bad_dicom_series_are_named_errors() {
     let fresh = |name: &str| {
         let dir = env.root.join(name);
         write_volume(&grid, &dir, DICOM, &spec).unwrap();
-        let files = morphoid::volume::slice_paths(&dir).unwrap();
+        let files = morphoid_data::volume::slice_paths(&dir).unwrap();
         (dir, files)
     };
     let file_name = |p: &Path| p.file_name().unwrap().to_string_lossy().into_owned();
@@ -391,7 +392,7 @@ fn bad_slice_folders_are_named_errors() {
             ..Default::default()
         };
         write_volume(&grid, &dir, SynthFormat::Tiff16, &spec).unwrap();
-        let files = morphoid::volume::slice_paths(&dir).unwrap();
+        let files = morphoid_data::volume::slice_paths(&dir).unwrap();
         (dir, files)
     };
     let shown = |p: &Path| p.display().to_string();
@@ -531,7 +532,7 @@ fn daemon_records_a_bad_volume_folder_and_goes_on() {
     // A series with a slice missing, moved in whole.
     let bad = staging.join("series_bad");
     write(&small_phantom(1, 3), &bad, DICOM);
-    let files = morphoid::volume::slice_paths(&bad).unwrap();
+    let files = morphoid_data::volume::slice_paths(&bad).unwrap();
     std::fs::remove_file(&files[files.len() / 2]).unwrap();
     std::fs::rename(&bad, env.export.join("series_bad")).unwrap();
     assert!(

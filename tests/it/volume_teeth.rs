@@ -6,11 +6,11 @@
 //! stacks must be identified against the other original crowns.
 
 use super::support::{cp as cps, data};
-use morphoid::clean::point_to_surface_distances;
-use morphoid::mesh::synth::{whole_tooth, WholeToothParams};
-use morphoid::mesh::{bbox_diagonal, surface_area, Mesh};
-use morphoid::pipeline::{prepare_file, PreparedSurface, Settings};
-use morphoid::volume::synth::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
+use morphoid_core::clean::point_to_surface_distances;
+use morphoid_core::mesh::{bbox_diagonal, surface_area, Mesh};
+use morphoid_data::pipeline::{prepare_file, PreparedSurface, Settings};
+use morphoid_synth::mesh::{whole_tooth, WholeToothParams};
+use morphoid_synth::volume::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -41,8 +41,8 @@ fn stack_of(dir: &Path, name: &str, format: SynthFormat, out: &Path) -> (Mesh, P
     let mut prepared = match prepare_file(&path, &Settings::default()) {
         Ok(p) => p,
         Err(e) => {
-            let v =
-                morphoid::volume::surface_from_path(&path, &Default::default()).map(|s| s.report);
+            let v = morphoid_data::volume::surface_from_path(&path, &Default::default())
+                .map(|s| s.report);
             panic!("{name}: {e}; volume: {v:?}");
         }
     };
@@ -136,6 +136,10 @@ fn check_teeth(names: &[String], dir: &Path, format: SynthFormat) -> Vec<Prepare
 
 /// A few teeth, one per slice format of the readers (CI).
 #[test]
+#[cfg_attr(
+    morphoid_skip_data,
+    ignore = "needs the real teeth (MORPHOID_SKIP_DATA=1 and none found)"
+)]
 fn slice_stacks_of_real_teeth_give_their_crowns() {
     let Some(dir) = data::teeth_dir() else {
         return;
@@ -164,7 +168,7 @@ fn slice_stacks_of_all_real_teeth() {
         .into_iter()
         .map(|p| p.prepared)
         .collect();
-    let params = morphoid::cp::CpParams::default();
+    let params = morphoid_core::cp::CpParams::default();
     let originals = cps::prepare_teeth(&dir, &names, &params);
     let scores = cps::heldout_scores(&dir, &stacks, &originals, &params.compare);
     for (s, target) in scores.iter().zip([114, 101, 96]) {
@@ -191,7 +195,7 @@ fn slice_stacks_of_all_real_teeth() {
 #[test]
 #[ignore = "real data, minutes: run by name"]
 fn held_out_slice_stacks_are_flagged_as_rarely_as_crops() {
-    use morphoid::library::{self, Calibration, DistanceRow};
+    use morphoid_service::identify::{Calibration, DistanceRow};
     let Some(real) = super::support::library::real_library() else {
         return;
     };
@@ -204,7 +208,7 @@ fn held_out_slice_stacks_are_flagged_as_rarely_as_crops() {
     let stacks = check_teeth(&pick, dir, SynthFormat::Tiff8);
 
     let genus = |row: &[DistanceRow], cal: &Calibration| {
-        let mut id = library::identify(row, labels, 1);
+        let mut id = morphoid_service::identify::identify(row, labels, 1);
         cal.assess(row, &mut id.ranks);
         let r = id.ranks.into_iter().find(|r| r.rank == "genus").unwrap();
         let c = r.confidence.clone().expect("genus confidence");
@@ -230,7 +234,7 @@ fn held_out_slice_stacks_are_flagged_as_rarely_as_crops() {
         let stack_rows: Vec<DistanceRow> = keep
             .par_iter()
             .map(|&j| {
-                let c = morphoid::cp::compare(
+                let c = morphoid_core::cp::compare(
                     &stack.prepared,
                     references[j].prepared(),
                     &settings.cp.compare,

@@ -1,28 +1,28 @@
 //! Helpers shared by the cp tests: the real teeth loaded, cleaned and
 //! prepared through the same path as `morphoid matrix`.
 
-use morphoid::mesh::Mesh;
+use morphoid_core::mesh::Mesh;
 use std::path::{Path, PathBuf};
 
 /// The real teeth folder (`labels.csv`, `meshes/`); see
 /// [`super::data::teeth_dir`] for when it is missing.
-pub fn data_dir() -> Option<PathBuf> {
+pub(crate) fn data_dir() -> Option<PathBuf> {
     super::data::teeth_dir()
 }
 
 /// Load a tooth by name through the path users run: the file reader and
 /// the cleaning stage with default settings.
-pub fn load_tooth(dir: &Path, name: &str) -> Mesh {
+pub(crate) fn load_tooth(dir: &Path, name: &str) -> Mesh {
     let path = dir.join("meshes").join(format!("{name}.ply"));
-    let loaded = morphoid::mesh::io::load(&path).expect("tooth loads");
-    morphoid::clean::clean(&loaded.mesh, &morphoid::clean::CleanOptions::default())
+    let loaded = morphoid_data::mesh_io::load(&path).expect("tooth loads");
+    morphoid_core::clean::clean(&loaded.mesh, &morphoid_core::clean::CleanOptions::default())
         .expect("tooth cleans")
         .mesh
 }
 
 /// Names in labels.csv order, read as `morphoid evaluate` reads them.
-pub fn tooth_names(dir: &Path) -> Vec<String> {
-    morphoid::eval::Labels::read(&dir.join("labels.csv"), None)
+pub(crate) fn tooth_names(dir: &Path) -> Vec<String> {
+    morphoid_data::table::Labels::read(&dir.join("labels.csv"), None)
         .expect("labels")
         .names()
         .to_vec()
@@ -30,7 +30,7 @@ pub fn tooth_names(dir: &Path) -> Vec<String> {
 
 /// Parameters from the JSON in the environment variable `var`, else the
 /// defaults; printed, so a run's output says what it measured.
-pub fn params_from_env<T>(var: &str) -> T
+pub(crate) fn params_from_env<T>(var: &str) -> T
 where
     T: serde::de::DeserializeOwned + serde::Serialize + Default,
 {
@@ -53,13 +53,13 @@ where
 /// Prepared surfaces are kept for the life of the test process, keyed by
 /// file and preparation parameters: several tests need the same teeth, and
 /// preparing all 116 costs about a minute of CPU each time.
-pub fn prepare_teeth(
+pub(crate) fn prepare_teeth(
     dir: &Path,
     names: &[String],
-    params: &morphoid::cp::CpParams,
-) -> Vec<morphoid::cp::Prepared> {
+    params: &morphoid_core::cp::CpParams,
+) -> Vec<morphoid_core::cp::Prepared> {
     use rayon::prelude::*;
-    let settings = morphoid::pipeline::Settings {
+    let settings = morphoid_data::pipeline::Settings {
         cp: params.clone(),
         ..Default::default()
     };
@@ -70,7 +70,7 @@ pub fn prepare_teeth(
             let path = dir.join("meshes").join(format!("{n}.ply"));
             let slot = prepared_slot(&path, &key_params);
             slot.get_or_init(|| {
-                morphoid::pipeline::prepare_file(&path, &settings)
+                morphoid_data::pipeline::prepare_file(&path, &settings)
                     .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
                     .prepared
             })
@@ -84,10 +84,10 @@ pub fn prepare_teeth(
 fn prepared_slot(
     path: &Path,
     params: &str,
-) -> std::sync::Arc<std::sync::OnceLock<morphoid::cp::Prepared>> {
+) -> std::sync::Arc<std::sync::OnceLock<morphoid_core::cp::Prepared>> {
     use std::collections::HashMap;
     use std::sync::{Arc, Mutex, OnceLock};
-    type Slots = Mutex<HashMap<(PathBuf, String), Arc<OnceLock<morphoid::cp::Prepared>>>>;
+    type Slots = Mutex<HashMap<(PathBuf, String), Arc<OnceLock<morphoid_core::cp::Prepared>>>>;
     static SLOTS: OnceLock<Slots> = OnceLock::new();
     let mut slots = SLOTS
         .get_or_init(Default::default)
@@ -103,7 +103,7 @@ fn prepared_slot(
 /// cleaned as users' files are) when the data is present, else two
 /// synthetic crowns of about 5,000 vertices; with a description of which.
 #[allow(dead_code)] // used by the benches, which include this module
-pub fn benchmark_pair() -> (Mesh, Mesh, &'static str) {
+pub(crate) fn benchmark_pair() -> (Mesh, Mesh, &'static str) {
     match super::data::teeth_dir_if_present() {
         Some(dir) => (
             load_tooth(&dir, "H10"),
@@ -111,7 +111,7 @@ pub fn benchmark_pair() -> (Mesh, Mesh, &'static str) {
             "real teeth H10, H16",
         ),
         None => {
-            use morphoid::mesh::synth::{crown, CROWN_GENERA};
+            use morphoid_synth::mesh::{crown, CROWN_GENERA};
             (
                 crown(&CROWN_GENERA[0], 1, 5000),
                 crown(&CROWN_GENERA[1], 2, 5000),
@@ -123,14 +123,14 @@ pub fn benchmark_pair() -> (Mesh, Mesh, &'static str) {
 
 /// Leave-one-out nearest-neighbour scores of `matrix` at order, family and
 /// genus, against the real teeth's `labels.csv`; printed.
-pub fn leave_one_out_scores(
+pub(crate) fn leave_one_out_scores(
     dir: &Path,
-    matrix: &morphoid::eval::DistanceMatrix,
-) -> Vec<morphoid::eval::RankScore> {
+    matrix: &morphoid_data::table::DistanceMatrix,
+) -> Vec<morphoid_research::eval::RankScore> {
     let ranks: Vec<String> = ["order", "family", "genus"].map(String::from).to_vec();
     let labels =
-        morphoid::eval::Labels::read(&dir.join("labels.csv"), Some(&ranks)).expect("labels");
-    let scores = morphoid::eval::leave_one_out(matrix, &labels, &ranks);
+        morphoid_data::table::Labels::read(&dir.join("labels.csv"), Some(&ranks)).expect("labels");
+    let scores = morphoid_research::eval::leave_one_out(matrix, &labels, &ranks);
     for s in &scores {
         println!("LOO {}: {}/{}", s.rank, s.correct, s.total);
     }
@@ -145,23 +145,23 @@ pub fn leave_one_out_scores(
 /// its nearest neighbour's label at that rank are both known, as in
 /// `eval::leave_one_out`); printed, misses at genus listed.
 #[allow(dead_code)] // used by some of the test modules only
-pub fn heldout_scores(
+pub(crate) fn heldout_scores(
     dir: &Path,
-    variants: &[morphoid::cp::Prepared],
-    originals: &[morphoid::cp::Prepared],
-    params: &morphoid::cp::CompareParams,
-) -> Vec<morphoid::eval::RankScore> {
+    variants: &[morphoid_core::cp::Prepared],
+    originals: &[morphoid_core::cp::Prepared],
+    params: &morphoid_core::cp::CompareParams,
+) -> Vec<morphoid_research::eval::RankScore> {
     use rayon::prelude::*;
     let ranks: Vec<String> = ["order", "family", "genus"].map(String::from).to_vec();
     let labels =
-        morphoid::eval::Labels::read(&dir.join("labels.csv"), Some(&ranks)).expect("labels");
+        morphoid_data::table::Labels::read(&dir.join("labels.csv"), Some(&ranks)).expect("labels");
     let pairs: Vec<(usize, usize)> = (0..variants.len())
         .flat_map(|i| (0..originals.len()).map(move |j| (i, j)))
         .filter(|&(i, j)| variants[i].name() != originals[j].name())
         .collect();
     let distances: Vec<f64> = pairs
         .par_iter()
-        .map(|&(i, j)| morphoid::cp::compare(&variants[i], &originals[j], params).distance)
+        .map(|&(i, j)| morphoid_core::cp::compare(&variants[i], &originals[j], params).distance)
         .collect();
     ranks
         .iter()
@@ -194,7 +194,7 @@ pub fn heldout_scores(
                 }
             }
             println!("held-out {rank}: {correct}/{total}");
-            morphoid::eval::RankScore {
+            morphoid_research::eval::RankScore {
                 rank: rank.clone(),
                 correct,
                 total,

@@ -2,17 +2,17 @@
 //! temporary folder, the real binary started as `morphoid run`, and polling
 //! of the database with a timeout.
 
-use morphoid::mesh::io;
-use morphoid::mesh::synth::{self, LibrarySpec, RigidMotion, CROWN_GENERA};
-use morphoid::store::{ScanRecord, ScanStatus, Store};
+use morphoid_data::mesh_io;
+use morphoid_service::store::{ScanRecord, ScanStatus, Store};
+use morphoid_synth::mesh::{self as synth, LibrarySpec, RigidMotion, CROWN_GENERA};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
-pub const BIN: &str = env!("CARGO_BIN_EXE_morphoid");
+pub(crate) const BIN: &str = env!("CARGO_BIN_EXE_morphoid");
 
 /// A temporary deployment: library, export folder, database, config.
-pub struct Env {
+pub(crate) struct Env {
     /// The folder, removed when the `Env` is dropped (held, never read).
     #[allow(dead_code)]
     pub tmp: tempfile::TempDir,
@@ -24,7 +24,7 @@ pub struct Env {
 
 /// A library of 2 crowns per genus (12), 1500 vertices, and a config with
 /// `settle_seconds` and any `extra` TOML (e.g. a `[serial]` section).
-pub fn env(settle_seconds: f64, watch_extra: &str, extra: &str) -> Env {
+pub(crate) fn env(settle_seconds: f64, watch_extra: &str, extra: &str) -> Env {
     let spec = LibrarySpec {
         per_genus: 2,
         target_vertices: 1500,
@@ -35,7 +35,12 @@ pub fn env(settle_seconds: f64, watch_extra: &str, extra: &str) -> Env {
 }
 
 /// [`env`] with the library of `spec`, cleaned to its vertex count.
-pub fn env_with(spec: &LibrarySpec, settle_seconds: f64, watch_extra: &str, extra: &str) -> Env {
+pub(crate) fn env_with(
+    spec: &LibrarySpec,
+    settle_seconds: f64,
+    watch_extra: &str,
+    extra: &str,
+) -> Env {
     let tmp = tempfile::tempdir().unwrap();
     let root = tmp.path().to_path_buf();
     synth::write_synthetic_library(&root.join("library"), spec).unwrap();
@@ -67,13 +72,13 @@ pub fn env_with(spec: &LibrarySpec, settle_seconds: f64, watch_extra: &str, extr
 }
 
 /// The bytes of a new individual of genus `g` (binary PLY), posed at random.
-pub fn scan_bytes(g: usize, seed: u64) -> Vec<u8> {
+pub(crate) fn scan_bytes(g: usize, seed: u64) -> Vec<u8> {
     let dir = tempfile::tempdir().unwrap();
     let genus = &CROWN_GENERA[g % CROWN_GENERA.len()];
     let crown = synth::crown(genus, seed, 1500);
     let posed = RigidMotion::random(seed, 20.0).apply(&crown);
     let path = dir.path().join("s.ply");
-    io::save(&path, &posed).unwrap();
+    mesh_io::save(&path, &posed).unwrap();
     std::fs::read(&path).unwrap()
 }
 
@@ -83,7 +88,7 @@ pub fn scan_bytes(g: usize, seed: u64) -> Vec<u8> {
 /// the writing thread is descheduled between creating and filling it (an
 /// empty file left that way for the settle time would be taken as a scan
 /// of its own).
-pub fn put(env: &Env, path: &Path, bytes: &[u8]) {
+pub(crate) fn put(env: &Env, path: &Path, bytes: &[u8]) {
     use std::io::Write;
     let mut staged = tempfile::NamedTempFile::new_in(&env.root).unwrap();
     staged.write_all(bytes).unwrap();
@@ -94,36 +99,36 @@ pub fn put(env: &Env, path: &Path, bytes: &[u8]) {
 /// beside the export folder; rename it into the folder to drop it in. Its
 /// job lasts seconds rather than a fraction of one, so that a test polling
 /// the database sees it running however the test thread is scheduled.
-pub fn large_scan(env: &Env, g: usize, seed: u64, vertices: usize) -> PathBuf {
+pub(crate) fn large_scan(env: &Env, g: usize, seed: u64, vertices: usize) -> PathBuf {
     let genus = &CROWN_GENERA[g % CROWN_GENERA.len()];
     let crown = synth::crown(genus, seed, vertices);
     let posed = RigidMotion::random(seed, 20.0).apply(&crown);
     let dir = env.root.join("staging");
     std::fs::create_dir_all(&dir).unwrap();
     let staged = dir.join(format!("large-{seed}.ply"));
-    io::save(&staged, &posed).unwrap();
+    mesh_io::save(&staged, &posed).unwrap();
     staged
 }
 
 /// Genus name of index `g`.
-pub fn genus(g: usize) -> &'static str {
+pub(crate) fn genus(g: usize) -> &'static str {
     CROWN_GENERA[g % CROWN_GENERA.len()].name
 }
 
 /// A running `morphoid run`, killed when dropped.
-pub struct Daemon {
+pub(crate) struct Daemon {
     pub child: Child,
     pub log: PathBuf,
 }
 
 impl Daemon {
     /// Start the daemon on `env` and wait until it has loaded the library.
-    pub fn start(env: &Env) -> Daemon {
+    pub(crate) fn start(env: &Env) -> Daemon {
         Self::start_with(env, &[])
     }
 
     /// Start with extra environment variables.
-    pub fn start_with(env: &Env, vars: &[(&str, &str)]) -> Daemon {
+    pub(crate) fn start_with(env: &Env, vars: &[(&str, &str)]) -> Daemon {
         let n = std::fs::read_dir(&env.root).unwrap().count();
         let log = env.root.join(format!("daemon-{n}.log"));
         let child = Command::new(BIN)
@@ -149,7 +154,7 @@ impl Daemon {
     }
 
     /// How many references the library loaded (from the log).
-    pub fn references(&self) -> i64 {
+    pub(crate) fn references(&self) -> i64 {
         let log = self.log_text();
         let at = log.find(" references; watching").unwrap();
         log[..at]
@@ -160,17 +165,17 @@ impl Daemon {
     }
 
     /// The log so far.
-    pub fn log_text(&self) -> String {
+    pub(crate) fn log_text(&self) -> String {
         std::fs::read_to_string(&self.log).unwrap_or_default()
     }
 
     /// Process id.
-    pub fn pid(&self) -> i32 {
+    pub(crate) fn pid(&self) -> i32 {
         self.child.id() as i32
     }
 
     /// Send a signal.
-    pub fn signal(&self, sig: i32) {
+    pub(crate) fn signal(&self, sig: i32) {
         // SAFETY: plain kill(2) on our own child.
         unsafe {
             libc::kill(self.pid(), sig);
@@ -178,7 +183,7 @@ impl Daemon {
     }
 
     /// Wait up to `timeout` for the process to exit.
-    pub fn wait_exit(&mut self, timeout: Duration) -> Option<ExitStatus> {
+    pub(crate) fn wait_exit(&mut self, timeout: Duration) -> Option<ExitStatus> {
         let end = Instant::now() + timeout;
         while Instant::now() < end {
             if let Some(s) = self.child.try_wait().unwrap() {
@@ -190,7 +195,7 @@ impl Daemon {
     }
 
     /// Peak resident memory in kB (VmHWM), while it runs.
-    pub fn peak_rss_kb(&self) -> Option<u64> {
+    pub(crate) fn peak_rss_kb(&self) -> Option<u64> {
         let s = std::fs::read_to_string(format!("/proc/{}/status", self.pid())).ok()?;
         s.lines()
             .find(|l| l.starts_with("VmHWM:"))?
@@ -209,7 +214,7 @@ impl Drop for Daemon {
 }
 
 /// Poll `f` every 100 ms until it is true or `timeout` passes.
-pub fn wait_until(timeout: Duration, mut f: impl FnMut() -> bool) -> bool {
+pub(crate) fn wait_until(timeout: Duration, mut f: impl FnMut() -> bool) -> bool {
     let end = Instant::now() + timeout;
     loop {
         if f() {
@@ -223,7 +228,7 @@ pub fn wait_until(timeout: Duration, mut f: impl FnMut() -> bool) -> bool {
 }
 
 /// Every scan recorded, oldest first (empty before the database exists).
-pub fn rows(db: &Path) -> Vec<ScanRecord> {
+pub(crate) fn rows(db: &Path) -> Vec<ScanRecord> {
     if !db.exists() {
         return Vec::new();
     }
@@ -236,7 +241,7 @@ pub fn rows(db: &Path) -> Vec<ScanRecord> {
 }
 
 /// Number of finished (ok or error) scans.
-pub fn finished(db: &Path) -> usize {
+pub(crate) fn finished(db: &Path) -> usize {
     rows(db)
         .iter()
         .filter(|r| matches!(r.status, ScanStatus::Ok | ScanStatus::Error))
@@ -244,7 +249,7 @@ pub fn finished(db: &Path) -> usize {
 }
 
 /// The genus a finished scan was identified as.
-pub fn genus_of(r: &ScanRecord) -> Option<&str> {
+pub(crate) fn genus_of(r: &ScanRecord) -> Option<&str> {
     r.ranks
         .iter()
         .find(|k| k.rank == "genus")

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 /// Where the real teeth are looked for: `MORPHOID_TEETH`, else
 /// `../shared/data/pnas-teeth` beside the repository.
-pub fn teeth_location() -> PathBuf {
+pub(crate) fn teeth_location() -> PathBuf {
     std::env::var_os("MORPHOID_TEETH")
         .map(PathBuf::from)
         .unwrap_or_else(|| {
@@ -23,7 +23,7 @@ pub fn teeth_location() -> PathBuf {
 
 /// The real-data folder when it is there, else `None` without a word: for
 /// the benchmarks, which fall back to synthetic data.
-pub fn teeth_dir_if_present() -> Option<PathBuf> {
+pub(crate) fn teeth_dir_if_present() -> Option<PathBuf> {
     let dir = teeth_location();
     (dir.join("labels.csv").is_file() && dir.join("meshes").is_dir()).then_some(dir)
 }
@@ -33,7 +33,7 @@ pub fn teeth_dir_if_present() -> Option<PathBuf> {
 /// then this prints `skipped: …` on stderr and gives `None`, and the test
 /// returns early.
 #[track_caller]
-pub fn teeth_dir() -> Option<PathBuf> {
+pub(crate) fn teeth_dir() -> Option<PathBuf> {
     if let Some(dir) = teeth_dir_if_present() {
         return Some(dir);
     }
@@ -51,18 +51,18 @@ pub fn teeth_dir() -> Option<PathBuf> {
 
 /// The folder of the real teeth's surface files (see [`teeth_dir`]).
 #[track_caller]
-pub fn teeth_meshes() -> Option<PathBuf> {
+pub(crate) fn teeth_meshes() -> Option<PathBuf> {
     teeth_dir().map(|d| d.join("meshes"))
 }
 
 /// The real teeth's surface files, sorted by name (see [`teeth_dir`]).
 #[track_caller]
-pub fn tooth_paths() -> Option<Vec<PathBuf>> {
+pub(crate) fn tooth_paths() -> Option<Vec<PathBuf>> {
     teeth_meshes().map(|dir| ply_files(&dir))
 }
 
 /// The `.ply` files in `dir`, sorted by name.
-pub fn ply_files(dir: &Path) -> Vec<PathBuf> {
+pub(crate) fn ply_files(dir: &Path) -> Vec<PathBuf> {
     let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
         .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
         .filter_map(|e| e.ok().map(|e| e.path()))

@@ -13,15 +13,15 @@
 
 #![allow(dead_code)] // each test module uses some of these
 
-use morphoid::mesh::{cross, dot, longest_boundary_loop, norm, sub, Mesh};
-use morphoid::volume::{isosurface, Grid};
+use morphoid_core::mesh::{cross, dot, longest_boundary_loop, norm, sub, Mesh};
+use morphoid_core::mesh::{isosurface, Grid};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;
 
 /// How the neck leaves the crown at the crop line.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Junction {
+pub(crate) enum Junction {
     /// Along the crown's own wall: no edge at all.
     Smooth,
     /// Turned inward by a few tens of degrees.
@@ -32,7 +32,7 @@ pub enum Junction {
 
 /// The form of one whole tooth.
 #[derive(Debug, Clone)]
-pub struct ToothForm {
+pub(crate) struct ToothForm {
     /// Roots below the trunk: 1, 2 (lower molars) or 3 (upper molars).
     pub roots: usize,
     /// How the neck leaves the crown.
@@ -64,7 +64,7 @@ pub struct ToothForm {
 impl ToothForm {
     /// A form drawn at random for `roots` roots and `junction`, at about
     /// `voxels` voxels across.
-    pub fn random(seed: u64, roots: usize, junction: Junction, voxels: usize) -> ToothForm {
+    pub(crate) fn random(seed: u64, roots: usize, junction: Junction, voxels: usize) -> ToothForm {
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed_7007);
         ToothForm {
             roots,
@@ -88,7 +88,7 @@ impl ToothForm {
 
 /// A whole tooth built below a crown: the isosurface, in the crown's
 /// coordinates, and the grid it was taken from.
-pub struct ExportedTooth {
+pub(crate) struct ExportedTooth {
     /// The closed isosurface (outer surface and, with a pulp, the inner).
     pub mesh: Mesh,
     /// The occupancy (blurred) it was taken from, in the tilted grid's
@@ -327,7 +327,7 @@ fn taper(u: f64) -> f64 {
 }
 
 /// Build the whole tooth below `crown` (a cleaned, disk-type real crown).
-pub fn exported_tooth(crown: &Mesh, form: &ToothForm) -> Option<ExportedTooth> {
+pub(crate) fn exported_tooth(crown: &Mesh, form: &ToothForm) -> Option<ExportedTooth> {
     let rim_loop = longest_boundary_loop(crown)?;
     let frame = frame_of(crown, &rim_loop)?;
     let rim = rim_of(crown, &rim_loop, &frame);
@@ -445,7 +445,7 @@ pub fn exported_tooth(crown: &Mesh, form: &ToothForm) -> Option<ExportedTooth> {
         })
     };
     // The grid, tilted at random against the tooth.
-    let tilt = morphoid::mesh::synth::RigidMotion::random(form.seed, 0.0).rotation;
+    let tilt = morphoid_synth::mesh::RigidMotion::random(form.seed, 0.0).rotation;
 
     let corners: Vec<[f64; 3]> = (0..8)
         .map(|i| {

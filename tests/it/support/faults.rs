@@ -15,7 +15,7 @@ use std::process::Command;
 /// unless `MORPHOID_SKIP_ROOT=1`, where this prints `skipped: …` on stderr
 /// and gives false, and the test returns early.
 #[track_caller]
-pub fn have_root(test: &str) -> bool {
+pub(crate) fn have_root(test: &str) -> bool {
     if libc_geteuid() == 0 {
         return true;
     }
@@ -47,7 +47,7 @@ fn run_quietly(cmd: &str, args: &[&str]) {
 }
 
 /// A mount on `target`, undone when dropped.
-pub struct Mount {
+pub(crate) struct Mount {
     target: PathBuf,
     image: Option<PathBuf>,
     device: Option<String>,
@@ -55,7 +55,7 @@ pub struct Mount {
 
 impl Mount {
     /// A tmpfs of `size` (e.g. `"4m"`) on `target` (created).
-    pub fn tmpfs(target: &Path, size: &str) -> Mount {
+    pub(crate) fn tmpfs(target: &Path, size: &str) -> Mount {
         std::fs::create_dir_all(target).unwrap();
         let t = target.to_str().unwrap();
         run(
@@ -71,7 +71,7 @@ impl Mount {
 
     /// A fresh ext4 of `mb` MB in the image file `image`, loop-mounted on
     /// `target` (created).
-    pub fn ext4(target: &Path, image: &Path, mb: u64) -> Mount {
+    pub(crate) fn ext4(target: &Path, image: &Path, mb: u64) -> Mount {
         std::fs::create_dir_all(target).unwrap();
         let f = std::fs::File::create(image).unwrap();
         f.set_len(mb << 20).unwrap();
@@ -100,7 +100,7 @@ impl Mount {
 
     /// `target` bound onto itself read-only (root ignores permission bits,
     /// not a read-only mount).
-    pub fn read_only(target: &Path) -> Mount {
+    pub(crate) fn read_only(target: &Path) -> Mount {
         let t = target.to_str().unwrap();
         run("mount", &["--bind", t, t]);
         run("mount", &["-o", "remount,bind,ro", t]);
@@ -113,7 +113,7 @@ impl Mount {
 
     /// Shut the ext4 file system down: from now on every read and write
     /// under it fails with EIO.
-    pub fn fail_io(&self) {
+    pub(crate) fn fail_io(&self) {
         let dir = std::fs::File::open(&self.target).unwrap();
         use std::os::fd::AsRawFd as _;
         // EXT4_IOC_SHUTDOWN = _IOR('X', 125, __u32); flag 2: no log flush
@@ -128,7 +128,7 @@ impl Mount {
     /// Bring a shut-down ext4 back: unmount it (lazily: the daemon may
     /// still hold files on it) and mount its image again on a new loop
     /// device, as after replacing a failed disk. The journal is replayed.
-    pub fn recover(&mut self) {
+    pub(crate) fn recover(&mut self) {
         self.detach();
         self.attach();
     }
@@ -149,7 +149,7 @@ impl Drop for Mount {
 
 /// Fill the file system of `dir` with a file `name` until it is full;
 /// removing the file frees the space.
-pub fn fill(dir: &Path, name: &str) -> PathBuf {
+pub(crate) fn fill(dir: &Path, name: &str) -> PathBuf {
     use std::io::Write as _;
     let path = dir.join(name);
     let mut f = std::fs::File::create(&path).unwrap();

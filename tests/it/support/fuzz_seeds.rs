@@ -3,25 +3,28 @@
 //! git: `examples/fuzz_seeds.rs` writes them for a campaign, and
 //! `fuzz_replay` runs a handful through the targets' entry points.
 
-use morphoid::eval::{DistanceMatrix, PairDistance, Shard, ShardFile};
-use morphoid::landmarks::{format_morphologika, format_tps, Format, Landmarks, NamedLandmarks};
-use morphoid::mesh::io::{encode, Encoding};
-use morphoid::mesh::synth::{
+use morphoid_core::mesh::Grid;
+use morphoid_core::mesh::Mesh;
+use morphoid_data::landmarks::{
+    format_morphologika, format_tps, Format, Landmarks, NamedLandmarks,
+};
+use morphoid_data::mesh_io::{encode, Encoding};
+use morphoid_data::table::DistanceMatrix;
+use morphoid_research::eval::{PairDistance, Shard, ShardFile};
+use morphoid_synth::mesh::{
     closed_sphere, crown, punch_hole, square_grid, to_point_cloud, whole_tooth, WholeToothParams,
     CROWN_GENERA,
 };
-use morphoid::mesh::Mesh;
-use morphoid::volume::synth::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
-use morphoid::volume::Grid;
+use morphoid_synth::volume::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
 
 /// One seed: the target it is for, a file name, its bytes.
-pub type Seed = (&'static str, String, Vec<u8>);
+pub(crate) type Seed = (&'static str, String, Vec<u8>);
 
 /// Largest seed (bytes): libFuzzer mutates small inputs best.
-pub const MAX_SEED_BYTES: usize = 64 << 10;
+pub(crate) const MAX_SEED_BYTES: usize = 64 << 10;
 
 /// Every seed of every target, each at most [`MAX_SEED_BYTES`].
-pub fn seeds() -> std::io::Result<Vec<Seed>> {
+pub(crate) fn seeds() -> std::io::Result<Vec<Seed>> {
     let mut out = Vec::new();
     mesh_seeds(&mut out)?;
     volume_seeds(&mut out)?;
@@ -63,7 +66,7 @@ fn mesh_seeds(out: &mut Vec<Seed>) -> std::io::Result<()> {
         }
     }
     let dir = tempfile::tempdir()?;
-    for (path, _) in morphoid::mesh::synth::write_bad_inputs(dir.path())? {
+    for (path, _) in morphoid_synth::mesh::write_bad_inputs(dir.path())? {
         let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
         let target = match ext {
             "ply" => "ply",
@@ -148,7 +151,7 @@ fn volume_seeds(out: &mut Vec<Seed>) -> std::io::Result<()> {
         };
         write_volume(&grid, &path, format, &spec)?;
         if path.is_dir() {
-            let files = morphoid::volume::slice_paths(&path)?;
+            let files = morphoid_data::volume::slice_paths(&path)?;
             let mid = &files[files.len() / 2];
             let ext = mid.extension().and_then(|e| e.to_str()).unwrap_or("");
             out.push((target, format!("slice_{kind}.{ext}"), std::fs::read(mid)?));
@@ -177,7 +180,7 @@ fn landmark_seeds(out: &mut Vec<Seed>) {
     ];
     for (target, format, ext) in formats {
         for (what, lm) in [("labelled", &labelled), ("plain", &plain)] {
-            let text = morphoid::landmarks::format(lm, format);
+            let text = morphoid_data::landmarks::format(lm, format);
             out.push((target, format!("{what}.{ext}"), text.into_bytes()));
         }
     }
@@ -222,17 +225,17 @@ fn table_seeds(out: &mut Vec<Seed>) -> std::io::Result<()> {
     for (name, text) in shipped {
         out.push(("config", name.into(), text.as_bytes().to_vec()));
     }
-    let default =
-        toml::to_string(&morphoid::config::Config::default()).map_err(std::io::Error::other)?;
+    let default = toml::to_string(&morphoid_service::config::Config::default())
+        .map_err(std::io::Error::other)?;
     out.push(("config", "default.toml".into(), default.into_bytes()));
 
     let dir = tempfile::tempdir()?;
-    let spec = morphoid::mesh::synth::LibrarySpec {
+    let spec = morphoid_synth::mesh::LibrarySpec {
         per_genus: 2,
         target_vertices: 60,
         ..Default::default()
     };
-    morphoid::mesh::synth::write_synthetic_library(dir.path(), &spec)
+    morphoid_synth::mesh::write_synthetic_library(dir.path(), &spec)
         .map_err(std::io::Error::other)?;
     let labels = std::fs::read(dir.path().join("labels.csv"))?;
     out.push(("labels", "labels.csv".into(), labels));

@@ -4,13 +4,14 @@
 //! the references. The cache is `MORPHOID_CALIBRATION_CACHE` when set, so
 //! repeated runs prepare and compare once; else a temporary folder.
 
-use morphoid::classify::Classifier;
-use morphoid::library::{self, Cache, Library, ReferenceDistances};
-use morphoid::pipeline::Settings;
+use morphoid_data::library::{Cache, Library};
+use morphoid_data::pipeline::Settings;
+use morphoid_service::classify::Classifier;
+use morphoid_service::identify::ReferenceDistances;
 use std::path::PathBuf;
 
 /// What [`real_library`] builds.
-pub struct RealLibrary {
+pub(crate) struct RealLibrary {
     /// The real-data folder.
     pub dir: PathBuf,
     /// The library (ranks order, family, genus).
@@ -28,7 +29,7 @@ pub struct RealLibrary {
 /// The real teeth built as [`RealLibrary`] says, or `None` without the
 /// data when the developer opted out of it (see `data::teeth_dir`).
 /// Every reference must prepare.
-pub fn real_library() -> Option<RealLibrary> {
+pub(crate) fn real_library() -> Option<RealLibrary> {
     let dir = super::data::teeth_dir()?;
     let ranks: Vec<String> = ["order", "family", "genus"].map(String::from).to_vec();
     let library = Library::open(&dir, Some(&ranks)).unwrap();
@@ -40,8 +41,12 @@ pub fn real_library() -> Option<RealLibrary> {
     let settings = Settings::default();
     let (classifier, built) = Classifier::build(&library, &cache, &settings, |_| {}).unwrap();
     assert!(built.failures().is_empty());
-    let table =
-        library::reference_distances(classifier.references(), &settings, Some(&cache), |_| {});
+    let table = morphoid_service::identify::reference_distances(
+        classifier.references(),
+        &settings,
+        Some(&cache),
+        |_| {},
+    );
     Some(RealLibrary {
         dir,
         library,

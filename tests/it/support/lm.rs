@@ -3,27 +3,28 @@
 //! rigidly moved, remeshed, rescaled copies of a reference with the true
 //! positions of its landmarks.
 
-use morphoid::landmarks::{self, Landmarks};
-use morphoid::mesh::io;
-use morphoid::mesh::synth::{self, RigidMotion};
-use morphoid::mesh::{bbox_diagonal, norm, sub, Mesh};
+use morphoid_core::mesh::{bbox_diagonal, norm, sub, Mesh};
+use morphoid_data::landmarks::{self, Landmarks};
+use morphoid_data::mesh_io;
+use morphoid_synth::mesh::{self as synth, RigidMotion};
 use std::path::Path;
 
 /// The vertices that serve as landmarks: the same indices on every crown
 /// of one resolution sit at about the same place of its disk, so they are
 /// (roughly) homologous across specimens.
-pub const LANDMARK_VERTICES: [usize; 10] = [0, 100, 250, 400, 550, 700, 850, 1000, 1150, 1300];
+pub(crate) const LANDMARK_VERTICES: [usize; 10] =
+    [0, 100, 250, 400, 550, 700, 850, 1000, 1150, 1300];
 
 /// Scale of the moved copies (file units change, e.g. mm to µm).
-pub const SCALE: f64 = 1000.0;
+pub(crate) const SCALE: f64 = 1000.0;
 
 /// The landmark file extensions, cycled over the references.
-pub const EXTENSIONS: [&str; 4] = ["csv", "fcsv", "mrk.json", "pp"];
+pub(crate) const EXTENSIONS: [&str; 4] = ["csv", "fcsv", "mrk.json", "pp"];
 
 /// The landmarks of the reference surface file `mesh_path`: its vertices
 /// at [`LANDMARK_VERTICES`], labelled `L1`…
-pub fn landmarks_of(mesh_path: &Path) -> Landmarks {
-    let mesh = io::load(mesh_path).expect("reference loads").mesh;
+pub(crate) fn landmarks_of(mesh_path: &Path) -> Landmarks {
+    let mesh = mesh_io::load(mesh_path).expect("reference loads").mesh;
     let mut lm = Landmarks::default();
     for (k, &v) in LANDMARK_VERTICES.iter().enumerate() {
         lm.push(mesh.vertices[v], Some(format!("L{}", k + 1)));
@@ -33,7 +34,7 @@ pub fn landmarks_of(mesh_path: &Path) -> Landmarks {
 
 /// Write `landmarks/<name>.<ext>` for each of `names` of the library
 /// folder `lib`, the format cycling through [`EXTENSIONS`].
-pub fn write_library_landmarks(lib: &Path, names: &[String]) {
+pub(crate) fn write_library_landmarks(lib: &Path, names: &[String]) {
     let dir = lib.join("landmarks");
     std::fs::create_dir_all(&dir).unwrap();
     for (i, name) in names.iter().enumerate() {
@@ -45,7 +46,7 @@ pub fn write_library_landmarks(lib: &Path, names: &[String]) {
 
 /// A copy of `mesh`: subdivided once (so its vertices are new once
 /// cleaning resamples it), scaled by [`SCALE`], rigidly moved.
-pub fn moved_copy(mesh: &Mesh, seed: u64) -> (Mesh, RigidMotion) {
+pub(crate) fn moved_copy(mesh: &Mesh, seed: u64) -> (Mesh, RigidMotion) {
     let reach = 3.0 * SCALE * bbox_diagonal(mesh);
     let motion = RigidMotion::random(seed, reach);
     let fine = synth::scale(&synth::subdivide_midpoint(mesh, 1), SCALE);
@@ -53,13 +54,13 @@ pub fn moved_copy(mesh: &Mesh, seed: u64) -> (Mesh, RigidMotion) {
 }
 
 /// Where a landmark `p` of the original lies on the moved copy.
-pub fn true_position(p: [f64; 3], motion: &RigidMotion) -> [f64; 3] {
+pub(crate) fn true_position(p: [f64; 3], motion: &RigidMotion) -> [f64; 3] {
     motion.apply_point(p.map(|x| x * SCALE))
 }
 
 /// Distances between `got` and `truth` relative to the bounding-box
 /// diagonal of `target`: (mean, max).
-pub fn relative_errors(got: &[[f64; 3]], truth: &[[f64; 3]], target: &Mesh) -> (f64, f64) {
+pub(crate) fn relative_errors(got: &[[f64; 3]], truth: &[[f64; 3]], target: &Mesh) -> (f64, f64) {
     assert_eq!(got.len(), truth.len());
     let diag = bbox_diagonal(target);
     let e: Vec<f64> = got
@@ -72,7 +73,7 @@ pub fn relative_errors(got: &[[f64; 3]], truth: &[[f64; 3]], target: &Mesh) -> (
 }
 
 /// The points of a JSON `"landmarks"` list and their labels.
-pub fn json_landmarks(v: &serde_json::Value) -> (Vec<[f64; 3]>, Vec<String>) {
+pub(crate) fn json_landmarks(v: &serde_json::Value) -> (Vec<[f64; 3]>, Vec<String>) {
     let list = v["landmarks"].as_array().expect("a landmarks list");
     let points = list
         .iter()

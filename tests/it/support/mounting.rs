@@ -13,9 +13,9 @@
 //! painted in by their geometry; nothing here thresholds, labels or
 //! measures shapes the way the library does.
 
-use morphoid::mesh::{boundary_loops, Mesh};
-use morphoid::volume::synth::{write_volume, StackSpec, SynthFormat};
-use morphoid::volume::Grid;
+use morphoid_core::mesh::Grid;
+use morphoid_core::mesh::{boundary_loops, Mesh};
+use morphoid_synth::volume::{write_volume, StackSpec, SynthFormat};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -26,7 +26,7 @@ const AIR: f32 = 0.04;
 
 /// Floral foam: a noisy, textured fill of the tube from the bottom up.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Foam {
+pub(crate) struct Foam {
     /// Mean grey (between air and dentine).
     pub grey: f32,
     /// Standard deviation of its texture (grey units).
@@ -40,7 +40,7 @@ pub struct Foam {
 
 /// A plastic tube (or straw) along z, spanning the whole stack.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Tube {
+pub(crate) struct Tube {
     /// Inner radius over the tooth's largest distance from the tube axis.
     pub clearance: f64,
     /// Wall thickness, voxels.
@@ -51,7 +51,7 @@ pub struct Tube {
 
 /// How a tooth is mounted and scanned.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Mount {
+pub(crate) struct Mount {
     /// Voxels across the crown's longest horizontal extent.
     pub voxels_across: usize,
     /// Whether there is a tooth (false: the mount with nothing in it).
@@ -113,7 +113,7 @@ impl Mount {
     /// A mount varied by `seed` within the ranges real scans show:
     /// resolution `across`, tube size and wall, foam level, grey and
     /// texture, noise, tilt, orientation, wax, a pin.
-    pub fn varied(seed: u64, across: usize) -> Mount {
+    pub(crate) fn varied(seed: u64, across: usize) -> Mount {
         let mut r = ChaCha8Rng::seed_from_u64(seed ^ 0x006d_6f75_6e74);
         Mount {
             voxels_across: across,
@@ -144,7 +144,7 @@ impl Mount {
 
 /// What was written, for checking what segmentation found.
 #[derive(Debug, Clone)]
-pub struct Mounted {
+pub(crate) struct Mounted {
     /// The crown surface in the stack's voxel coordinates (sample (x, y, z)
     /// at (x, y, z)); empty without a tooth.
     pub crown: Mesh,
@@ -476,7 +476,7 @@ fn blur(values: &mut [f32], dims: [usize; 3], sigma: f64) {
 
 /// Write `crown` (an open crown surface) mounted as `mount` says, as a
 /// folder of 16-bit TIFF slices at `path`.
-pub fn write_mounted(crown: &Mesh, mount: &Mount, path: &Path) -> Mounted {
+pub(crate) fn write_mounted(crown: &Mesh, mount: &Mount, path: &Path) -> Mounted {
     let (grid, mounted) = mounted_grid(crown, mount);
     let spec = StackSpec {
         noise: mount.noise,
@@ -493,7 +493,7 @@ pub fn write_mounted(crown: &Mesh, mount: &Mount, path: &Path) -> Mounted {
 /// other: tubes and foam merge, the brighter material wins), aligned at
 /// the bottom, in one stack of 16-bit TIFF slices at `path`. Returns each
 /// tooth's crown in the stack's voxel coordinates, in order along x.
-pub fn write_batch(teeth: &[(&Mesh, Mount)], gap: i64, path: &Path) -> Vec<Mounted> {
+pub(crate) fn write_batch(teeth: &[(&Mesh, Mount)], gap: i64, path: &Path) -> Vec<Mounted> {
     let parts: Vec<(Grid, Mounted)> = teeth
         .iter()
         .map(|(crown, mount)| mounted_grid(crown, mount))

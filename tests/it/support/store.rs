@@ -1,19 +1,19 @@
 //! Helpers shared by the store tests.
 
-use morphoid::library::{DistanceRow, RankResult, ScanOutcome};
-use morphoid::store::{Labels, Store};
+use morphoid_service::identify::{DistanceRow, RankResult, ScanOutcome};
+use morphoid_service::store::{Labels, Store};
 use std::collections::BTreeMap;
 
 /// Ranks used by the tests, broadest first.
-pub const RANKS: [&str; 3] = ["order", "family", "genus"];
+pub(crate) const RANKS: [&str; 3] = ["order", "family", "genus"];
 
 /// Name of reference `i`.
-pub fn reference_name(i: usize) -> String {
+pub(crate) fn reference_name(i: usize) -> String {
     format!("ref{i:03}")
 }
 
 /// Register `n` references with labels and mark them prepared.
-pub fn register_references(store: &mut Store, n: usize) {
+pub(crate) fn register_references(store: &mut Store, n: usize) {
     for i in 0..n {
         let mut labels = Labels::new();
         labels.insert("order".into(), Some("Primates".into()));
@@ -36,7 +36,7 @@ pub fn register_references(store: &mut Store, n: usize) {
 
 /// A full outcome against `n_refs` references, derived from `seed` so that
 /// every scan's numbers differ and can be checked.
-pub fn outcome(seed: u64, n_refs: usize) -> ScanOutcome {
+pub(crate) fn outcome(seed: u64, n_refs: usize) -> ScanOutcome {
     let distances: Vec<DistanceRow> = (0..n_refs)
         .map(|i| {
             let forward = 0.01 + ((seed as usize * 31 + i * 17) % 97) as f64 / 1000.0;

@@ -1,0 +1,172 @@
+//! The plain geometry the crown extraction reads: face normals, areas and
+//! centroids, the signed turn across every interior edge, area-weighted
+//! principal axes and cylindrical coordinates about an axis.
+
+use crate::mesh::{cross, dot, norm, sub, triangle_normal2, EdgeMap, Mesh};
+
+/// Per-face and per-edge geometry of a closed, consistently oriented mesh.
+pub(super) struct SurfaceGeometry {
+    /// Area of every face.
+    pub areas: Vec<f64>,
+    /// Centroid of every face.
+    pub centroids: Vec<[f64; 3]>,
+    /// The edges with their faces.
+    pub edges: EdgeMap,
+    /// Signed turn angle (radians) across every edge shared by exactly two
+    /// faces: positive where the surface is convex (a ridge), negative
+    /// where it is concave (a crease), 0 elsewhere.
+    pub turn: Vec<f64>,
+}
+
+impl SurfaceGeometry {
+    pub(super) fn new(mesh: &Mesh) -> Self {
+        let mut normals = Vec::with_capacity(mesh.faces.len());
+        let mut areas = Vec::with_capacity(mesh.faces.len());
+        let mut centroids = Vec::with_capacity(mesh.faces.len());
+        for f in &mesh.faces {
+            let p = f.map(|v| mesh.vertices[v as usize]);
+            let n2 = triangle_normal2(p[0], p[1], p[2]);
+            let len = norm(n2);
+            normals.push(if len > 0.0 {
+                n2.map(|x| x / len)
+            } else {
+                [0.0; 3]
+            });
+            areas.push(0.5 * len);
+            centroids.push([0, 1, 2].map(|d| (p[0][d] + p[1][d] + p[2][d]) / 3.0));
+        }
+        let edges = EdgeMap::new(&mesh.faces);
+        let turn = (0..edges.len())
+            .map(|e| match edges.faces_of(e) {
+                &[f, g] => signed_turn(mesh, &normals, f as usize, g as usize, edges.edge(e)),
+                _ => 0.0,
+            })
+            .collect();
+        Self {
+            areas,
+            centroids,
+            edges,
+            turn,
+        }
+    }
+}
+
+/// The vertex of face `f` that is not on the edge `(a, b)`.
+fn opposite(face: [u32; 3], (a, b): (u32, u32)) -> u32 {
+    face.into_iter()
+        .find(|&v| v != a && v != b)
+        .unwrap_or(face[0])
+}
+
+/// Angle between the normals of faces `f` and `g` across their shared
+/// edge, positive when `g` bends away below `f`'s plane (convex).
+fn signed_turn(mesh: &Mesh, normals: &[[f64; 3]], f: usize, g: usize, edge: (u32, u32)) -> f64 {
+    let (nf, ng) = (normals[f], normals[g]);
+    let angle = norm(cross(nf, ng)).atan2(dot(nf, ng));
+    let o = opposite(mesh.faces[g], edge);
+    let side = dot(
+        nf,
+        sub(mesh.vertices[o as usize], mesh.vertices[edge.0 as usize]),
+    );
+    if side < 0.0 {
+        angle
+    } else {
+        -angle
+    }
+}
+
+/// Six times the signed volume enclosed by a closed surface (positive when
+/// its normals point outward).
+pub(super) fn signed_volume6(mesh: &Mesh) -> f64 {
+    mesh.faces
+        .iter()
+        .map(|f| {
+            let p = f.map(|v| mesh.vertices[v as usize]);
+            dot(p[0], cross(p[1], p[2]))
+        })
+        .sum()
+}
+
+/// Area-weighted centroid and principal axes of a surface (face centroids
+/// weighted by face area), largest spread first.
+pub(super) fn area_weighted_axes(geo: &SurfaceGeometry) -> Option<([f64; 3], [[f64; 3]; 3])> {
+    let pa = crate::mesh::weighted_principal_axes(
+        geo.centroids.iter().copied().zip(geo.areas.iter().copied()),
+    )?;
+    Some((pa.centroid, pa.axes))
+}
+
+/// Cylindrical coordinates about the axis through `centre` along the unit
+/// vector `axis`: `(angle, radius, height)`.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Cylinder {
+    centre: [f64; 3],
+    axis: [f64; 3],
+    u: [f64; 3],
+    v: [f64; 3],
+}
+
+impl Cylinder {
+    pub(super) fn new(centre: [f64; 3], axis: [f64; 3]) -> Self {
+        let helper = if axis[0].abs() < 0.9 {
+            [1.0, 0.0, 0.0]
+        } else {
+            [0.0, 1.0, 0.0]
+        };
+        let u = cross(axis, helper);
+        let un = norm(u);
+        let u = u.map(|x| x / un);
+        Self {
+            centre,
+            axis,
+            u,
+            v: cross(axis, u),
+        }
+    }
+
+    pub(super) fn axis(&self) -> [f64; 3] {
+        self.axis
+    }
+
+    pub(super) fn height(&self, p: [f64; 3]) -> f64 {
+        dot(sub(p, self.centre), self.axis)
+    }
+
+    /// `(angle in (−π, π], distance from the axis)`.
+    pub(super) fn polar(&self, p: [f64; 3]) -> (f64, f64) {
+        let d = sub(p, self.centre);
+        let (x, y) = (dot(d, self.u), dot(d, self.v));
+        (y.atan2(x), x.hypot(y))
+    }
+}
+
+/// The vertices of `mesh` after `iterations` rounds of Taubin's λ|μ
+/// smoothing (uniform weights): the voxel staircase of an isosurface and
+/// scanner noise go, the shape's larger bends stay, and, unlike plain
+/// Laplacian smoothing, the surface does not shrink.
+pub(super) fn taubin_smoothed(mesh: &Mesh, iterations: usize) -> Vec<[f64; 3]> {
+    const LAMBDA: f64 = 0.5;
+    const MU: f64 = -0.53;
+    let adjacency = crate::mesh::vertex_adjacency(mesh);
+    let mut points = mesh.vertices.clone();
+    for _ in 0..iterations {
+        for factor in [LAMBDA, MU] {
+            points = points
+                .iter()
+                .zip(&adjacency)
+                .map(|(&p, near)| {
+                    if near.is_empty() {
+                        return p;
+                    }
+                    let n = near.len() as f64;
+                    let mean = near.iter().fold([0.0; 3], |acc, &q| {
+                        let q = points[q as usize];
+                        [acc[0] + q[0], acc[1] + q[1], acc[2] + q[2]]
+                    });
+                    [0, 1, 2].map(|d| p[d] + factor * (mean[d] / n - p[d]))
+                })
+                .collect();
+        }
+    }
+    points
+}

@@ -1,0 +1,957 @@
+//! Crown extraction: a closed whole tooth (crown, cervical neck, roots), as
+//! an isosurface export of a segmented µCT tooth is, becomes the disk-type
+//! crown a reference library holds, cut at the cervical margin the way a
+//! morphologist crops it.
+//!
+//! Anatomy used, from the geometry alone (no pose, no scale):
+//! - the enamel ends at the cervical margin with an edge: the crown's
+//!   enamel bulges over the neck and the surface turns inward below it, a
+//!   convex crease running once around the tooth (not in a plane: its
+//!   height varies around the tooth);
+//! - so the margin is the cheapest closed edge path winding once around
+//!   the tooth's axis, where an edge costs its length times a weight that
+//!   is small on convex creases, plus its climb along the axis
+//!   ([`cycle::cheapest_winding_cycle`]); it is searched about each of the
+//!   surface's area-weighted principal axes, then again about the normal of
+//!   the loop found (the principal axes are only near the tooth's axis);
+//! - the loop cuts the surface in two ([`cut::faces_bounded_by`]); the
+//!   crown is the side that lies farther from the axis next to the cut
+//!   (the crown bulges over the neck, [`near_cut_radius`]);
+//! - of the axes, the loop most on crease and least climbing wins
+//!   ([`Candidate::merit`]); it is accepted as a tooth's margin only when
+//!   the cut is a real crease (mean turn at least [`MIN_CREASE_DEGREES`],
+//!   along crease edges for most of its length, [`MIN_CREASE_COVERAGE`]),
+//!   leaves a crown that is not flat and a root part that tapers, and the
+//!   crown is a disk: a sphere, an ellipsoid or a box is refused.
+//!
+//! Handles or tunnels below the margin go with the roots and are
+//! reported; handles in the crown are an error.
+
+// Negated comparisons are meant: a NaN must fail every check.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+mod cut;
+mod cycle;
+mod geometry;
+mod neck;
+
+use crate::mesh::{bbox_diagonal, boundary_loops, euler_characteristic, norm, sub, Mesh};
+use geometry::{area_weighted_axes, signed_volume6, taubin_smoothed, Cylinder, SurfaceGeometry};
+use neck::{neck_heights, NeckHeights};
+
+/// Whether a closed surface is cut to its crown.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CrownMode {
+    /// Closed whole teeth are cut at the cervical margin (the default: a
+    /// scanner's isosurface export is closed). A cut that cannot be the
+    /// margin is refused, not used ([`MIN_CUT_HEIGHT`]).
+    #[default]
+    Auto,
+    /// Closed surfaces are refused.
+    Off,
+}
+
+/// The smallest mean turn (degrees) of the surface along the cut for it to
+/// count as the cervical margin.
+const MIN_CREASE_DEGREES: f64 = 15.0;
+
+/// The lowest the chosen cut may dip, as a fraction of the tooth's length
+/// from the apex: below the whole of its cervical margin a tooth has
+/// roots longer than this. A cut that dips lower ran round a wrong axis
+/// or round the roots, so the scan is refused rather than identified from
+/// a wrong crown. (On whole teeth built from the 116 PNAS crowns the
+/// margin's lowest point lies at 0.48 or higher; a loop round the roots'
+/// closure near the apex dips to 0.07–0.17.)
+const MIN_CUT_HEIGHT: f64 = 0.3;
+
+/// The smallest share of the cut's length that must run along crease
+/// edges (turn ≥ 10°): the enamel edge runs all around the tooth.
+const MIN_CREASE_COVERAGE: f64 = 0.5;
+
+/// What the crown extraction did.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CrownReport {
+    /// How the cut was found.
+    pub method: String,
+    /// Unit occlusal direction found (roots towards crown), in the input's
+    /// coordinates.
+    pub occlusal: [f64; 3],
+    /// Holes of the nearly closed input filled before the cut.
+    pub filled_holes: usize,
+    /// Handles (genus) of the closed surface, all below the cut: removed
+    /// with the roots.
+    pub removed_handles: i64,
+    /// Faces removed with the neck and roots.
+    pub removed_faces: usize,
+    /// Area removed with the neck and roots.
+    pub removed_area: f64,
+    /// Area of the crown kept.
+    pub kept_area: f64,
+    /// Mean turn of the surface across the cut (degrees).
+    pub crease_degrees: f64,
+    /// How much more folded the crown is than the part removed (mean
+    /// |turn| per area, crown over rest).
+    pub folding_ratio: f64,
+    /// Share of the cut's length that runs along crease edges (turn ≥ 10°).
+    pub crease_coverage: f64,
+    /// Lowest point of the cut along the occlusal axis, as a fraction of
+    /// the tooth's length from the apex (0) to the top of the crown (1).
+    pub cut_height_min: f64,
+    /// Mean height of the cut, same scale.
+    pub cut_height_mean: f64,
+    /// Highest point of the cut, same scale.
+    pub cut_height_max: f64,
+    /// Height range of the cut as a fraction of the crown's height above
+    /// its lowest point (hand crops of real teeth: about 0.27).
+    pub cut_variation: f64,
+    /// How much wider the crown's outline is at its height of contour than
+    /// at the margin (median over polar sectors round the axis; 0 when the
+    /// cut followed a crease alone, no neck being seen on the outline).
+    #[serde(default)]
+    pub neck_bulge: f64,
+    /// How clearly the cut is a cervical margin: the share of it on
+    /// crease less 0.1 × its rise and fall (what ranks the loops found
+    /// about the different axes; 0 to 1).
+    pub margin_merit: f64,
+    /// Whether the whole tooth had handles (the tunnels of a thresholded
+    /// export) and was cut after being taken through a voxel grid that
+    /// closes them.
+    #[serde(default)]
+    pub revoxelized: bool,
+}
+
+/// Why no crown could be cut from a closed surface.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CrownError {
+    /// Nothing on the surface looks like a tooth crown above a neck; why,
+    /// for the margin line that came closest.
+    #[error("no recognisable tooth crown on this closed surface ({0}); crown extraction needs a whole tooth (crown, cervical neck, roots): crop the crown at the cervical margin by hand, or check that the file is a tooth")]
+    NoCrown(CrownRefusal),
+    /// The crown part has handles or several boundaries.
+    #[error("the crown cut from this closed surface is not a disk ({loops} boundary loop(s), Euler characteristic {euler}: handles or tunnels through the crown); repair the surface or crop the crown by hand")]
+    NotDisk {
+        /// Boundary loops of the crown part.
+        loops: usize,
+        /// Its Euler characteristic.
+        euler: i64,
+    },
+}
+
+/// Why a margin line (or the whole surface) gives no crown: one variant per
+/// test of the module documentation, with what the test measured. The
+/// texts are part of the messages users read.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum CrownRefusal {
+    /// The surface has no area (or no extent) to find axes in.
+    #[error("the surface has no area")]
+    NoArea,
+    /// No closed edge path winds round the axis.
+    #[error("no closed line runs round the surface")]
+    NoMarginLine,
+    /// The surface has no faces to seed a side of the cut from.
+    #[error("no faces")]
+    NoFaces,
+    /// Both sides of the cut alike in area and in width next to it.
+    #[error("the best margin line cuts the surface into two halves alike in area and width: a symmetric solid, not a tooth")]
+    SymmetricSolid,
+    /// A neck-guided cut whose crown side does not bulge over the neck.
+    #[error("the part above the neck seen on the outline does not bulge over it: the roots' end")]
+    RootsEnd,
+    /// Neither side of the line was judged (nothing was measured).
+    #[error("no crown on either side of the line")]
+    NeitherSide,
+    /// The crown side holds too little or too much of the surface.
+    #[error("the best margin line leaves {:.0} % of the surface as crown", 100.0 * .share)]
+    CrownShare {
+        /// The crown side's share of the surface area (0 to 1).
+        share: f64,
+    },
+    /// The surface turns too little along the cut for a cervical crease.
+    #[error("no cervical crease: the surface turns by {degrees:.1}° on average along the best margin line, at least {MIN_CREASE_DEGREES}° is needed")]
+    NoCrease {
+        /// The mean turn along the cut, in degrees.
+        degrees: f64,
+    },
+    /// Too little of the cut runs along crease edges.
+    #[error("the best margin line runs along a crease for {:.0} % of its length only, not around the tooth", 100.0 * .coverage)]
+    ShortCrease {
+        /// The share of the cut's length on crease edges (0 to 1).
+        coverage: f64,
+    },
+    /// The crown side does not rise above the cut.
+    #[error("the part above the best margin line is flat, not a crown")]
+    Flat,
+    /// The other side does not narrow towards an apex.
+    #[error("the part below the best margin line does not taper to a root apex")]
+    NoTaper,
+    /// The cut dips below [`MIN_CUT_HEIGHT`].
+    #[error("the best margin line found dips to {:.0} % of the tooth's length above the apex, where no cervical margin lies: the tooth's axis was not found", 100.0 * .height)]
+    TooLow {
+        /// The cut's lowest point, as a share of the tooth's length from
+        /// the apex.
+        height: f64,
+    },
+}
+
+/// A margin line that gave no crown: how clearly it was a margin (its
+/// loop's score, which picks the refusal users are told) and why.
+#[derive(Debug, Clone, Copy)]
+struct Rejection {
+    score: f64,
+    reason: CrownRefusal,
+}
+
+/// A crown cut from a closed surface.
+#[derive(Debug, Clone)]
+pub(super) struct ExtractedCrown {
+    /// The crown: one disk-type component, normals outward.
+    pub mesh: Mesh,
+    /// What was cut.
+    pub report: CrownReport,
+}
+
+/// One axis tried and the crown it gives.
+struct Candidate {
+    inside: Vec<bool>,
+    report: CrownReport,
+}
+
+impl Candidate {
+    /// What ranks the loops found about the different axes (see
+    /// [`margin_merit`]), as the report carries it.
+    fn merit(&self) -> f64 {
+        self.report.margin_merit
+    }
+}
+
+/// The merit of a loop whose share on crease is `score` and whose cut
+/// rises and falls by `cut_variation` of the crown's height: the share
+/// less [`CREST_PENALTY`] per unit of rise and fall. A cervical margin
+/// runs round the tooth at much the same height; a loop round another
+/// axis that follows the occlusal crests climbs over the crown, and on a
+/// crenulated crown it can be as much on crease as the margin.
+fn margin_merit(score: f64, cut_variation: f64) -> f64 {
+    score - CREST_PENALTY * cut_variation
+}
+
+/// Penalty on a cut's rise and fall in [`margin_merit`]: on whole teeth
+/// built from the 116 PNAS crowns, the margin's loop lost to a crest loop
+/// by less than 0.01 in score where the crest loop rose and fell by 0.3
+/// more (of the crown's height), and won by 0.03 where it rose and fell
+/// by 0.08 more than the crest loop.
+const CREST_PENALTY: f64 = 0.1;
+
+/// Mean absolute turn per area (summed over edges: |turn| × length, over
+/// the faces' area) of the faces with `inside[f] == side`: how folded that
+/// part of the surface is. A crown (cusps, crests, fissures) is more folded
+/// than the smooth neck and roots.
+fn folding(mesh: &Mesh, geo: &SurfaceGeometry, inside: &[bool], side: bool) -> f64 {
+    let mut turn = 0.0;
+    for e in 0..geo.edges.len() {
+        if let &[f, g] = geo.edges.faces_of(e) {
+            if inside[f as usize] == side && inside[g as usize] == side {
+                let (a, b) = geo.edges.edge(e);
+                let len = norm(sub(mesh.vertices[a as usize], mesh.vertices[b as usize]));
+                turn += geo.turn[e].abs() * len;
+            }
+        }
+    }
+    let area: f64 = geo
+        .areas
+        .iter()
+        .zip(inside)
+        .filter(|(_, &k)| k == side)
+        .map(|(a, _)| a)
+        .sum();
+    turn / area.max(f64::MIN_POSITIVE)
+}
+
+/// Mean distance of `points` from their centroid, across the axis.
+fn cross_radius(cyl: &Cylinder, points: &[[f64; 3]]) -> f64 {
+    if points.is_empty() {
+        return 0.0;
+    }
+    let n = points.len() as f64;
+    let c = [0, 1, 2].map(|d| points.iter().map(|p| p[d]).sum::<f64>() / n);
+    let a = cyl.axis();
+    points
+        .iter()
+        .map(|p| {
+            let d = sub(*p, c);
+            let along = crate::mesh::dot(d, a);
+            norm([
+                d[0] - along * a[0],
+                d[1] - along * a[1],
+                d[2] - along * a[2],
+            ])
+        })
+        .sum::<f64>()
+        / n
+}
+
+/// Weight of an edge's length in the margin search: small along a convex
+/// crease (the enamel edge turns the surface inward by 35° or more), 1 on
+/// smooth or concave surface.
+fn crease_weight(turn: f64) -> f64 {
+    (-turn.max(0.0) / CREASE_SCALE.to_radians()).exp().max(0.01)
+}
+
+/// Cost of the margin's climb along the axis per unit of height, on top
+/// of its length: a loop that dives down a root ridge to the apex and back
+/// pays for the way down and up, while the margin's own rise and fall
+/// round the tooth (about a quarter of the crown's height) costs little.
+const CLIMB_COST: f64 = 0.3;
+
+/// Turn (degrees) over which an edge's weight falls by e.
+const CREASE_SCALE: f64 = 12.0;
+
+/// Share of the tooth's length at each end that the margin search leaves
+/// out: the margin lies 0.5–0.8 of the length above the apex, and a
+/// short loop round the roots' narrow closure near the apex (7–19 % of
+/// the length) must not compete with it.
+const END_EXCLUDED: f64 = 0.15;
+
+/// Vertices the margin may pass through along `cyl`: not at the very ends
+/// of the tooth, and away from the axis (at least half the widest radius at
+/// their height), so that no small loop round the axis where it pierces the
+/// occlusal surface or the apex competes with the margin.
+fn margin_vertices(mesh: &Mesh, cyl: &Cylinder, neck: Option<&NeckHeights>) -> Vec<bool> {
+    const BINS: usize = 50;
+    let polar: Vec<(f64, f64)> = mesh
+        .vertices
+        .iter()
+        .map(|&p| (cyl.height(p), cyl.polar(p).1))
+        .collect();
+    let zmin = polar.iter().map(|p| p.0).fold(f64::MAX, f64::min);
+    let zmax = polar.iter().map(|p| p.0).fold(f64::MIN, f64::max);
+    let length = (zmax - zmin).max(f64::MIN_POSITIVE);
+    let bin_of = |z: f64| (((z - zmin) / length * BINS as f64) as usize).min(BINS - 1);
+    let mut widest = vec![0.0f64; BINS];
+    for &(z, r) in &polar {
+        let b = bin_of(z);
+        widest[b] = widest[b].max(r);
+    }
+    let widest_all = widest.iter().copied().fold(0.0, f64::max);
+    polar
+        .iter()
+        .zip(&mesh.vertices)
+        .map(|(&(z, r), &p)| {
+            let t = (z - zmin) / length;
+            (END_EXCLUDED..=1.0 - END_EXCLUDED).contains(&t)
+                && r >= 0.5 * widest[bin_of(z)]
+                && r >= 0.3 * widest_all
+                && neck.is_none_or(|n| (t - n.at(cyl.polar(p).0)).abs() <= NECK_WINDOW)
+        })
+        .collect()
+}
+
+/// The least a crown's outline must be wider at its height of contour
+/// than at the neck for the neck to guide the margin: a box or a cylinder
+/// round a slanted axis bends too, but does not narrow under a bulge.
+const MIN_NECK_BULGE: f64 = 1.04;
+
+/// How far (share of the tooth's length) the margin may stray from the
+/// neck's height seen on the outline ([`neck::neck_heights`]).
+const NECK_WINDOW: f64 = 0.15;
+
+/// The distance from the neck's height (share of the length) at which an
+/// edge costs twice its length: the loop follows a crease near the neck
+/// where there is one, and the neck itself where there is none.
+const NECK_BAND: f64 = 0.04;
+
+/// The cost of an edge's straying from the neck's height, per unit of
+/// its length: `1 + ((t − neck) / NECK_BAND)²`.
+fn neck_weight(deviation: f64) -> f64 {
+    1.0 + (deviation / NECK_BAND).powi(2)
+}
+
+/// Largest difference from 1 of the ratio of the two sides' distances
+/// from the axis next to the cut for a cut into halves of equal area to
+/// count as the symmetry cut of a solid (a cube cut round its body
+/// diagonal), not a tooth's margin (whose crown bulges over the neck).
+const SYMMETRIC_BULGE: f64 = 0.005;
+
+/// A margin loop found about one axis.
+struct MarginLoop {
+    /// The loop's vertices in order.
+    vertices: Vec<u32>,
+    /// 1 − its mean edge weight: the larger, the more of it runs along
+    /// crease.
+    score: f64,
+    /// Centroid of the loop's vertices.
+    centre: [f64; 3],
+    /// Unit normal of the loop's vector area, on the side of the axis it
+    /// was found about.
+    normal: [f64; 3],
+}
+
+/// The cheapest loop round the axis `axis` through `centre` (see
+/// [`cycle`]).
+fn margin_loop(
+    mesh: &Mesh,
+    geo: &SurfaceGeometry,
+    centre: [f64; 3],
+    axis: [f64; 3],
+    neck: Option<&NeckHeights>,
+) -> Option<MarginLoop> {
+    let cyl = Cylinder::new(centre, axis);
+    let angles: Vec<f64> = mesh.vertices.iter().map(|&p| cyl.polar(p).0).collect();
+    let allowed = margin_vertices(mesh, &cyl, neck);
+    let heights: Vec<f64> = mesh.vertices.iter().map(|&p| cyl.height(p)).collect();
+    let zmin = heights.iter().copied().fold(f64::MAX, f64::min);
+    let zmax = heights.iter().copied().fold(f64::MIN, f64::max);
+    let length = (zmax - zmin).max(f64::MIN_POSITIVE);
+    let mut cheapest = vec![f64::INFINITY; mesh.vertices.len()];
+    let edges: Vec<(u32, u32, f64)> = geo
+        .edges
+        .edges()
+        .iter()
+        .enumerate()
+        .map(|(e, &(a, b))| {
+            let mut w = crease_weight(geo.turn[e]);
+            if let Some(n) = neck {
+                let mid = [0, 1, 2]
+                    .map(|d| 0.5 * (mesh.vertices[a as usize][d] + mesh.vertices[b as usize][d]));
+                let t = (cyl.height(mid) - zmin) / length;
+                w *= neck_weight(t - n.at(cyl.polar(mid).0));
+            }
+            cheapest[a as usize] = cheapest[a as usize].min(w);
+            cheapest[b as usize] = cheapest[b as usize].min(w);
+            let (pa, pb) = (mesh.vertices[a as usize], mesh.vertices[b as usize]);
+            let len = norm(sub(pa, pb));
+            (
+                a,
+                b,
+                len * w + CLIMB_COST * (cyl.height(pa) - cyl.height(pb)).abs(),
+            )
+        })
+        .collect();
+    let search = |allowed: &[bool]| {
+        let graph = cycle::WindingGraph::new(&angles, &edges, allowed);
+        let mut sources = graph.seam_vertices();
+        sources.sort_by(|&a, &b| cheapest[a as usize].total_cmp(&cheapest[b as usize]));
+        cycle::cheapest_winding_cycle(&graph, &sources)
+    };
+    let found = match search(&allowed) {
+        Some(found) => found,
+        // The neck's window leaves a gap somewhere round the tooth (a
+        // sector whose outline bends at the furcation, not at the neck):
+        // the loop may leave the window there, still drawn to the neck by
+        // the edges' weights.
+        None if neck.is_some() => search(&margin_vertices(mesh, &cyl, None))?,
+        None => return None,
+    };
+    let points: Vec<[f64; 3]> = found
+        .vertices
+        .iter()
+        .map(|&v| mesh.vertices[v as usize])
+        .collect();
+    let k = points.len();
+    let length: f64 = (0..k)
+        .map(|i| norm(sub(points[i], points[(i + 1) % k])))
+        .sum();
+    let c = [0, 1, 2].map(|d| points.iter().map(|p| p[d]).sum::<f64>() / k.max(1) as f64);
+    let mut area = [0.0; 3];
+    for i in 0..k {
+        let n = crate::mesh::cross(sub(points[i], c), sub(points[(i + 1) % k], c));
+        area = [area[0] + n[0], area[1] + n[1], area[2] + n[2]];
+    }
+    let sign = if crate::mesh::dot(area, axis) < 0.0 {
+        -1.0
+    } else {
+        1.0
+    };
+    let an = norm(area);
+    let normal = if an > 0.0 {
+        area.map(|x| sign * x / an)
+    } else {
+        axis
+    };
+    Some(MarginLoop {
+        vertices: found.vertices,
+        score: 1.0 - found.cost / length.max(f64::MIN_POSITIVE),
+        centre: c,
+        normal,
+    })
+}
+
+/// The crown that `found` cuts off, the crown's side being the one that
+/// bulges over the other (see [`near_cut_radius`]).
+fn crown_of_loop(
+    mesh: &Mesh,
+    geo: &SurfaceGeometry,
+    found: &MarginLoop,
+    neck_guided: bool,
+) -> Result<Candidate, Rejection> {
+    let k = found.vertices.len();
+    let cut: std::collections::HashSet<(u32, u32)> = (0..k)
+        .map(|i| {
+            let (a, b) = (found.vertices[i], found.vertices[(i + 1) % k]);
+            (a.min(b), a.max(b))
+        })
+        .collect();
+    let score = found.score;
+    let mut reasons = Vec::new();
+    let mut sides = Vec::new();
+    // A loop found on the neck's outline has its crown towards the axis'
+    // positive end; a crease loop's side is told by the bulge.
+    let signs: &[f64] = if neck_guided { &[1.0] } else { &[1.0, -1.0] };
+    for &sign in signs {
+        let cyl = Cylinder::new(found.centre, found.normal.map(|x| sign * x));
+        let heights: Vec<f64> = mesh.vertices.iter().map(|&p| cyl.height(p)).collect();
+        let zmin = heights.iter().copied().fold(f64::MAX, f64::min);
+        let zmax = heights.iter().copied().fold(f64::MIN, f64::max);
+        let Some(seed) = (0..mesh.faces.len()).max_by(|&f, &g| {
+            cyl.height(geo.centroids[f])
+                .total_cmp(&cyl.height(geo.centroids[g]))
+        }) else {
+            return Err(Rejection {
+                score: 0.0,
+                reason: CrownRefusal::NoFaces,
+            });
+        };
+        let inside = cut::faces_bounded_by(mesh, geo, &cut, seed);
+        let bulge = near_cut_radius(mesh, geo, &cyl, &inside, true)
+            / near_cut_radius(mesh, geo, &cyl, &inside, false).max(f64::MIN_POSITIVE);
+        let kept: f64 = geo
+            .areas
+            .iter()
+            .zip(&inside)
+            .filter(|(_, &k)| k)
+            .map(|(a, _)| a)
+            .sum::<f64>()
+            / geo.areas.iter().sum::<f64>().max(f64::MIN_POSITIVE);
+        if (2.0 * kept - 1.0).abs() < 0.05 && (bulge - 1.0).abs() < SYMMETRIC_BULGE {
+            reasons.push(Rejection {
+                score,
+                reason: CrownRefusal::SymmetricSolid,
+            });
+            continue;
+        }
+        if neck_guided && !(bulge > 1.0) {
+            reasons.push(Rejection {
+                score,
+                reason: CrownRefusal::RootsEnd,
+            });
+            continue;
+        }
+        match judge(mesh, geo, &cyl, &inside, (zmin, zmax), !neck_guided) {
+            Ok(mut report) => {
+                report.margin_merit = margin_merit(score, report.cut_variation);
+                sides.push((bulge, Candidate { inside, report }));
+            }
+            Err(reason) => reasons.push(Rejection { score, reason }),
+        }
+    }
+    sides
+        .into_iter()
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|s| s.1)
+        .ok_or_else(|| {
+            reasons.into_iter().next().unwrap_or(Rejection {
+                score,
+                reason: CrownRefusal::NeitherSide,
+            })
+        })
+}
+
+/// Rings of faces next to the cut over which [`near_cut_radius`]
+/// averages.
+const BULGE_RINGS: usize = 4;
+
+/// Mean distance from the axis of the faces within [`BULGE_RINGS`] rings
+/// of the cut on the `side` of it: the crown's enamel bulges over the
+/// neck, so right at the cervical margin the crown's side lies farther
+/// out than the neck's.
+fn near_cut_radius(
+    mesh: &Mesh,
+    geo: &SurfaceGeometry,
+    cyl: &Cylinder,
+    inside: &[bool],
+    side: bool,
+) -> f64 {
+    let adjacency = crate::mesh::triangle_adjacency(&mesh.faces);
+    let mut seen = vec![false; mesh.faces.len()];
+    let mut frontier: Vec<usize> = (0..mesh.faces.len())
+        .filter(|&f| {
+            inside[f] == side
+                && adjacency[f]
+                    .iter()
+                    .any(|&g| g != crate::mesh::NO_TRIANGLE && inside[g as usize] != side)
+        })
+        .collect();
+    for &f in &frontier {
+        seen[f] = true;
+    }
+    let (mut sum, mut area) = (0.0, 0.0);
+    for _ in 0..BULGE_RINGS {
+        let mut next = Vec::new();
+        for &f in &frontier {
+            sum += geo.areas[f] * cyl.polar(geo.centroids[f]).1;
+            area += geo.areas[f];
+            for &g in &adjacency[f] {
+                if g != crate::mesh::NO_TRIANGLE && inside[g as usize] == side && !seen[g as usize]
+                {
+                    seen[g as usize] = true;
+                    next.push(g as usize);
+                }
+            }
+        }
+        frontier = next;
+    }
+    sum / area.max(f64::MIN_POSITIVE)
+}
+
+/// Check that the cut found a crown (see the module documentation) and
+/// measure it.
+fn judge(
+    mesh: &Mesh,
+    geo: &SurfaceGeometry,
+    cyl: &Cylinder,
+    inside: &[bool],
+    (zmin, zmax): (f64, f64),
+    crease_required: bool,
+) -> Result<CrownReport, CrownRefusal> {
+    let total: f64 = geo.areas.iter().sum();
+    let kept: f64 = geo
+        .areas
+        .iter()
+        .zip(inside)
+        .filter(|(_, &k)| k)
+        .map(|(a, _)| a)
+        .sum();
+    let fraction = kept / total;
+    if !(0.08..=0.92).contains(&fraction) {
+        return Err(CrownRefusal::CrownShare { share: fraction });
+    }
+    // The cut: edges between a crown face and a removed one.
+    let (mut turn_len, mut len_sum, mut crease_len) = (0.0, 0.0, 0.0);
+    let mut cut_vertices = vec![false; mesh.vertices.len()];
+    for e in 0..geo.edges.len() {
+        if let &[f, g] = geo.edges.faces_of(e) {
+            if inside[f as usize] != inside[g as usize] {
+                let (a, b) = geo.edges.edge(e);
+                let len = norm(sub(mesh.vertices[a as usize], mesh.vertices[b as usize]));
+                turn_len += geo.turn[e] * len;
+                len_sum += len;
+                if geo.turn[e] >= 10f64.to_radians() {
+                    crease_len += len;
+                }
+                cut_vertices[a as usize] = true;
+                cut_vertices[b as usize] = true;
+            }
+        }
+    }
+    let crease = (turn_len / len_sum.max(f64::MIN_POSITIVE)).to_degrees();
+    if crease_required && !(crease >= MIN_CREASE_DEGREES) {
+        return Err(CrownRefusal::NoCrease { degrees: crease });
+    }
+    let coverage = crease_len / len_sum.max(f64::MIN_POSITIVE);
+    if crease_required && !(coverage >= MIN_CREASE_COVERAGE) {
+        return Err(CrownRefusal::ShortCrease { coverage });
+    }
+    let cut_points: Vec<[f64; 3]> = (0..mesh.vertices.len())
+        .filter(|&v| cut_vertices[v])
+        .map(|v| mesh.vertices[v])
+        .collect();
+    let cut_heights: Vec<f64> = cut_points.iter().map(|&p| cyl.height(p)).collect();
+    let cut_low = cut_heights.iter().copied().fold(f64::MAX, f64::min);
+    let cut_high = cut_heights.iter().copied().fold(f64::MIN, f64::max);
+    let cut_mean = cut_heights.iter().sum::<f64>() / cut_heights.len().max(1) as f64;
+    let cut_radius = cross_radius(cyl, &cut_points);
+    let mut crown_top = f64::MIN;
+    let mut root_points = Vec::new();
+    let mut root_low = f64::MAX;
+    for (f, face) in mesh.faces.iter().enumerate() {
+        for &v in face {
+            let z = cyl.height(mesh.vertices[v as usize]);
+            if inside[f] {
+                crown_top = crown_top.max(z);
+            } else {
+                root_low = root_low.min(z);
+            }
+        }
+    }
+    if crown_top - cut_mean < 0.2 * cut_radius {
+        return Err(CrownRefusal::Flat);
+    }
+    let slab = root_low + 0.15 * (cut_mean - root_low);
+    for (f, face) in mesh.faces.iter().enumerate() {
+        if !inside[f] {
+            for &v in face {
+                let p = mesh.vertices[v as usize];
+                if cyl.height(p) <= slab {
+                    root_points.push(p);
+                }
+            }
+        }
+    }
+    let apex_radius = cross_radius(cyl, &root_points);
+    if !(apex_radius < 0.75 * cut_radius) {
+        return Err(CrownRefusal::NoTaper);
+    }
+    let folding_ratio =
+        folding(mesh, geo, inside, true) / folding(mesh, geo, inside, false).max(f64::MIN_POSITIVE);
+    let scale = |z: f64| (z - zmin) / (zmax - zmin);
+    Ok(CrownReport {
+        method: if crease_required {
+            "cervical crease"
+        } else {
+            "neck outline"
+        }
+        .into(),
+        occlusal: cyl.axis(),
+        filled_holes: 0,
+        removed_handles: 0,
+        removed_faces: inside.iter().filter(|&&k| !k).count(),
+        removed_area: total - kept,
+        kept_area: kept,
+        crease_degrees: crease,
+        folding_ratio,
+        crease_coverage: coverage,
+        cut_height_min: scale(cut_low),
+        cut_height_mean: scale(cut_mean),
+        cut_height_max: scale(cut_high),
+        cut_variation: (cut_high - cut_low) / (crown_top - cut_low).max(f64::MIN_POSITIVE),
+        // Set by the caller, which knows the loop's share on crease.
+        margin_merit: 0.0,
+        // Set by the caller, which knows the neck it followed.
+        neck_bulge: 0.0,
+        revoxelized: false,
+    })
+}
+
+/// How much lower (share of the tooth's length) than the neck seen on the
+/// outline a crease loop may cut.
+const BELOW_NECK: f64 = 0.05;
+
+/// The candidate of highest merit, except that where a neck was seen on
+/// the outline, a crease loop cutting well below it is no margin: below
+/// the neck hang the roots, whose furcation and ridges have creases too.
+fn best_candidate(candidates: Vec<Candidate>) -> Option<Candidate> {
+    let neck = candidates
+        .iter()
+        .filter(|c| c.report.neck_bulge > 0.0)
+        .max_by(|a, b| a.merit().total_cmp(&b.merit()))
+        .map(|c| c.report.cut_height_mean);
+    candidates
+        .into_iter()
+        .filter(|c| {
+            c.report.neck_bulge > 0.0
+                || neck.is_none_or(|n| c.report.cut_height_mean >= n - BELOW_NECK)
+        })
+        .max_by(|a, b| a.merit().total_cmp(&b.merit()))
+}
+
+/// Rounds of smoothing before the margin search: enough to flatten
+/// features below about 0.4 % of the diagonal (a voxel's staircase at
+/// 300 voxels across), none on a coarse surface whose edges are longer.
+fn smoothing_iterations(mesh: &Mesh) -> usize {
+    let edges: f64 = mesh
+        .faces
+        .iter()
+        .take(5000)
+        .map(|f| {
+            norm(sub(
+                mesh.vertices[f[0] as usize],
+                mesh.vertices[f[1] as usize],
+            ))
+        })
+        .sum();
+    let count = mesh.faces.len().clamp(1, 5000) as f64;
+    let edge = edges / count;
+    if !(edge > 0.0) {
+        return 0;
+    }
+    let ratio = 0.004 * bbox_diagonal(mesh) / edge;
+    (ratio * ratio).round().clamp(0.0, 30.0) as usize
+}
+
+/// `mesh` smoothed just enough that the voxel staircase of an isosurface
+/// export goes (see [`smoothing_iterations`]); its connectivity kept.
+pub(super) fn staircase_smoothed(mesh: &Mesh) -> Mesh {
+    Mesh::new(
+        taubin_smoothed(mesh, smoothing_iterations(mesh)),
+        mesh.faces.clone(),
+    )
+}
+
+/// Cut the crown from a closed, consistently oriented, manifold surface
+/// (see the module documentation). The crown's faces keep their vertices'
+/// positions; normals point outward.
+pub(super) fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
+    let _span = tracing::debug_span!("crown").entered();
+    let oriented = if signed_volume6(mesh) < 0.0 {
+        Mesh::new(
+            mesh.vertices.clone(),
+            mesh.faces.iter().map(|f| [f[0], f[2], f[1]]).collect(),
+        )
+    } else {
+        mesh.clone()
+    };
+    // The margin is looked for on a smoothed copy (the voxel staircase of
+    // an isosurface and scanner noise would be creases everywhere); the
+    // crown is cut from the surface as it is, along the same edges.
+    let smoothed = Mesh::new(
+        taubin_smoothed(&oriented, smoothing_iterations(&oriented)),
+        oriented.faces.clone(),
+    );
+    let geo = SurfaceGeometry::new(&smoothed);
+    let (centre, axes) = area_weighted_axes(&geo)
+        .filter(|_| bbox_diagonal(mesh) > 0.0)
+        .ok_or(CrownError::NoCrown(CrownRefusal::NoArea))?;
+    let mut candidates: Vec<Candidate> = Vec::new();
+    let mut reasons = Vec::new();
+    for axis in axes {
+        // A loop that follows creases alone, accepted only on a real
+        // crease (an enamel edge), and one guided by the neck seen on the
+        // outline from each end of the axis that shows one (the crown may
+        // be at either; the loop still follows a crease near the neck):
+        // the best of them is taken.
+        let guided: Vec<([f64; 3], NeckHeights)> = [1.0, -1.0]
+            .iter()
+            .filter_map(|&sign| {
+                let a = axis.map(|x| sign * x);
+                neck_heights(&smoothed.vertices, &Cylinder::new(centre, a))
+                    .inspect(|n| tracing::debug!(bulge = n.bulge, "neck seen"))
+                    .filter(|n| n.bulge >= MIN_NECK_BULGE)
+                    .map(|n| (a, n))
+            })
+            .collect();
+        let searches: Vec<([f64; 3], Option<NeckHeights>)> = guided
+            .into_iter()
+            .map(|(a, n)| (a, Some(n)))
+            .chain(std::iter::once((axis, None)))
+            .collect();
+        for (axis, neck) in searches {
+            let Some(first) = margin_loop(&smoothed, &geo, centre, axis, neck.as_ref()) else {
+                tracing::debug!(neck = neck.is_some(), "no winding loop");
+                reasons.push(Rejection {
+                    score: 0.0,
+                    reason: CrownRefusal::NoMarginLine,
+                });
+                continue;
+            };
+            // The principal axis is only near the tooth's axis: search
+            // again about the normal of the loop found, which follows the
+            // margin.
+            let neck_again = neck.as_ref().and_then(|_| {
+                neck_heights(
+                    &smoothed.vertices,
+                    &Cylinder::new(first.centre, first.normal),
+                )
+                .filter(|n| n.bulge >= MIN_NECK_BULGE)
+            });
+            let again = if neck.is_some() && neck_again.is_none() {
+                None
+            } else {
+                margin_loop(
+                    &smoothed,
+                    &geo,
+                    first.centre,
+                    first.normal,
+                    neck_again.as_ref(),
+                )
+            };
+            let found = match again {
+                Some(again) if again.score > first.score => again,
+                _ => first,
+            };
+            // A line that dips where no margin lies ran round a wrong
+            // axis or the roots: it cannot be the margin, whatever its
+            // merit.
+            let candidate = crown_of_loop(&smoothed, &geo, &found, neck.is_some()).and_then(|c| {
+                if c.report.cut_height_min < MIN_CUT_HEIGHT {
+                    Err(Rejection {
+                        score: found.score,
+                        reason: CrownRefusal::TooLow {
+                            height: c.report.cut_height_min,
+                        },
+                    })
+                } else {
+                    Ok(c)
+                }
+            });
+            match &candidate {
+                Ok(c) => tracing::debug!(
+                    neck = neck.is_some(),
+                    merit = c.merit(),
+                    cut_low = c.report.cut_height_min,
+                    cut_high = c.report.cut_height_max,
+                    "margin candidate"
+                ),
+                Err(r) => {
+                    tracing::debug!(neck = neck.is_some(), reason = %r.reason, "margin refused")
+                }
+            }
+            match candidate {
+                Ok(mut c) => {
+                    c.report.neck_bulge = neck.as_ref().map_or(0.0, |n| n.bulge);
+                    candidates.push(c);
+                }
+                Err(reason) => reasons.push(reason),
+            }
+        }
+    }
+    let best = best_candidate(candidates);
+    let Some(best) = best else {
+        // Every axis searched leaves a candidate or a rejection, so the
+        // fallback only guards an empty set of axes.
+        let reason = reasons
+            .into_iter()
+            .max_by(|a, b| a.score.total_cmp(&b.score))
+            .map_or(CrownRefusal::NoMarginLine, |r| r.reason);
+        return Err(CrownError::NoCrown(reason));
+    };
+    let faces: Vec<[u32; 3]> = oriented
+        .faces
+        .iter()
+        .zip(&best.inside)
+        .filter_map(|(f, &k)| k.then_some(*f))
+        .collect();
+    let crown =
+        super::faces::remove_unreferenced_vertices(&Mesh::new(oriented.vertices.clone(), faces));
+    let loops = boundary_loops(&crown).len();
+    let euler = euler_characteristic(&crown);
+    if loops != 1 || euler != 1 {
+        return Err(CrownError::NotDisk { loops, euler });
+    }
+    let mut report = best.report;
+    report.removed_handles = (2 - euler_characteristic(mesh)) / 2;
+    tracing::debug!(
+        kept_area = report.kept_area,
+        removed_area = report.removed_area,
+        crease = report.crease_degrees,
+        "crown cut"
+    );
+    Ok(ExtractedCrown {
+        mesh: crown,
+        report,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn refusals_print_what_they_measured() {
+        let said = |r: CrownRefusal| CrownError::NoCrown(r).to_string();
+        assert_eq!(
+            CrownRefusal::NoCrease { degrees: 7.26 }.to_string(),
+            "no cervical crease: the surface turns by 7.3° on average along the best margin line, at least 15° is needed"
+        );
+        assert_eq!(
+            CrownRefusal::ShortCrease { coverage: 0.314 }.to_string(),
+            "the best margin line runs along a crease for 31 % of its length only, not around the tooth"
+        );
+        assert_eq!(
+            CrownRefusal::CrownShare { share: 0.956 }.to_string(),
+            "the best margin line leaves 96 % of the surface as crown"
+        );
+        assert!(said(CrownRefusal::TooLow { height: 0.12 }).starts_with(
+            "no recognisable tooth crown on this closed surface (the best margin line found dips to 12 % of the tooth's length above the apex,"
+        ));
+    }
+}
