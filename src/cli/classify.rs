@@ -4,6 +4,7 @@
 use super::common::{progress_bar, ConfigArgs, ConfigFile};
 use anyhow::{Context, Result};
 use morphoid_service::classify::{self, Classifier, ResultFiles};
+use morphoid_service::identify::Confidence;
 use morphoid_service::store::{ScanRecord, ScanStatus, Store};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -148,6 +149,19 @@ pub(super) fn summary(r: &ScanRecord) -> String {
     out
 }
 
+/// The "no close match" flag with its reason: the scan's novelty score
+/// over the threshold the library's own members set.
+fn no_close_match(c: &Confidence) -> String {
+    match (c.no_close_match, c.novelty_threshold) {
+        (Some(true), Some(t)) => format!(
+            "; NO CLOSE MATCH: novelty {:.2} over {t:.2}, farther from the library than its own members are",
+            c.novelty
+        ),
+        (Some(true), None) => "; NO CLOSE MATCH".to_string(),
+        _ => String::new(),
+    }
+}
+
 /// [`summary`] without the result files.
 fn status_summary(r: &ScanRecord) -> String {
     if let (Some(n), ScanStatus::Ok) = (r.specimen_count, r.status) {
@@ -167,15 +181,7 @@ fn status_summary(r: &ScanRecord) -> String {
                         _ => String::new(),
                     };
                     let confidence = match &k.confidence {
-                        Some(c) => format!(
-                            "; p {:.2}{}",
-                            c.probability,
-                            if c.no_close_match == Some(true) {
-                                "; NO CLOSE MATCH"
-                            } else {
-                                ""
-                            }
-                        ),
+                        Some(c) => format!("; p {:.2}{}", c.probability, no_close_match(c)),
                         None => String::new(),
                     };
                     format!(

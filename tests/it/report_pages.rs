@@ -117,7 +117,8 @@ fn reports_show_the_answer_the_pictures_and_the_error() {
         let hash = morphoid_data::hash::content_hash(&std::fs::read(scan).unwrap());
         assert!(element(&html, "scan").contains(&hash));
         assert!(element(&html, "scan").contains(&format!("tooth {g}.ply")));
-        assert!(element(&html, "cleaning").contains("output_vertices"));
+        assert!(element(&html, "cleaning").contains("<th>output</th>"));
+        assert!(element(&html, "cleaning-values").contains("output_vertices"));
         assert!(element(&html, "timings").contains("compare"));
         // Three pairs of pictures (scan and reference) and the 3D view.
         assert_eq!(html.matches("data:image/png;base64,").count(), 6);

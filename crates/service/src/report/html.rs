@@ -7,6 +7,7 @@ use super::scene::Scene;
 use super::{no_close_match, rank_confidence};
 use crate::store::{ScanRecord, ScanStatus};
 use base64::Engine;
+use morphoid_core::clean::CleanReport;
 use morphoid_data::present::escape;
 use std::fmt::Write;
 
@@ -462,21 +463,34 @@ fn landmarks(h: &mut String, record: &ScanRecord) {
     h.push_str("</table>\n");
 }
 
-/// The cleaning report as `key: value` rows (nested keys joined by dots).
+/// The cleaning report: what was done, in words (the cleaning report as
+/// recorded), then every recorded value under "all values".
 fn cleaning(h: &mut String, report: &serde_json::Value) {
     if report.is_null() {
         return;
     }
+    h.push_str(
+        "<h2>Cleaning</h2>\n<p>What was done to the scan before it was compared.</p>\n\
+         <table id=\"cleaning\">",
+    );
+    let warnings = report["warnings"].as_array().into_iter().flatten();
+    for w in warnings.filter_map(|w| w.as_str()) {
+        let _ = write!(h, "<tr><th>warning</th><td>{}</td></tr>", escape(w));
+    }
+    // A report of an older version may not read as today's: its raw
+    // values below still say everything.
+    if let Ok(r) = serde_json::from_value::<CleanReport>(report.clone()) {
+        for (k, v) in super::cleaning::cleaning_rows(&r) {
+            let _ = write!(h, "<tr><th>{}</th><td>{}</td></tr>", escape(k), escape(&v));
+        }
+    }
+    h.push_str("</table>\n<details><summary>all values</summary>\n<table id=\"cleaning-values\">");
     let mut rows = Vec::new();
     flatten_json("", report, &mut rows);
-    h.push_str(
-        "<h2>Cleaning</h2>\n<p>What was done to the scan before it was compared: welded, \
-         dropped, filled, cut.</p>\n<table id=\"cleaning\">",
-    );
     for (k, v) in rows {
         let _ = write!(h, "<tr><th>{}</th><td>{}</td></tr>", escape(&k), escape(&v));
     }
-    h.push_str("</table>\n");
+    h.push_str("</table></details>\n");
 }
 
 /// `(dotted key, text)` of each scalar in `value`.

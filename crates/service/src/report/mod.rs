@@ -9,6 +9,7 @@
 //! inlined into each report. Writing the files is `classify::ResultFiles`'
 //! job.
 
+mod cleaning;
 mod html;
 mod index;
 mod render;
