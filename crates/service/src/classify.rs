@@ -8,7 +8,7 @@
 
 mod files;
 
-pub use files::{result_name, ResultFiles, ResultsError};
+pub use files::{ResultFiles, ResultsError};
 
 use crate::identify::{
     self, Calibration, DistanceRow, LandmarkPoint, ScanLandmarks, ScanOutcome, SpecimenOutcome,

@@ -32,7 +32,7 @@ pub(super) fn face_components(mesh: &Mesh) -> (Vec<u32>, usize) {
 /// Keep the connected component of largest area (ties: the one met first);
 /// unreferenced vertices are left for the caller to drop. Returns the mesh
 /// and the number of components dropped.
-pub fn largest_component_by_area(mesh: &Mesh) -> (Mesh, usize) {
+pub(crate) fn largest_component_by_area(mesh: &Mesh) -> (Mesh, usize) {
     let (labels, count) = face_components(mesh);
     if count <= 1 {
         return (mesh.clone(), 0);

@@ -47,15 +47,15 @@ mod voxelize;
 mod weld;
 
 pub use closest::{point_to_surface_distances, TriangleGrid};
-pub use cloud::{CloudError, CloudReport};
-pub use components::largest_component_by_area;
+pub use cloud::CloudReport;
+pub(crate) use components::largest_component_by_area;
 
 use crate::mesh::{
     bbox_diagonal, boundary_loops, euler_characteristic, genus, longest_boundary_loop,
     surface_area, widest_boundary_loop_extent, Mesh,
 };
-pub use crown::{CrownError, CrownMode, CrownRefusal, CrownReport};
-pub use specimens::{surface_specimens, SurfaceSpecimens};
+pub use crown::{CrownError, CrownMode, CrownReport};
+pub use specimens::surface_specimens;
 
 /// A surface whose every boundary loop spans less than this share of its
 /// bounding-box diagonal ([`widest_boundary_loop_extent`]) is a closed surface

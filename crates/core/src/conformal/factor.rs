@@ -71,7 +71,7 @@ pub fn conformal_factor(mesh: &Mesh, uv: &[[f64; 2]]) -> Vec<f64> {
 /// hyperbolic measure `dη = (1 − |z|²)⁻² dx dy` of the disk, so that
 /// `𝐟 dη = f dx dy`. Points on or outside the unit circle get 0; a missing
 /// factor counts as 0.
-pub fn hyperbolic_density(uv: &[[f64; 2]], factor: &[f64]) -> Vec<f64> {
+pub(crate) fn hyperbolic_density(uv: &[[f64; 2]], factor: &[f64]) -> Vec<f64> {
     uv.iter()
         .enumerate()
         .map(|(i, z)| {

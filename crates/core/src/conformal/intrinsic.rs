@@ -226,7 +226,9 @@ impl IntrinsicMesh {
 /// The mesh should be manifold and consistently oriented (as
 /// [`check_disk_topology`](super::check_disk_topology) ensures); faces with
 /// out-of-range indices are an error.
-pub fn intrinsic_delaunay_weights(mesh: &Mesh) -> Result<(EdgeWeights, usize), FlattenError> {
+pub(crate) fn intrinsic_delaunay_weights(
+    mesh: &Mesh,
+) -> Result<(EdgeWeights, usize), FlattenError> {
     let n = mesh.vertices.len();
     if let Some(face) = mesh
         .faces

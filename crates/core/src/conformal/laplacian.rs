@@ -4,7 +4,7 @@ use crate::mesh::{cross, dot, edge_key, norm, sub, Mesh};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 
 /// Symmetric edge weights `((i, j), w)` with `i < j`, sorted by edge.
-pub type EdgeWeights = Vec<((u32, u32), f64)>;
+pub(super) type EdgeWeights = Vec<((u32, u32), f64)>;
 
 /// Cotangent of the angle at `o` in the triangle `o a b`, or `None` when the
 /// triangle is degenerate (zero area relative to its edge lengths).
@@ -61,7 +61,8 @@ pub(crate) fn sum_by_edge(mut entries: EdgeWeights) -> EdgeWeights {
 /// The weighted graph Laplacian of symmetric edge weights: `L_ij = w_ij`,
 /// `L_ii = −Σ_j w_ij` (n × n, compressed sparse columns). Edges with an
 /// index `≥ n` or a self-loop are ignored.
-pub fn graph_laplacian(n: usize, weights: &[((u32, u32), f64)]) -> SparseColMat<usize, f64> {
+#[cfg(test)]
+pub(crate) fn graph_laplacian(n: usize, weights: &[((u32, u32), f64)]) -> SparseColMat<usize, f64> {
     let mut cols: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
     let mut diag = vec![0.0; n];
     for &((i, j), w) in weights {
@@ -84,7 +85,7 @@ pub fn graph_laplacian(n: usize, weights: &[((u32, u32), f64)]) -> SparseColMat<
 /// [`graph_laplacian`]): positive definite for `shift > 0` and non-negative
 /// weights, or for the cotangent weights of any planar triangulation
 /// without flipped triangles.
-pub fn shifted_stiffness(
+pub(crate) fn shifted_stiffness(
     n: usize,
     weights: &[((u32, u32), f64)],
     shift: f64,
@@ -142,7 +143,8 @@ pub(crate) fn csc_from_columns(
 /// weights of [`cotangent_edge_weights`]. `(L x)_i` is the integral of the
 /// Laplace–Beltrami operator of the piecewise-linear `x` over the dual cell
 /// of vertex `i` (libigl's sign convention).
-pub fn cotmatrix(mesh: &Mesh) -> SparseColMat<usize, f64> {
+#[cfg(test)]
+pub(crate) fn cotmatrix(mesh: &Mesh) -> SparseColMat<usize, f64> {
     graph_laplacian(mesh.vertices.len(), &cotangent_edge_weights(mesh))
 }
 

@@ -21,17 +21,17 @@ mod normalize;
 mod quality;
 mod validate;
 
-pub use cholesky::{CholeskyError, SpdFactor};
-pub use factor::{conformal_factor, hyperbolic_density};
+pub(crate) use cholesky::CholeskyError;
+pub use cholesky::SpdFactor;
+pub use factor::conformal_factor;
+pub(crate) use factor::hyperbolic_density;
 pub use flatten::{
     central_vertex, flatten_to_disk, flatten_to_disk_with, DiskMap, LaplacianWeights,
 };
-pub use intrinsic::intrinsic_delaunay_weights;
-pub use laplacian::{
-    cotangent_edge_weights, cotmatrix, graph_laplacian, shifted_stiffness, EdgeWeights,
-};
+pub use laplacian::cotangent_edge_weights;
+pub(crate) use laplacian::shifted_stiffness;
 pub use normalize::{normalize, Normalization};
-pub use quality::{flipped_triangles, quasi_conformal_ratios, signed_area_2d};
+pub use quality::{flipped_triangles, quasi_conformal_ratios};
 pub use validate::check_disk_topology;
 
 /// Why a surface could not be normalized or flattened.

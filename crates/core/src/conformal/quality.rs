@@ -5,7 +5,7 @@ use crate::mesh::{cross, dot, norm, sub, Mesh};
 
 /// Signed area of the planar triangle `abc` (positive when counter-clockwise).
 #[inline]
-pub fn signed_area_2d(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
+pub(crate) fn signed_area_2d(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
     0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
 }
 

@@ -41,18 +41,16 @@ mod warp;
 
 pub use compare::{compare, compare_directed};
 pub use comparison::{Comparison, Correspondence, Directed};
-pub use error::{CpError, Inconsistency};
-pub use locate::Location;
+pub use error::CpError;
 pub use mobius::Mobius;
 pub(crate) use optimize::nelder_mead;
+pub(crate) use params::Requirement;
 pub(crate) use params::{check, check_count};
-pub use params::{CompareParams, CpParams, ParamError, PrepareParams, Requirement};
+pub use params::{CompareParams, CpParams, ParamError, PrepareParams};
 pub use prepare::prepare;
 pub use prepared::Prepared;
 pub use procrustes::{Handedness, Moments};
-pub use search::search_directed;
 pub(crate) use search::{candidate_maps, directed_for_mobius};
-pub use warp::DiskWarp;
 
 /// A prepared synthetic crown of 1,500 vertices (genus index, seed): the
 /// unit tests' fixture.

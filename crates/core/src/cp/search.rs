@@ -405,7 +405,7 @@ pub(crate) fn directed_for_mobius(s: &Prepared, t: &Prepared, m: Mobius) -> Opti
 /// The directed comparison `S → S′` up to the final descent: the search
 /// over Möbius maps and feature deformations, and the area correction χ
 /// of the best map.
-pub fn search_directed(s: &Prepared, t: &Prepared, params: &CompareParams) -> Directed {
+pub(crate) fn search_directed(s: &Prepared, t: &Prepared, params: &CompareParams) -> Directed {
     let features = FeaturePoints::of(s, t);
     let cands = ranked_candidates(s, t, &features, params);
     let angle_step = std::f64::consts::TAU / params.angles.max(1) as f64;

@@ -11,7 +11,7 @@
 /// under every disk automorphism (both properties cW inherits), and it
 /// equals `d` wherever two points are closer than `cap`.
 #[inline]
-pub fn truncated_hyperbolic_distance(u: [f64; 2], v: [f64; 2], cap: f64) -> f64 {
+pub(crate) fn truncated_hyperbolic_distance(u: [f64; 2], v: [f64; 2], cap: f64) -> f64 {
     let q = 2.0 * ((u[0] - v[0]).powi(2) + (u[1] - v[1]).powi(2));
     if q == 0.0 {
         return 0.0;

@@ -34,8 +34,6 @@ mod measure;
 mod search;
 mod sinkhorn;
 
-pub use ground::truncated_hyperbolic_distance;
-
 use crate::cp::{self, CpError, Directed, Mobius, ParamError, Prepared, Requirement};
 use crate::cwn::TransportError;
 use search::{exact_transport, rank, refine, DiskMeasure, Solved};

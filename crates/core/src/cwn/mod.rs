@@ -29,7 +29,7 @@ mod landscape;
 mod transport;
 
 pub use landscape::Landscape;
-pub use transport::{Marginal, TransportError};
+pub(crate) use transport::TransportError;
 
 use landscape::dissimilarity_matrix;
 pub(crate) use transport::{optimal_transport, TransportPlan};

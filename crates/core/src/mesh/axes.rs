@@ -24,7 +24,7 @@ pub fn principal_axes(points: &[[f64; 3]]) -> Option<PrincipalAxes> {
 
 /// Principal axes of points given with their weights (`None` for fewer
 /// than three points or no positive total weight).
-pub fn weighted_principal_axes<I>(points: I) -> Option<PrincipalAxes>
+pub(crate) fn weighted_principal_axes<I>(points: I) -> Option<PrincipalAxes>
 where
     I: Iterator<Item = ([f64; 3], f64)> + Clone,
 {

@@ -6,7 +6,7 @@ use std::collections::BinaryHeap;
 /// Edge-path (graph-geodesic) distance from the nearest of `sources` to
 /// every vertex, along edges weighted by their Euclidean length (Dijkstra).
 /// Unreachable vertices get infinity; out-of-range sources are ignored.
-pub fn graph_distance(mesh: &Mesh, sources: &[u32]) -> Vec<f64> {
+pub(crate) fn graph_distance(mesh: &Mesh, sources: &[u32]) -> Vec<f64> {
     let n = mesh.vertices.len();
     let adj = vertex_adjacency(mesh);
     let mut dist = vec![f64::INFINITY; n];
@@ -36,7 +36,7 @@ pub fn graph_distance(mesh: &Mesh, sources: &[u32]) -> Vec<f64> {
 /// once, as `[vertex, parent]`, the parent an earlier vertex adjacent to
 /// it (a vertex is its own parent when it starts a component). Visiting
 /// vertices in this order, each lies one edge from a visited one.
-pub fn breadth_first_tree(adjacency: &[Vec<u32>]) -> Vec<[u32; 2]> {
+pub(crate) fn breadth_first_tree(adjacency: &[Vec<u32>]) -> Vec<[u32; 2]> {
     let n = adjacency.len();
     let mut seen = vec![false; n];
     let mut order: Vec<[u32; 2]> = Vec::with_capacity(n);

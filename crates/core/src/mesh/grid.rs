@@ -201,7 +201,7 @@ fn line_crossing(t: [[f64; 3]; 3], axis: usize, pu: f64, pv: f64) -> Option<f64>
 /// triangles a ray from `p` crosses, by majority over three skew
 /// directions (a ray through an edge or a vertex may count a crossing
 /// twice or not at all; three rarely all do).
-pub fn point_inside_by_parity(mesh: &Mesh, p: [f64; 3]) -> bool {
+pub(crate) fn point_inside_by_parity(mesh: &Mesh, p: [f64; 3]) -> bool {
     // Skew directions: along no axis, plane diagonal or each other.
     const DIRECTIONS: [[f64; 3]; 3] = [
         [0.8018, 0.5345, 0.2673],

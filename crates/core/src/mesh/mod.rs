@@ -21,18 +21,22 @@ mod isosurface;
 mod subdivide;
 mod topology;
 
-pub use axes::{principal_axes, weighted_principal_axes, PrincipalAxes};
+pub use axes::principal_axes;
+pub(crate) use axes::weighted_principal_axes;
 pub use disk::{ring_count, ring_disk, unit_disk};
 pub use farthest::farthest_point_order;
 pub(crate) use graph::HeapItem;
-pub use graph::{breadth_first_tree, graph_distance};
-pub use grid::{inside_by_parity, point_inside_by_parity, Grid};
+pub(crate) use graph::{breadth_first_tree, graph_distance};
+pub(crate) use grid::point_inside_by_parity;
+pub use grid::{inside_by_parity, Grid};
 pub use isosurface::isosurface;
 pub use subdivide::subdivide_midpoint;
 pub use topology::{
-    boundary_loop_extent, boundary_loop_length, boundary_loops, boundary_loops_by_length,
-    boundary_vertices, edge_face_map, edge_key, euler_characteristic, genus, longest_boundary_loop,
-    triangle_adjacency, vertex_adjacency, widest_boundary_loop_extent, EdgeKey, EdgeMap,
+    boundary_loops, boundary_vertices, edge_face_map, euler_characteristic, genus,
+    longest_boundary_loop, widest_boundary_loop_extent,
+};
+pub(crate) use topology::{
+    boundary_loops_by_length, edge_key, triangle_adjacency, vertex_adjacency, EdgeKey, EdgeMap,
     NO_TRIANGLE,
 };
 pub(crate) use topology::{half_edge_ends, has_directed_edge};

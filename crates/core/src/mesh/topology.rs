@@ -13,17 +13,17 @@
 use super::{norm, points_bounding_box, sub, Mesh};
 
 /// An undirected edge, smaller index first.
-pub type EdgeKey = (u32, u32);
+pub(crate) type EdgeKey = (u32, u32);
 
 /// The undirected edge `a`–`b` (either direction).
 #[inline]
-pub fn edge_key(a: u32, b: u32) -> EdgeKey {
+pub(crate) fn edge_key(a: u32, b: u32) -> EdgeKey {
     (a.min(b), a.max(b))
 }
 
 /// Marks a triangle edge with no triangle on its other side (see
 /// [`triangle_adjacency`]).
-pub const NO_TRIANGLE: u32 = u32::MAX;
+pub(crate) const NO_TRIANGLE: u32 = u32::MAX;
 
 /// The edge map of a list of faces: each distinct undirected edge, sorted,
 /// with the faces (and half-edges) that contain it.
@@ -240,7 +240,7 @@ pub fn boundary_loops(mesh: &Mesh) -> Vec<Vec<u32>> {
 
 /// Geometric length of the closed loop `lp` of vertices of `mesh` (the sum
 /// of its edge lengths, the closing edge included).
-pub fn boundary_loop_length(mesh: &Mesh, lp: &[u32]) -> f64 {
+pub(crate) fn boundary_loop_length(mesh: &Mesh, lp: &[u32]) -> f64 {
     (0..lp.len())
         .map(|i| {
             norm(sub(
@@ -255,7 +255,7 @@ pub fn boundary_loop_length(mesh: &Mesh, lp: &[u32]) -> f64 {
 /// bounding box of its vertices. Unlike its length, it says how much of
 /// the surface a hole spans: the rim of a root cut off is as long as the
 /// root is round, but spans only the root's width.
-pub fn boundary_loop_extent(mesh: &Mesh, lp: &[u32]) -> f64 {
+pub(crate) fn boundary_loop_extent(mesh: &Mesh, lp: &[u32]) -> f64 {
     points_bounding_box(lp.iter().map(|&v| mesh.vertices[v as usize]))
         .map_or(0.0, |(lo, hi)| norm(sub(hi, lo)))
 }
@@ -272,7 +272,7 @@ pub fn widest_boundary_loop_extent(mesh: &Mesh) -> Option<f64> {
 /// The [`boundary_loops`] ordered by decreasing [`boundary_loop_length`]
 /// (geometric length, not vertex count); loops of equal length keep the
 /// order of [`boundary_loops`].
-pub fn boundary_loops_by_length(mesh: &Mesh) -> Vec<Vec<u32>> {
+pub(crate) fn boundary_loops_by_length(mesh: &Mesh) -> Vec<Vec<u32>> {
     let mut loops: Vec<(f64, Vec<u32>)> = boundary_loops(mesh)
         .into_iter()
         .map(|l| (boundary_loop_length(mesh, &l), l))
@@ -312,7 +312,7 @@ pub fn genus(euler: i64, boundaries: usize) -> i64 {
 
 /// The one-ring of every vertex: its neighbours along edges, sorted, without
 /// repeats. Faces' edges with an out-of-range end are ignored.
-pub fn vertex_adjacency(mesh: &Mesh) -> Vec<Vec<u32>> {
+pub(crate) fn vertex_adjacency(mesh: &Mesh) -> Vec<Vec<u32>> {
     let mut adj: Vec<Vec<u32>> = vec![Vec::new(); mesh.vertices.len()];
     for f in &mesh.faces {
         for k in 0..3 {
@@ -334,7 +334,7 @@ pub fn vertex_adjacency(mesh: &Mesh) -> Vec<Vec<u32>> {
 /// `adjacency[f][k]` shares the edge `(faces[f][k+1], faces[f][k+2])` with
 /// `f`, or is [`NO_TRIANGLE`] when that edge is on the boundary or is
 /// shared by more than two triangles.
-pub fn triangle_adjacency(faces: &[[u32; 3]]) -> Vec<[u32; 3]> {
+pub(crate) fn triangle_adjacency(faces: &[[u32; 3]]) -> Vec<[u32; 3]> {
     let edges = EdgeMap::new(faces);
     let mut adjacency = vec![[NO_TRIANGLE; 3]; faces.len()];
     for e in 0..edges.len() {

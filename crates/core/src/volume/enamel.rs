@@ -49,7 +49,7 @@ pub(super) fn smooth_vertex_values(mesh: &Mesh, values: &[f64]) -> Vec<f64> {
 /// The part of `mesh` where the piecewise-linear vertex function `values`
 /// is ≥ 0, with the triangles crossing the zero level split along it.
 /// Orientation is kept; vertices outside the part are dropped.
-pub fn cut_at_zero_level(mesh: &Mesh, values: &[f64]) -> Mesh {
+pub(crate) fn cut_at_zero_level(mesh: &Mesh, values: &[f64]) -> Mesh {
     let mut vertices: Vec<[f64; 3]> = Vec::new();
     let mut kept: Vec<u32> = vec![u32::MAX; mesh.vertices.len()];
     let mut crossing: FxHashMap<EdgeKey, u32> = FxHashMap::default();
@@ -105,7 +105,7 @@ pub fn cut_at_zero_level(mesh: &Mesh, values: &[f64]) -> Mesh {
 /// The connected part (faces joined through shared vertices) of largest
 /// area ([`largest_component_by_area`]), with unused vertices dropped, and
 /// how many parts there were.
-pub fn largest_part(mesh: &Mesh) -> (Mesh, usize) {
+pub(crate) fn largest_part(mesh: &Mesh) -> (Mesh, usize) {
     let (part, dropped) = largest_component_by_area(mesh);
     let parts = if mesh.faces.is_empty() {
         0

@@ -21,19 +21,14 @@ mod specimen;
 mod split;
 mod threshold;
 
-pub use enamel::{cut_at_zero_level, largest_part};
+pub(crate) use enamel::{cut_at_zero_level, largest_part};
 pub use reduce::{reduction_factor, BlockAverage};
-pub use refine::{detail_factor, DETAIL_VOXELS};
-pub use segment::{connected_components, fill_cavities, specimen_mask, SegmentReport};
-pub use shape::{dilate_cube, erode_cube, local_variation, object_stats, open_cube, ObjectStats};
-pub use specimen::{
-    find_specimen, DropReason, SegmentObject, Specimen, SpecimenError, MIN_SPECIMEN_VOXELS,
-    SPECIMEN_SHARE, STANDS_OUT, TEXTURED, THIN_RADIUS, UNEVEN,
-};
-pub use split::{separate_at_necks, Separation, FUSED_RADIUS, NECK_RADIUS};
-pub use threshold::{
-    contrast, enamel_threshold, foreground_threshold, multi_otsu, otsu, Histogram, Thresholds,
-};
+pub use refine::detail_factor;
+pub use segment::SegmentReport;
+pub(crate) use specimen::{find_specimen, SpecimenError};
+pub use specimen::{DropReason, Specimen};
+pub(crate) use threshold::enamel_threshold;
+pub use threshold::Thresholds;
 
 use crate::mesh::{isosurface, surface_area, Grid, Mesh};
 use refine::refined_surface;

@@ -15,7 +15,7 @@ use crate::mesh::{Grid, Mesh};
 
 /// Most samples of the detail grid (128 MB of `f32`): a 300³ scan is kept
 /// whole, a larger one block-averaged to fit.
-pub const DETAIL_VOXELS: usize = 32 << 20;
+pub(crate) const DETAIL_VOXELS: usize = 32 << 20;
 
 /// The block size of the detail grid of a volume of `dims`: the smallest
 /// that keeps it within [`DETAIL_VOXELS`].

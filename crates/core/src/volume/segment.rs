@@ -1,5 +1,5 @@
 //! Segmentation on the working grid: 6-connected components, the largest
-//! kept ([`specimen_mask`], for a plain mask), and the background not
+//! kept (`specimen_mask` in the tests, for a plain mask), and the background not
 //! connected to the grid's border (internal cavities) filled. Which object
 //! of a volume is the specimen is `specimen`'s to say.
 
@@ -41,7 +41,7 @@ pub struct SegmentReport {
 
 /// 6-connected components of the `true` voxels of `mask` on a grid of
 /// `dims`: a label per voxel (`u32::MAX` for `false`) and each label's size.
-pub fn connected_components(mask: &[bool], dims: [usize; 3]) -> (Vec<u32>, Vec<usize>) {
+pub(crate) fn connected_components(mask: &[bool], dims: [usize; 3]) -> (Vec<u32>, Vec<usize>) {
     let [nx, ny, nz] = dims;
     let plane = nx * ny;
     let mut labels = vec![u32::MAX; mask.len()];
@@ -100,30 +100,9 @@ fn on_border(i: usize, dims: [usize; 3]) -> bool {
     x == 0 || y == 0 || z == 0 || x + 1 == nx || y + 1 == ny || z + 1 == nz
 }
 
-/// The largest component of `mask` with its internal cavities filled, and
-/// what was dropped and filled. `None` when `mask` is empty.
-pub fn specimen_mask(mask: &[bool], dims: [usize; 3]) -> Option<(Vec<bool>, SegmentReport)> {
-    let (labels, sizes) = connected_components(mask, dims);
-    let (largest, &kept) = sizes
-        .iter()
-        .enumerate()
-        .max_by_key(|&(i, s)| (*s, usize::MAX - i))?;
-    let out: Vec<bool> = labels.iter().map(|&l| l == largest as u32).collect();
-    let (out, filled_cavities, filled_voxels) = fill_cavities(out, dims);
-    let report = SegmentReport {
-        kept_voxels: kept,
-        dropped_components: sizes.len() - 1,
-        dropped_voxels: sizes.iter().sum::<usize>() - kept,
-        filled_cavities,
-        filled_voxels,
-        ..Default::default()
-    };
-    Some((out, report))
-}
-
 /// `mask` with the background not connected to the grid's border (internal
 /// cavities: pulp, canals, cracks) filled; how many cavities and voxels.
-pub fn fill_cavities(mut mask: Vec<bool>, dims: [usize; 3]) -> (Vec<bool>, usize, usize) {
+pub(crate) fn fill_cavities(mut mask: Vec<bool>, dims: [usize; 3]) -> (Vec<bool>, usize, usize) {
     let background: Vec<bool> = mask.iter().map(|&m| !m).collect();
     let (bg_labels, bg_sizes) = connected_components(&background, dims);
     let mut outside = vec![false; bg_sizes.len()];
@@ -145,6 +124,28 @@ pub fn fill_cavities(mut mask: Vec<bool>, dims: [usize; 3]) -> (Vec<bool>, usize
         }
     }
     (mask, cavities, voxels)
+}
+
+/// The largest component of `mask` with its internal cavities filled, and
+/// what was dropped and filled. `None` when `mask` is empty.
+#[cfg(test)]
+fn specimen_mask(mask: &[bool], dims: [usize; 3]) -> Option<(Vec<bool>, SegmentReport)> {
+    let (labels, sizes) = connected_components(mask, dims);
+    let (largest, &kept) = sizes
+        .iter()
+        .enumerate()
+        .max_by_key(|&(i, s)| (*s, usize::MAX - i))?;
+    let out: Vec<bool> = labels.iter().map(|&l| l == largest as u32).collect();
+    let (out, filled_cavities, filled_voxels) = fill_cavities(out, dims);
+    let report = SegmentReport {
+        kept_voxels: kept,
+        dropped_components: sizes.len() - 1,
+        dropped_voxels: sizes.iter().sum::<usize>() - kept,
+        filled_cavities,
+        filled_voxels,
+        ..Default::default()
+    };
+    Some((out, report))
 }
 
 #[cfg(test)]

@@ -67,14 +67,14 @@ fn window_filter(mask: &[bool], dims: [usize; 3], axis: usize, r: usize, all: bo
 
 /// Erosion of `mask` by the cube of half-side `r` (outside the grid is
 /// empty): the samples whose whole cube is set.
-pub fn erode_cube(mask: &[bool], dims: [usize; 3], r: usize) -> Vec<bool> {
+pub(crate) fn erode_cube(mask: &[bool], dims: [usize; 3], r: usize) -> Vec<bool> {
     let x = window_filter(mask, dims, 0, r, true);
     let y = window_filter(&x, dims, 1, r, true);
     window_filter(&y, dims, 2, r, true)
 }
 
 /// Dilation of `mask` by the cube of half-side `r`.
-pub fn dilate_cube(mask: &[bool], dims: [usize; 3], r: usize) -> Vec<bool> {
+pub(crate) fn dilate_cube(mask: &[bool], dims: [usize; 3], r: usize) -> Vec<bool> {
     let x = window_filter(mask, dims, 0, r, false);
     let y = window_filter(&x, dims, 1, r, false);
     window_filter(&y, dims, 2, r, false)
@@ -82,13 +82,13 @@ pub fn dilate_cube(mask: &[bool], dims: [usize; 3], r: usize) -> Vec<bool> {
 
 /// Opening of `mask` by the cube of half-side `r`: the union of the cubes
 /// that fit inside it. Parts thinner than `2r + 1` samples are removed.
-pub fn open_cube(mask: &[bool], dims: [usize; 3], r: usize) -> Vec<bool> {
+pub(crate) fn open_cube(mask: &[bool], dims: [usize; 3], r: usize) -> Vec<bool> {
     dilate_cube(&erode_cube(mask, dims, r), dims, r)
 }
 
 /// Size, extent and grey level of one object.
 #[derive(Debug, Clone, PartialEq)]
-pub struct ObjectStats {
+pub(crate) struct ObjectStats {
     /// Samples.
     pub voxels: usize,
     /// First sample along x, y, z.
@@ -103,14 +103,14 @@ impl ObjectStats {
     /// The first axis (0 = x, 1 = y, 2 = z) along which the object reaches
     /// both ends of a grid of `dims`: it spans the field of view, as a tube,
     /// foam filling it, or the background do and a specimen does not.
-    pub fn spanned_axis(&self, dims: [usize; 3]) -> Option<usize> {
+    pub(crate) fn spanned_axis(&self, dims: [usize; 3]) -> Option<usize> {
         (0..3).find(|&a| dims[a] > 1 && self.min[a] == 0 && self.max[a] + 1 == dims[a])
     }
 }
 
 /// The statistics of each of `count` labelled objects (`labels` as
 /// [`super::connected_components`] gives them, `u32::MAX` = none).
-pub fn object_stats(
+pub(crate) fn object_stats(
     labels: &[u32],
     count: usize,
     values: &[f32],
@@ -155,7 +155,11 @@ pub fn object_stats(
 /// neighbour along x, with the mean of the set samples. Scanner noise on a
 /// homogeneous material gives a small variation; foam's texture a large
 /// one. `None` for fewer than 16 neighbour pairs.
-pub fn local_variation(values: &[f32], mask: &[bool], dims: [usize; 3]) -> Option<(f64, f64)> {
+pub(crate) fn local_variation(
+    values: &[f32],
+    mask: &[bool],
+    dims: [usize; 3],
+) -> Option<(f64, f64)> {
     let mut diffs = Vec::new();
     let (mut n, mut s) = (0usize, 0.0f64);
     for (i, &m) in mask.iter().enumerate() {

@@ -25,16 +25,16 @@ use super::threshold::{foreground_threshold, multi_otsu, Histogram};
 /// Half-side (working samples) of the cube opening that separates thin
 /// parts: what is thinner than `2 * THIN_RADIUS + 1` samples everywhere is
 /// a thin shell or rod.
-pub const THIN_RADIUS: usize = 2;
+pub(crate) const THIN_RADIUS: usize = 2;
 
 /// Samples (working resolution) an object needs to be a specimen.
-pub const MIN_SPECIMEN_VOXELS: usize = 1000;
+pub(crate) const MIN_SPECIMEN_VOXELS: usize = 1000;
 
 /// An object at the specimens' level that is not mounting material is a
 /// specimen of its own when it holds at least this share of the largest
 /// one's samples, else a fragment (a broken cusp, debris): teeth scanned
 /// together differ in volume by less than this factor, fragments by more.
-pub const SPECIMEN_SHARE: f64 = 0.2;
+pub(crate) const SPECIMEN_SHARE: f64 = 0.2;
 
 /// Below the specimen's level, objects are listed from this many times
 /// [`MIN_SPECIMEN_VOXELS`] up.
@@ -49,19 +49,19 @@ const REPORT_VOXELS: usize = 64;
 /// Local variation (median neighbour difference over the contrast above
 /// the darkest class) above which a material is textured like foam;
 /// dentine under scanner noise measures 0.02–0.12, foam 0.25 and more.
-pub const TEXTURED: f64 = 0.2;
+pub(crate) const TEXTURED: f64 = 0.2;
 
 /// Edge contrast (the specimen's lower quartile less the upper quartile
 /// of its surroundings, over its contrast above the darkest class) under
 /// which an object does not stand out: a tooth measures 0.4 and more
 /// (enamel over dentine too), the brighter patches of foam's texture or of
 /// noise 0.1 and less.
-pub const STANDS_OUT: f64 = 0.25;
+pub(crate) const STANDS_OUT: f64 = 0.25;
 
 /// Robust spread over the contrast above the darkest class above which
 /// the material a lower level adds around the specimen is foam: dentine,
 /// even with cupping, measures under 0.1; foam 0.2 and more.
-pub const UNEVEN: f64 = 0.2;
+pub(crate) const UNEVEN: f64 = 0.2;
 
 /// Fraction of the grown object that the samples added at a lower level
 /// must hold more than [`THIN_RADIUS`] deep for the level to add a
@@ -321,7 +321,7 @@ fn candidate_levels(values: &[f32]) -> Option<(Vec<f64>, f64)> {
 
 /// The specimen in `values` on a grid of `dims` (see the module
 /// documentation), or why there is none.
-pub fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen, SpecimenError> {
+pub(crate) fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen, SpecimenError> {
     let (levels, background) = candidate_levels(values).ok_or(SpecimenError::Uniform)?;
     let mut views: Vec<Option<Level>> = (0..levels.len()).map(|_| None).collect();
     let mut rejected: Vec<(f64, usize, String)> = Vec::new();

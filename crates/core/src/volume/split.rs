@@ -18,11 +18,11 @@ use std::collections::VecDeque;
 /// samples): a neck at most `2 * NECK_RADIUS + 1` samples across. A tooth's
 /// own narrowings (cervical constriction, root trunk) are several times
 /// wider at any working resolution that resolves the tooth.
-pub const NECK_RADIUS: usize = 3;
+pub(crate) const NECK_RADIUS: usize = 3;
 
 /// Up to this radius a split into comparable parts is looked for but not
 /// made: the object may be two specimens fused over a wide junction.
-pub const FUSED_RADIUS: usize = 6;
+pub(crate) const FUSED_RADIUS: usize = 6;
 
 /// A core counts when it holds at least this share of the largest core:
 /// cusp tips and root apices that an erosion cuts off are far smaller.
@@ -37,7 +37,7 @@ const MIN_CORE: usize = 64;
 
 /// How an object came apart.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Separation {
+pub(crate) enum Separation {
     /// Cut at a thin neck into these parts (a partition of the object, in
     /// the order of their cores' first samples).
     Cut {
@@ -58,7 +58,7 @@ pub enum Separation {
 
 /// Separate the object `mask` (one connected object on a grid of `dims`)
 /// at its thin necks (see the module documentation).
-pub fn separate_at_necks(mask: &[bool], dims: [usize; 3]) -> Separation {
+pub(crate) fn separate_at_necks(mask: &[bool], dims: [usize; 3]) -> Separation {
     // Within the object's box (outside it the grid is empty anyway): a
     // specimen is a small part of a batch's grid.
     let mut lo = [usize::MAX; 3];

@@ -5,7 +5,7 @@
 
 /// A histogram of values over `[lo, hi]` in equal bins.
 #[derive(Debug, Clone)]
-pub struct Histogram {
+pub(crate) struct Histogram {
     lo: f64,
     width: f64,
     counts: Vec<u64>,
@@ -13,7 +13,7 @@ pub struct Histogram {
 
 impl Histogram {
     /// The histogram of `values` in `bins` bins between their extremes.
-    pub fn of(values: &[f32], bins: usize) -> Histogram {
+    pub(crate) fn of(values: &[f32], bins: usize) -> Histogram {
         let (lo, hi) = values.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| {
             (a.min(f64::from(v)), b.max(f64::from(v)))
         });
@@ -28,18 +28,19 @@ impl Histogram {
     }
 
     /// The value at the upper edge of bin `b`.
-    pub fn edge(&self, b: usize) -> f64 {
+    pub(crate) fn edge(&self, b: usize) -> f64 {
         self.lo + (b + 1) as f64 * self.width
     }
 
     /// The number of bins.
-    pub fn bins(&self) -> usize {
+    #[cfg(test)]
+    fn bins(&self) -> usize {
         self.counts.len()
     }
 
     /// The mean value of the samples in bins `range` (the bin centres
     /// weighted by their counts); `None` when they hold no sample.
-    pub fn mean(&self, range: std::ops::Range<usize>) -> Option<f64> {
+    pub(crate) fn mean(&self, range: std::ops::Range<usize>) -> Option<f64> {
         let (mut n, mut s) = (0.0, 0.0);
         for (i, &c) in self.counts.get(range.clone())?.iter().enumerate() {
             n += c as f64;
@@ -49,7 +50,7 @@ impl Histogram {
     }
 
     /// Whether all values were equal (no threshold separates anything).
-    pub fn is_flat(&self) -> bool {
+    pub(crate) fn is_flat(&self) -> bool {
         self.counts.iter().filter(|&&c| c > 0).count() < 2
     }
 }
@@ -58,7 +59,7 @@ impl Histogram {
 /// lower class and the effectiveness σ²_between / σ²_total (1 for two
 /// separate spikes, 2/π for one normal distribution). `None` when the
 /// range holds fewer than two distinct bins.
-pub fn otsu(hist: &Histogram, range: std::ops::Range<usize>) -> Option<(usize, f64)> {
+pub(crate) fn otsu(hist: &Histogram, range: std::ops::Range<usize>) -> Option<(usize, f64)> {
     let counts = hist.counts.get(range.clone())?;
     let total: f64 = counts.iter().map(|&c| c as f64).sum();
     if total <= 0.0 || counts.iter().filter(|&&c| c > 0).count() < 2 {
@@ -99,7 +100,7 @@ pub fn otsu(hist: &Histogram, range: std::ops::Range<usize>) -> Option<(usize, f
 /// each class but the last, in increasing order, maximising the variance
 /// between the classes (dynamic programming over the bins, exact). Fewer
 /// distinct bins than classes give repeated thresholds.
-pub fn multi_otsu(hist: &Histogram, classes: usize) -> Vec<usize> {
+pub(crate) fn multi_otsu(hist: &Histogram, classes: usize) -> Vec<usize> {
     let l = hist.counts.len();
     let k = classes.clamp(2, l.max(2));
     // Prefix sums: P[j], S[j] over bins 0..j.
@@ -167,7 +168,7 @@ const TWO_MATERIALS: f64 = 0.8;
 /// when the part below it is itself clearly two materials (enamel so
 /// bright that Otsu split it from dentine and air), Otsu's threshold
 /// there. `None` when all values are equal.
-pub fn foreground_threshold(values: &[f32]) -> Option<f64> {
+pub(crate) fn foreground_threshold(values: &[f32]) -> Option<f64> {
     const BINS: usize = 256;
     let hist = Histogram::of(values, BINS);
     if hist.is_flat() {
@@ -182,36 +183,11 @@ pub fn foreground_threshold(values: &[f32]) -> Option<f64> {
     )
 }
 
-/// How far the values above `threshold` stand from those below it: the
-/// difference of the two means in standard deviations of the lower
-/// (background) class. Noise alone split at its Otsu threshold gives about
-/// 2.7 (normal) to 3.5 (uniform); a specimen against air gives far more.
-pub fn contrast(values: &[f32], threshold: f64) -> f64 {
-    let (mut n, mut s, mut ss, mut n1, mut s1) = (0.0, 0.0, 0.0, 0.0, 0.0);
-    for &v in values {
-        let v = f64::from(v);
-        if v > threshold {
-            n1 += 1.0;
-            s1 += v;
-        } else {
-            n += 1.0;
-            s += v;
-            ss += v * v;
-        }
-    }
-    if n < 1.0 || n1 < 1.0 {
-        return 0.0;
-    }
-    let m0 = s / n;
-    let sd = (ss / n - m0 * m0).max(0.0).sqrt();
-    (s1 / n1 - m0) / sd.max(f64::MIN_POSITIVE)
-}
-
 /// The threshold between dentine and enamel among the `interior` values of
 /// the specimen (away from its surface, so that the blur between air and
 /// tooth does not count as a material), when they are clearly two
 /// materials.
-pub fn enamel_threshold(interior: &[f32]) -> Option<f64> {
+pub(crate) fn enamel_threshold(interior: &[f32]) -> Option<f64> {
     const BINS: usize = 256;
     let hist = Histogram::of(interior, BINS);
     otsu(&hist, 0..BINS)
@@ -268,16 +244,5 @@ mod tests {
         let m = hist.mean(0..hist.bins()).unwrap();
         let exact = v.iter().map(|&x| f64::from(x)).sum::<f64>() / v.len() as f64;
         assert!((m - exact).abs() < 0.01, "{m} vs {exact}");
-    }
-
-    #[test]
-    fn noise_alone_has_no_contrast_and_a_specimen_has() {
-        let noise = noisy(&[(0.1, 20000)], 0.03);
-        let t = foreground_threshold(&noise).unwrap();
-        let c = contrast(&noise, t);
-        assert!(c > 2.0 && c < 4.0, "{c}");
-        let scan = noisy(&[(0.1, 20000), (0.5, 1000)], 0.03);
-        let c = contrast(&scan, foreground_threshold(&scan).unwrap());
-        assert!(c > 10.0, "{c}");
     }
 }

@@ -34,16 +34,17 @@ mod tps;
 
 pub use chain::{
     carry_along, complete_distances, correspondence_csv, far_landmarks, spanning_tree_route,
-    with_ends, Carried, ChainError, Specimens,
+    with_ends, Carried, Specimens,
 };
-pub use matrix::{procrustes_matrix, LandmarkMatrixError};
-pub use morphologika::{format_morphologika, is_morphologika, parse_morphologika};
-pub use mst::{minimum_spanning_tree, tree_path};
+pub use matrix::procrustes_matrix;
+pub(crate) use morphologika::is_morphologika;
+pub use morphologika::{format_morphologika, parse_morphologika};
+pub use mst::minimum_spanning_tree;
+pub(crate) use mst::tree_path;
 pub use procrustes::procrustes_distance;
-pub use procrustes::ProcrustesError;
-pub use propagate::{
-    propagate, propagate_along, surface_point, PropagateError, Propagated, Surface, SurfacePoint,
-};
+pub(crate) use procrustes::ProcrustesError;
+pub(crate) use propagate::Propagated;
+pub use propagate::{propagate, propagate_along, surface_point, PropagateError, Surface};
 pub use tps::{format_tps, parse_tps, NamedLandmarks};
 
 use std::path::{Path, PathBuf};

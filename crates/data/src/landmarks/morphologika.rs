@@ -19,7 +19,7 @@ use std::path::Path;
 
 /// Whether `text` looks like a morphologika file (its first non-blank line
 /// is a bracketed section).
-pub fn is_morphologika(text: &str) -> bool {
+pub(crate) fn is_morphologika(text: &str) -> bool {
     content_lines(text)
         .next()
         .is_some_and(|(_, l)| l.starts_with('['))

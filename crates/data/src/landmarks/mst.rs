@@ -55,7 +55,12 @@ pub fn minimum_spanning_tree(d: &[Vec<f64>]) -> Vec<(usize, usize)> {
 
 /// The path from `from` to `to` in the tree (or forest) with `edges` over
 /// `n` nodes, both ends included; `None` when they are not connected.
-pub fn tree_path(n: usize, edges: &[(usize, usize)], from: usize, to: usize) -> Option<Vec<usize>> {
+pub(crate) fn tree_path(
+    n: usize,
+    edges: &[(usize, usize)],
+    from: usize,
+    to: usize,
+) -> Option<Vec<usize>> {
     if from >= n || to >= n {
         return None;
     }

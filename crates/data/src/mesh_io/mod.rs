@@ -18,7 +18,7 @@ mod stl;
 mod text;
 mod write;
 
-pub use write::{encode, save, save_as, write_obj, write_off, write_ply, write_ply_ascii};
+pub use write::{encode, save, save_as, write_ply};
 pub use write::{write_stl, write_stl_ascii, EncodeError, Encoding, SaveError};
 
 use crate::hash::{Content, HashingReader, SharedHash};

@@ -107,11 +107,6 @@ pub fn write_ply(path: &Path, mesh: &Mesh) -> Result<(), SaveError> {
     save_as(path, mesh, Encoding::PlyBinaryLe)
 }
 
-/// Write ASCII PLY (a vertex-only PLY for a point cloud).
-pub fn write_ply_ascii(path: &Path, mesh: &Mesh) -> Result<(), SaveError> {
-    save_as(path, mesh, Encoding::PlyAscii)
-}
-
 /// Write binary STL.
 pub fn write_stl(path: &Path, mesh: &Mesh) -> Result<(), SaveError> {
     save_as(path, mesh, Encoding::StlBinary)
@@ -120,16 +115,6 @@ pub fn write_stl(path: &Path, mesh: &Mesh) -> Result<(), SaveError> {
 /// Write ASCII STL.
 pub fn write_stl_ascii(path: &Path, mesh: &Mesh) -> Result<(), SaveError> {
     save_as(path, mesh, Encoding::StlAscii)
-}
-
-/// Write Wavefront OBJ.
-pub fn write_obj(path: &Path, mesh: &Mesh) -> Result<(), SaveError> {
-    save_as(path, mesh, Encoding::Obj)
-}
-
-/// Write OFF.
-pub fn write_off(path: &Path, mesh: &Mesh) -> Result<(), SaveError> {
-    save_as(path, mesh, Encoding::Off)
 }
 
 /// Why a mesh cannot be encoded: a face index out of range, a non-finite

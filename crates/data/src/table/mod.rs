@@ -8,4 +8,4 @@ mod matrix;
 
 pub use csv_text::TableError;
 pub use labels::Labels;
-pub use matrix::{distance_matrix, pairwise_matrix, DistanceMatrix, MatrixShapeError};
+pub use matrix::{distance_matrix, pairwise_matrix, DistanceMatrix};

@@ -385,7 +385,7 @@ fn order_slices(dir: &Path, headers: &[SliceHeader]) -> Result<Ordering, VolumeE
 /// ([`crate::completeness::dicom_positions`]). `None` when a file cannot
 /// be read as a DICOM slice or lacks its position or orientation: the
 /// reader then says what is wrong.
-pub fn slice_positions_along_normal(files: &[PathBuf]) -> Option<Vec<f64>> {
+pub(crate) fn slice_positions_along_normal(files: &[PathBuf]) -> Option<Vec<f64>> {
     let mut normal = None;
     let mut along = Vec::with_capacity(files.len());
     for p in files {

@@ -15,9 +15,10 @@ mod nrrd;
 mod source;
 mod stack;
 
-pub use dicom::slice_positions_along_normal;
-pub use source::{VolumeFormat, VolumeInfo};
-pub use stack::{natural_order, slice_format, slice_paths};
+pub(crate) use dicom::slice_positions_along_normal;
+pub use source::VolumeFormat;
+pub(crate) use source::VolumeInfo;
+pub use stack::{slice_format, slice_paths};
 
 use crate::hash::Content;
 use morphoid_core::mesh::Grid;

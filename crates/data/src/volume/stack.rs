@@ -45,7 +45,7 @@ fn is_dicomdir(path: &Path) -> bool {
 }
 
 /// Compare names so that runs of digits compare as numbers.
-pub fn natural_order(a: &str, b: &str) -> Ordering {
+pub(crate) fn natural_order(a: &str, b: &str) -> Ordering {
     let (mut x, mut y) = (a.as_bytes(), b.as_bytes());
     loop {
         match (x.first(), y.first()) {

@@ -34,7 +34,7 @@ impl MeshPoint {
 /// `count` points of `mesh` distributed uniformly by area (a triangle is
 /// drawn with probability proportional to its area, then a uniform point
 /// in it), reproducibly from `seed`. Empty when the mesh has no area.
-pub fn area_uniform_points(mesh: &Mesh, count: usize, seed: u64) -> Vec<MeshPoint> {
+pub(crate) fn area_uniform_points(mesh: &Mesh, count: usize, seed: u64) -> Vec<MeshPoint> {
     let areas = face_areas(mesh);
     let mut cumulative = Vec::with_capacity(areas.len());
     let mut total = 0.0;
@@ -67,7 +67,7 @@ pub fn area_uniform_points(mesh: &Mesh, count: usize, seed: u64) -> Vec<MeshPoin
 /// ([`farthest_point_order`]): first the point nearest the centroid, then
 /// repeatedly the point farthest (Euclidean) from all chosen ones; ties go
 /// to the lower index. Fewer when there are fewer distinct points.
-pub fn farthest_point_sampling(points: &[[f64; 3]], n: usize) -> Vec<usize> {
+pub(crate) fn farthest_point_sampling(points: &[[f64; 3]], n: usize) -> Vec<usize> {
     if points.is_empty() || n == 0 {
         return Vec::new();
     }

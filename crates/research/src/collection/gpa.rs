@@ -77,7 +77,7 @@ fn determinant(r: &[[f64; 3]; 3]) -> f64 {
 }
 
 /// Centroid and centroid size of a configuration.
-pub fn centroid_size(points: &[[f64; 3]]) -> ([f64; 3], f64) {
+pub(crate) fn centroid_size(points: &[[f64; 3]]) -> ([f64; 3], f64) {
     let n = points.len().max(1) as f64;
     let mut c = [0.0; 3];
     for p in points {
@@ -119,7 +119,7 @@ fn squared_distance(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
 /// moves less than `1e-12` (at most 100 rounds). The first mean is the
 /// configuration `reference`, and each new mean is rotated onto the
 /// previous one, so the frame is the reference's own.
-pub fn generalized_procrustes(
+pub(crate) fn generalized_procrustes(
     configurations: &[Vec<[f64; 3]>],
     handedness: &[Handedness],
     reference: usize,

@@ -59,7 +59,7 @@ pub fn medoid(d: &[Vec<f64>]) -> Option<usize> {
 /// order; the synchronization starts from it), or `(root, i)` for every
 /// other `i`. Specimens the tree does not reach (non-finite distances) get
 /// no step.
-pub fn carrying_steps(d: &[Vec<f64>], root: usize, how: Consistency) -> Vec<(usize, usize)> {
+pub(crate) fn carrying_steps(d: &[Vec<f64>], root: usize, how: Consistency) -> Vec<(usize, usize)> {
     let n = d.len();
     match how {
         Consistency::Direct => (0..n).filter(|&i| i != root).map(|i| (root, i)).collect(),
@@ -150,7 +150,7 @@ pub(crate) fn directed_maps(
 /// of every step (in parallel; `progress` receives the number done), then
 /// the images from surface to surface. `surfaces[i]` is the surface of
 /// `prepared[i]` in file units ([`Surface::from_normalized`]).
-pub fn carry_template(
+pub(crate) fn carry_template(
     prepared: &[Prepared],
     surfaces: &[Surface],
     root: usize,

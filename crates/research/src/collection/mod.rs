@@ -15,18 +15,15 @@ mod maps;
 mod pca;
 mod sync;
 
-pub use files::{write_outputs, OutputContext, OutputError, Written};
-pub use fps::{area_uniform_points, farthest_point_sampling, pseudolandmarks, MeshPoint};
-pub use gpa::{centroid_size, generalized_procrustes, Gpa, GpaError, Superimposition};
-pub use maps::{
-    carry_template, carrying_steps, medoid, template_on, transfer_through_template, CarryError,
-    Consistency, TemplateImages,
-};
-pub use pca::{principal_components, Pca};
-pub use sync::{
-    geometric_median, nearest_neighbours, synchronization_edges, synchronize, synchronize_template,
-    SyncParams,
-};
+pub use files::{write_outputs, OutputContext, Written};
+pub use fps::pseudolandmarks;
+pub(crate) use fps::MeshPoint;
+pub(crate) use gpa::{generalized_procrustes, Gpa, GpaError};
+pub(crate) use maps::{carry_template, carrying_steps, CarryError, TemplateImages};
+pub use maps::{medoid, template_on, transfer_through_template, Consistency};
+pub(crate) use pca::{principal_components, Pca};
+pub(crate) use sync::synchronize_template;
+pub use sync::SyncParams;
 
 use morphoid_core::cp::{CompareParams, Handedness, Prepared};
 use morphoid_core::mesh::Mesh;

@@ -29,7 +29,7 @@ impl Pca {
 /// coordinates). Components with no variance are left out; at most
 /// `n − 1` remain. Each component's sign makes its largest coefficient
 /// (loading) positive, so the output does not depend on the eigensolver.
-pub fn principal_components(configurations: &[Vec<[f64; 3]>]) -> Pca {
+pub(crate) fn principal_components(configurations: &[Vec<[f64; 3]>]) -> Pca {
     let n = configurations.len();
     let p = configurations.first().map_or(0, |c| 3 * c.len());
     if n < 2 || p == 0 || configurations.iter().any(|c| 3 * c.len() != p) {

@@ -52,7 +52,7 @@ impl Default for SyncParams {
 
 /// The `k` nearest neighbours of every specimen under the distances `d`
 /// (row `i`, non-finite entries skipped, ties to the lower index).
-pub fn nearest_neighbours(d: &[Vec<f64>], k: usize) -> Vec<Vec<usize>> {
+pub(crate) fn nearest_neighbours(d: &[Vec<f64>], k: usize) -> Vec<Vec<usize>> {
     (0..d.len())
         .map(|i| {
             let mut others: Vec<usize> = (0..d.len())
@@ -68,7 +68,11 @@ pub fn nearest_neighbours(d: &[Vec<f64>], k: usize) -> Vec<Vec<usize>> {
 /// The directed maps `(from, to)` the synchronization needs: every
 /// specimen but `anchor` receives one from each of its `k` nearest
 /// neighbours; ordered by `to`, then by nearness.
-pub fn synchronization_edges(d: &[Vec<f64>], anchor: usize, k: usize) -> Vec<(usize, usize)> {
+pub(crate) fn synchronization_edges(
+    d: &[Vec<f64>],
+    anchor: usize,
+    k: usize,
+) -> Vec<(usize, usize)> {
     nearest_neighbours(d, k)
         .into_iter()
         .enumerate()
@@ -80,7 +84,7 @@ pub fn synchronization_edges(d: &[Vec<f64>], anchor: usize, k: usize) -> Vec<(us
 /// The geometric median of `points` (the point minimising the summed
 /// Euclidean distances) by Weiszfeld's iteration from the centroid; `None`
 /// for no points.
-pub fn geometric_median(points: &[[f64; 3]]) -> Option<[f64; 3]> {
+pub(crate) fn geometric_median(points: &[[f64; 3]]) -> Option<[f64; 3]> {
     let n = points.len();
     if n == 0 {
         return None;
@@ -128,7 +132,7 @@ pub fn geometric_median(points: &[[f64; 3]]) -> Option<[f64; 3]> {
 /// the least-absolute-distance sense), projected by `project(to, ·)` onto
 /// its surface; a specimen no edge reaches keeps its image.
 /// Returns the images and the mean move of a vertex in each round.
-pub fn synchronize<E: Send>(
+pub(crate) fn synchronize<E: Send>(
     images: Vec<Vec<[f64; 3]>>,
     anchor: usize,
     edges: &[(usize, usize)],
@@ -195,7 +199,7 @@ pub fn synchronize<E: Send>(
 /// [`synchronize`]. Returns the new images and the mean move per round
 /// (file units).
 #[allow(clippy::too_many_arguments)]
-pub fn synchronize_template(
+pub(crate) fn synchronize_template(
     prepared: &[Prepared],
     surfaces: &[Surface],
     carried: TemplateImages,

@@ -9,15 +9,14 @@ mod plot;
 mod shard;
 mod tree;
 
-pub use heatmap::{
-    average_linkage_order, default_cell_size, grouped_order, heatmap, HeatmapError, RgbImage,
-};
+pub(crate) use heatmap::RgbImage;
+pub use heatmap::{average_linkage_order, default_cell_size, grouped_order, heatmap};
 pub use loo::{leave_one_out, RankScore};
-pub use mantel::{mantel_test, Mantel, MantelError, DEFAULT_PERMUTATIONS, DEFAULT_SEED};
-pub use mds::{classical_mds, Mds};
+pub use mantel::{mantel_test, Mantel, DEFAULT_PERMUTATIONS, DEFAULT_SEED};
+pub use mds::classical_mds;
 pub use plot::{scatter_raster, scatter_svg, Scatter};
 pub use shard::{
     compute_shard, merge_shards, pair_count, pair_specimens, shard_pairs, PairDistance, Shard,
-    ShardError, ShardFile,
+    ShardFile,
 };
-pub use tree::{average_linkage_tree, dendrogram_svg, newick, Dendrogram};
+pub use tree::{average_linkage_tree, dendrogram_svg, newick};

@@ -288,7 +288,7 @@ fn create_parent(file: &Path) -> Result<(), ResultsError> {
 /// else the absolute path without its root. `None` for a path with no
 /// file name (the export folder itself). Paths are compared after `.` and
 /// `..` are resolved in the text, without following links.
-pub fn result_name(scan: &Path, export_dir: Option<&Path>) -> Option<PathBuf> {
+pub(crate) fn result_name(scan: &Path, export_dir: Option<&Path>) -> Option<PathBuf> {
     let absolute = absolute_lexical(scan);
     let inside = export_dir.and_then(|d| absolute.strip_prefix(absolute_lexical(d)).ok());
     let as_given = scan.is_relative() && !scan.components().any(|c| c == Component::ParentDir);

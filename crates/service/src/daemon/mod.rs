@@ -29,7 +29,6 @@ mod worker;
 
 pub use health::BACKOFF_MAX as STORAGE_RETRY_MAX;
 pub use serial::BACKOFF_MAX;
-pub use worker::MAX_ATTEMPTS;
 
 use crate::classify::{
     CalibrationProbe, CalibrationState, Classifier, PendingCalibration, ResultFiles,

@@ -29,7 +29,7 @@ use std::time::{Duration, Instant};
 /// A scan claimed this many times without finishing has crashed the
 /// daemon each time (or hung it until the watchdog fired): it is failed
 /// instead of being tried for ever.
-pub const MAX_ATTEMPTS: u32 = 3;
+pub(crate) const MAX_ATTEMPTS: u32 = 3;
 
 /// How often the worker looks for work nobody told it about (jobs queued
 /// by another process, `morphoid retry`).

@@ -6,13 +6,12 @@
 mod calibration;
 mod nearest;
 
+pub(crate) use calibration::{calibratable, calibration_pairs};
 pub use calibration::{
-    calibratable, calibration_pairs, expected_calibration_error, fit_logistic, novelty_score,
-    reference_distances, reliability, roc_auc, share_caught_at, Calibration, DistancesError,
-    Logistic, RankCalibration, ReferenceDistances, ReliabilityBin, CALIBRATION_SAMPLE,
-    FALSE_FLAG_RATE, MIN_HELD, MIN_PRESENT,
+    expected_calibration_error, reference_distances, reliability, roc_auc, share_caught_at,
+    Calibration, ReferenceDistances,
 };
 pub use nearest::{
-    identify, Confidence, DistanceRow, Identification, LandmarkPoint, Nearest, RankResult,
-    ScanLandmarks, ScanOutcome, SpecimenOutcome, SpecimensOutcome,
+    identify, Confidence, DistanceRow, LandmarkPoint, RankResult, ScanLandmarks, ScanOutcome,
 };
+pub(crate) use nearest::{Nearest, SpecimenOutcome, SpecimensOutcome};

@@ -27,7 +27,10 @@ pub(super) fn cleaning_rows(r: &CleanReport) -> Vec<(&'static str, String)> {
         ),
     ];
     if r.triangulated_point_cloud {
-        rows.push(("point cloud", "a surface reconstructed from the points".into()));
+        rows.push((
+            "point cloud",
+            "a surface reconstructed from the points".into(),
+        ));
     }
     if r.predecimated_faces > 0 {
         rows.push((
@@ -41,7 +44,10 @@ pub(super) fn cleaning_rows(r: &CleanReport) -> Vec<(&'static str, String)> {
         (r.dropped_components, "small components dropped"),
         (r.filled_holes, "holes filled"),
         (r.repaired_nonmanifold_edges, "non-manifold edges repaired"),
-        (r.repaired_nonmanifold_vertices, "non-manifold vertices repaired"),
+        (
+            r.repaired_nonmanifold_vertices,
+            "non-manifold vertices repaired",
+        ),
         (r.flipped_faces, "faces turned to agree"),
         (r.edge_flips, "edges flipped for the disk map"),
     ]
@@ -108,6 +114,12 @@ mod tests {
         r.welded_vertices = 3;
         r.reversed_orientation = true;
         let rows = cleaning_rows(&r);
-        assert_eq!(rows[3], ("repairs", "3 vertices welded; orientation reversed".to_string()));
+        assert_eq!(
+            rows[3],
+            (
+                "repairs",
+                "3 vertices welded; orientation reversed".to_string()
+            )
+        );
     }
 }

@@ -12,10 +12,10 @@ use morphoid_data::present::escape;
 use std::fmt::Write;
 
 /// Side of the pictures in a report, in pixels.
-pub const PICTURE_SIZE: usize = 360;
+pub(crate) const PICTURE_SIZE: usize = 360;
 
 /// Side of the index's thumbnails, in pixels.
-pub const THUMBNAIL_SIZE: usize = 96;
+pub(crate) const THUMBNAIL_SIZE: usize = 96;
 
 /// The viewer's code, inlined into every report.
 const VIEWER_JS: &str = include_str!("viewer.js");
@@ -63,7 +63,7 @@ pub fn thumbnail(scene: &Scene) -> Image {
 }
 
 /// A time in Unix milliseconds as `YYYY-MM-DD hh:mm:ss UTC`.
-pub fn utc_time(ms: i64) -> String {
+pub(crate) fn utc_time(ms: i64) -> String {
     let secs = ms.div_euclid(1000);
     let (days, rem) = (secs.div_euclid(86_400), secs.rem_euclid(86_400));
     // Civil date from days since 1970-01-01 (Howard Hinnant's algorithm).
@@ -126,7 +126,11 @@ pub fn file_name(path: &str) -> &str {
 /// the pictures and the 3D view of `scene` (when there is one), carried
 /// landmarks, the cleaning report and timings. `note` says why something
 /// is missing (e.g. the scan file is gone).
-pub fn report_html(record: &ScanRecord, scene: Option<&Scene>, note: Option<&str>) -> String {
+pub(crate) fn report_html(
+    record: &ScanRecord,
+    scene: Option<&Scene>,
+    note: Option<&str>,
+) -> String {
     let mut h = String::with_capacity(1 << 20);
     let name = file_name(&record.path);
     let _ = write!(
@@ -376,7 +380,7 @@ fn base64_of<T: Copy, const N: usize>(values: &[T], bytes: impl Fn(T) -> [u8; N]
 
 /// The scene as the viewer's JSON (floats as f32, indices as u32, colours
 /// as bytes; all base64), safe inside a `<script>` element.
-pub fn scene_json(scene: &Scene) -> String {
+pub(crate) fn scene_json(scene: &Scene) -> String {
     let points = |v: &[[f64; 3]]| {
         let flat: Vec<f32> = v.iter().flatten().map(|&x| x as f32).collect();
         base64_of(&flat, f32::to_le_bytes)

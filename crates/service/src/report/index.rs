@@ -12,15 +12,15 @@ use morphoid_data::present::escape;
 use std::fmt::Write;
 
 /// Scans on `index.html`.
-pub const INDEX_RECENT: usize = 100;
+pub(crate) const INDEX_RECENT: usize = 100;
 
 /// Scan ids per older page.
-pub const INDEX_PAGE: i64 = 100;
+pub(crate) const INDEX_PAGE: i64 = 100;
 
 /// One row of the overview: a scan and where its report and thumbnail are
 /// (relative links).
 #[derive(Debug, Clone, Copy)]
-pub struct IndexRow<'a> {
+pub(crate) struct IndexRow<'a> {
     /// The scan.
     pub record: &'a ScanRecord,
     /// Its report.
@@ -31,7 +31,7 @@ pub struct IndexRow<'a> {
 
 /// A link to another page of the overview.
 #[derive(Debug, Clone)]
-pub struct PageLink {
+pub(crate) struct PageLink {
     /// Relative link.
     pub href: String,
     /// What it holds (e.g. "scans 101–200").
@@ -39,7 +39,7 @@ pub struct PageLink {
 }
 
 /// Percent-encoding of a relative path for an `href` (`/` kept).
-pub fn href_of(path: &str) -> String {
+pub(crate) fn href_of(path: &str) -> String {
     let mut out = String::with_capacity(path.len());
     for b in path.bytes() {
         match b {
@@ -56,12 +56,12 @@ pub fn href_of(path: &str) -> String {
 
 /// The file name of the older page holding scan ids
 /// `(k·INDEX_PAGE, (k+1)·INDEX_PAGE]`.
-pub fn page_name(k: i64) -> String {
+pub(crate) fn page_name(k: i64) -> String {
     format!("index-{:06}.html", k)
 }
 
 /// The overview page: `title`, the rows (newest first), links to `pages`.
-pub fn index_html(title: &str, rows: &[IndexRow<'_>], pages: &[PageLink]) -> String {
+pub(crate) fn index_html(title: &str, rows: &[IndexRow<'_>], pages: &[PageLink]) -> String {
     let mut h = String::with_capacity(64 * 1024 + rows.len() * 600);
     let _ = write!(
         h,

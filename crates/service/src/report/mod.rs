@@ -15,15 +15,13 @@ mod index;
 mod render;
 mod scene;
 
-pub use html::{
-    file_name, report_html, scene_json, thumbnail, utc_time, PICTURE_SIZE, THUMBNAIL_SIZE,
+pub(crate) use html::report_html;
+pub use html::{file_name, thumbnail};
+pub(crate) use index::{
+    href_of, index_html, page_name, IndexRow, PageLink, INDEX_PAGE, INDEX_RECENT,
 };
-pub use index::{href_of, index_html, page_name, IndexRow, PageLink, INDEX_PAGE, INDEX_RECENT};
-pub use render::{render, unit, vertex_normals, Camera, Image};
-pub use scene::{
-    carried_colours, crown_view, inverse_rigid_motion, position_colours, ColouredMesh, Pairing,
-    Scene, ScenePoint, SceneReference,
-};
+pub use render::{render, unit, vertex_normals};
+pub use scene::{Scene, SceneReference};
 
 use crate::store::ScanRecord;
 

@@ -137,7 +137,7 @@ fn pairing(
 
 /// The points `y` mapped back through the rigid motion `x ↦ R x + t`:
 /// `Rᵀ (y − t)` (`R` orthogonal, row-major).
-pub fn inverse_rigid_motion(
+pub(crate) fn inverse_rigid_motion(
     rotation: &[[f64; 3]; 3],
     translation: [f64; 3],
     points: &[[f64; 3]],
@@ -154,7 +154,7 @@ pub fn inverse_rigid_motion(
 /// A smooth colouring by position in the camera's frame: red grows to the
 /// right, green upwards, blue towards the viewer, over the square the
 /// camera shows.
-pub fn position_colours(points: &[[f64; 3]], camera: &Camera) -> Vec<[u8; 3]> {
+pub(crate) fn position_colours(points: &[[f64; 3]], camera: &Camera) -> Vec<[u8; 3]> {
     let h = camera.half_extent.max(f64::MIN_POSITIVE);
     let axes = [camera.right, camera.up, camera.toward_viewer()];
     points
@@ -172,7 +172,7 @@ pub fn position_colours(points: &[[f64; 3]], camera: &Camera) -> Vec<[u8; 3]> {
 /// For each source vertex, the target colours interpolated at its image
 /// (a target face and barycentric coordinates); grey where the face is out
 /// of range.
-pub fn carried_colours(
+pub(crate) fn carried_colours(
     correspondence: &Correspondence,
     target_faces: &[[u32; 3]],
     target_colours: &[[u8; 3]],
@@ -199,7 +199,7 @@ pub fn carried_colours(
 /// principal axis, looking down its least-spread axis from the side away
 /// from its rim (the boundary), tilted 35° towards the second axis; the
 /// square shown holds the whole surface.
-pub fn crown_view(mesh: &Mesh) -> Camera {
+pub(crate) fn crown_view(mesh: &Mesh) -> Camera {
     let axes = principal_axes(&mesh.vertices);
     let (centre, [a0, a1, a2]) = match axes {
         Some(p) => (p.centroid, p.axes),

@@ -74,10 +74,8 @@ mod types;
 
 pub use error::StoreError;
 pub use schema::{migrate, APPLICATION_ID, MIGRATIONS, SCHEMA_VERSION};
-pub use types::{
-    Enqueued, Job, Labels, Original, ReferenceRecord, ReferenceState, ScanRecord, ScanStatus,
-    StatusCounts,
-};
+pub use types::{Enqueued, Labels, ReferenceState, ScanRecord, ScanStatus};
+pub(crate) use types::{Job, Original, ReferenceRecord, StatusCounts};
 
 use rusqlite::{Connection, OptionalExtension};
 use std::path::{Path, PathBuf};

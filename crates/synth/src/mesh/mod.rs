@@ -38,7 +38,8 @@ pub use transform::{
     add_debris, closed_sphere, flip_faces, mirror, punch_hole, rigid_motion, scale,
     subdivide_midpoint, to_point_cloud, triangle_soup, RigidMotion,
 };
-pub use whole_tooth::{whole_tooth, WholeTooth, WholeToothError, WholeToothParams};
+pub(crate) use whole_tooth::WholeTooth;
+pub use whole_tooth::{whole_tooth, WholeToothParams};
 
 use morphoid_core::mesh::{ring_count, ring_disk};
 use rand::{Rng, SeedableRng};

@@ -17,12 +17,12 @@ use sha2::{Digest, Sha256};
 /// Most references held out in the calibration: a larger library holds
 /// out this many (those whose content hash sorts first, a fixed sample),
 /// each compared with every reference, instead of every pair.
-pub const CALIBRATION_SAMPLE: usize = 200;
+pub(crate) const CALIBRATION_SAMPLE: usize = 200;
 
 /// How many comparisons the distances among `n` references take: every
 /// pair up to [`CALIBRATION_SAMPLE`] references, else the pairs with at
 /// least one of the sample.
-pub fn calibration_pairs(n: usize) -> usize {
+pub(crate) fn calibration_pairs(n: usize) -> usize {
     let held = n.min(CALIBRATION_SAMPLE);
     let rest = n - held;
     held * held.saturating_sub(1) / 2 + held * rest

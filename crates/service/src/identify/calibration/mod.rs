@@ -24,14 +24,13 @@
 mod cached;
 mod statistic;
 
-pub use cached::{calibration_pairs, reference_distances, CALIBRATION_SAMPLE};
+pub(crate) use cached::calibration_pairs;
+pub use cached::reference_distances;
 use statistic::{
     conformal_quantile, fit_rank_weight, mean_within_taxon_rank, rank_term, relative_distance,
 };
-pub use statistic::{
-    expected_calibration_error, fit_logistic, novelty_score, reliability, roc_auc, share_caught_at,
-    Logistic, ReliabilityBin,
-};
+pub use statistic::{expected_calibration_error, reliability, roc_auc, share_caught_at};
+pub(crate) use statistic::{fit_logistic, novelty_score, Logistic};
 
 use super::nearest::{Confidence, DistanceRow, RankResult};
 use morphoid_core::stats::upper_median;
@@ -42,20 +41,20 @@ use std::collections::HashMap;
 /// The share of scans of a taxon the library holds that may be flagged
 /// "no close match" (the threshold is the held-out scores' conformal
 /// quantile at this miscoverage).
-pub const FALSE_FLAG_RATE: f64 = 0.05;
+pub(crate) const FALSE_FLAG_RATE: f64 = 0.05;
 
 /// Fewest held-out references known at a rank for a probability there.
-pub const MIN_HELD: usize = 6;
+pub(crate) const MIN_HELD: usize = 6;
 
 /// Whether a library of `references` references can be calibrated: the
 /// one rule, at least [`MIN_HELD`] of them.
-pub fn calibratable(references: usize) -> bool {
+pub(crate) fn calibratable(references: usize) -> bool {
     references >= MIN_HELD
 }
 
 /// Fewest held-out references whose taxon the rest of the library holds,
 /// for a "no close match" threshold at a rank.
-pub const MIN_PRESENT: usize = 6;
+pub(crate) const MIN_PRESENT: usize = 6;
 
 /// Distances among the references: the whole row of each held-out
 /// reference (all of them up to [`CALIBRATION_SAMPLE`], a sample beyond).

@@ -54,7 +54,7 @@ pub(super) fn rank_term(rank: f64) -> f64 {
 /// of its distances and among its taxon's members; a scan of a taxon it
 /// does not hold does neither. `None` when a distance is not positive and
 /// finite.
-pub fn novelty_score(nearest: f64, median: f64, rank: f64, weight: f64) -> Option<f64> {
+pub(crate) fn novelty_score(nearest: f64, median: f64, rank: f64, weight: f64) -> Option<f64> {
     Some(relative_distance(nearest, median)? + weight * rank_term(rank))
 }
 
@@ -209,7 +209,7 @@ impl Logistic {
 /// and 0, so that a library where every held-out reference was right
 /// gives a probability below 1 that grows with its size. `None` when there
 /// is no pair or the lengths differ.
-pub fn fit_logistic(scores: &[f64], outcomes: &[bool]) -> Option<Logistic> {
+pub(crate) fn fit_logistic(scores: &[f64], outcomes: &[bool]) -> Option<Logistic> {
     if scores.len() != outcomes.len() {
         return None;
     }
