@@ -297,7 +297,7 @@ pub fn off(bytes: &[u8]) -> Verdict {
 /// A slice folder whose numbered slices (the numbers at the end of their
 /// names, in natural order) skip a number: slices still arriving. Folders
 /// whose slices are not all numbered cannot tell.
-pub fn slice_numbers(numbers: &[Option<u64>]) -> Verdict {
+pub(crate) fn slice_numbers(numbers: &[Option<u64>]) -> Verdict {
     let Some(mut sorted) = numbers.iter().copied().collect::<Option<Vec<u64>>>() else {
         return Verdict::Unknown;
     };
@@ -316,7 +316,7 @@ pub fn slice_numbers(numbers: &[Option<u64>]) -> Verdict {
 
 /// A DICOM series whose slice positions along the normal leave a gap: a
 /// step more than 1.5 times the usual (median) one.
-pub fn dicom_positions(positions: &[f64]) -> Verdict {
+pub(crate) fn dicom_positions(positions: &[f64]) -> Verdict {
     let mut p: Vec<f64> = positions
         .iter()
         .copied()

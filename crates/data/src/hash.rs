@@ -37,11 +37,11 @@ impl Content {
 /// A SHA-256 being computed over bytes as they are read, shared between
 /// a [`HashingReader`] buried in a reader chain and whoever finishes it.
 #[derive(Debug, Clone, Default)]
-pub struct SharedHash(std::sync::Arc<std::sync::Mutex<(Sha256, u64)>>);
+pub(crate) struct SharedHash(std::sync::Arc<std::sync::Mutex<(Sha256, u64)>>);
 
 impl SharedHash {
     /// A hash of nothing yet.
-    pub fn new() -> Self {
+    pub(crate) fn new() -> Self {
         Self::default()
     }
 
@@ -52,7 +52,7 @@ impl SharedHash {
     }
 
     /// The content of every byte read so far.
-    pub fn content(&self) -> Content {
+    pub(crate) fn content(&self) -> Content {
         let state = self.0.lock().unwrap_or_else(|p| p.into_inner());
         Content {
             hash: hex(&state.0.clone().finalize()),
@@ -65,14 +65,15 @@ impl SharedHash {
 /// reads from a file (streamed, never held whole) and the content hash
 /// are of the same bytes.
 #[derive(Debug)]
-pub struct HashingReader<R> {
+pub(crate) struct HashingReader<R> {
     inner: R,
     hash: Option<SharedHash>,
 }
 
 impl<R> HashingReader<R> {
     /// `inner`, hashed into `hash` as it is read.
-    pub fn new(inner: R, hash: SharedHash) -> Self {
+    #[cfg(test)]
+    fn new(inner: R, hash: SharedHash) -> Self {
         Self::maybe(inner, Some(hash))
     }
 
@@ -97,7 +98,7 @@ impl<R: Read> Read for HashingReader<R> {
 /// from slices that a reader holds in memory one at a time, in natural
 /// name order.
 #[derive(Debug, Clone)]
-pub struct FolderHash {
+pub(crate) struct FolderHash {
     hasher: Sha256,
     total: u64,
 }
@@ -110,21 +111,21 @@ impl Default for FolderHash {
 
 impl FolderHash {
     /// The hash of a folder with no slices yet.
-    pub fn new() -> Self {
+    pub(crate) fn new() -> Self {
         let mut hasher = Sha256::new();
         hasher.update(FOLDER_PREFIX);
         FolderHash { hasher, total: 0 }
     }
 
     /// Add the next slice (in natural name order): its file name and bytes.
-    pub fn slice(&mut self, name: &str, bytes: &[u8]) {
+    pub(crate) fn slice(&mut self, name: &str, bytes: &[u8]) {
         folder_entry(&mut self.hasher, name, bytes.len() as u64);
         self.hasher.update(bytes);
         self.total += bytes.len() as u64;
     }
 
     /// The folder's content.
-    pub fn finish(self) -> Content {
+    pub(crate) fn finish(self) -> Content {
         Content {
             hash: hex(&self.hasher.finalize()),
             size: self.total,

@@ -809,7 +809,7 @@ enum Read {
 /// What identifying a job came to, before it is recorded: held by the
 /// daemon's worker until the database takes it.
 #[derive(Debug, Clone)]
-pub enum Finding {
+pub(crate) enum Finding {
     /// The identification, to record as `ok`.
     Identified(ScanOutcome),
     /// A scan of several specimens, each identified on its own (or not).
@@ -827,7 +827,7 @@ pub enum Finding {
 /// with `scene`, also what its report draws, one per specimen (computed
 /// while the prepared scan is at hand; empty when not asked for or not
 /// identified, `None` for a specimen that was not identified).
-pub fn identify_job(
+pub(crate) fn identify_job(
     classifier: &Classifier,
     job: &Job,
     scene: bool,
@@ -891,7 +891,7 @@ pub fn identify_job(
 /// Record a finding of the running scan `scan_id` in one transaction
 /// (`ok` with the whole result, or `error`); returns the status recorded.
 /// On a database failure nothing is recorded and the scan stays running.
-pub fn record_finding(
+pub(crate) fn record_finding(
     store: &mut Store,
     scan_id: i64,
     finding: &Finding,

@@ -161,7 +161,7 @@ pub fn triangle_normal2(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
 
 /// Area of the triangle `abc`.
 #[inline]
-pub fn triangle_area(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
+pub(crate) fn triangle_area(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
     0.5 * norm(triangle_normal2(a, b, c))
 }
 
@@ -185,7 +185,7 @@ pub fn surface_area(mesh: &Mesh) -> f64 {
 }
 
 /// Barycentric vertex areas: a third of the area of each incident face.
-pub fn vertex_areas(mesh: &Mesh) -> Vec<f64> {
+pub(crate) fn vertex_areas(mesh: &Mesh) -> Vec<f64> {
     let mut areas = vec![0.0; mesh.vertices.len()];
     for (f, a) in mesh.faces.iter().zip(face_areas(mesh)) {
         for &v in f {
@@ -197,7 +197,7 @@ pub fn vertex_areas(mesh: &Mesh) -> Vec<f64> {
 
 /// Axis-aligned bounding box `(min, max)` of `points`; `None` when there
 /// is no point.
-pub fn points_bounding_box(
+pub(crate) fn points_bounding_box(
     points: impl IntoIterator<Item = [f64; 3]>,
 ) -> Option<([f64; 3], [f64; 3])> {
     let mut points = points.into_iter();

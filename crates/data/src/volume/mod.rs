@@ -303,7 +303,7 @@ pub fn surface_from_path(path: &Path, opts: &VolumeOptions) -> Result<VolumeSurf
 /// [`surface_from_path`], and the content of exactly the bytes that were
 /// read (each slice file or the volume file read once, hashed as read:
 /// [`crate::hash::content_hash_file`] of what the surface is made from).
-pub fn surface_from_path_hashed(
+pub(crate) fn surface_from_path_hashed(
     path: &Path,
     opts: &VolumeOptions,
 ) -> Result<(VolumeSurface, Content), VolumeError> {

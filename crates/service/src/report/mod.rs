@@ -30,7 +30,7 @@ use crate::store::ScanRecord;
 
 /// The calibrated probability that the nearest taxon at `rank` is right
 /// (`None`: not calibrated).
-pub fn rank_confidence(record: &ScanRecord, rank: &str) -> Option<f64> {
+pub(crate) fn rank_confidence(record: &ScanRecord, rank: &str) -> Option<f64> {
     record
         .ranks
         .iter()

@@ -22,9 +22,9 @@
 //! scans back), `schema` (the tables and their migrations).
 //!
 //! ```
-//! use morphoid::hash::content_hash;
-//! use morphoid::library::{DistanceRow, RankResult, ScanOutcome};
-//! use morphoid::store::{Labels, Store};
+//! use morphoid_data::hash::content_hash;
+//! use morphoid_service::identify::{DistanceRow, RankResult, ScanOutcome};
+//! use morphoid_service::store::{Labels, Store};
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
 //! # let dir = tempfile::tempdir()?;
 //! let mut store = Store::open(&dir.path().join("morphoid.sqlite"))?;
@@ -86,10 +86,10 @@ const BUSY_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// Bytes the write-ahead log file is cut back to when it is reset after a
 /// checkpoint (SQLite otherwise keeps the file at its largest size).
-pub const JOURNAL_SIZE_LIMIT: u64 = 64 * 1024;
+pub(crate) const JOURNAL_SIZE_LIMIT: u64 = 64 * 1024;
 
 /// How many nearest references a [`ScanRecord`] carries by default.
-pub const DEFAULT_NEAREST: usize = 5;
+pub(crate) const DEFAULT_NEAREST: usize = 5;
 
 /// An open morphoid database.
 ///
