@@ -24,6 +24,8 @@
 //! - [`report`]: per-scan HTML reports and the overview page;
 //! - [`classify`]: one scan through preparation, comparison, identification
 //!   and the store;
+//! - [`http`]: the web console and JSON API inside `morphoid run`, and
+//!   the curators' decisions;
 //! - [`daemon`]: the export-folder watcher and job loop behind `morphoid run`.
 //!
 //! See `ARCHITECTURE.md` at the repository root for the data flow.
@@ -43,6 +45,7 @@ pub mod cwn;
 pub mod daemon;
 pub mod eval;
 pub mod hash;
+pub mod http;
 pub mod landmarks;
 pub mod library;
 pub mod mesh;
