@@ -453,18 +453,20 @@ fn field<'a>(fields: &'a [(String, String)], key: &str) -> Option<&'a str> {
         .map(|(_, v)| v.as_str())
 }
 
-/// A form body, or the page saying why it could not be read.
+/// A form body, or the page saying why it could not be read. A body that
+/// is not a form counts as an empty one, so that who is asking (and their
+/// CSRF token) is what is refused first; one over the size limit is
+/// refused as such.
 fn form_fields(
     form: Result<Form<Vec<(String, String)>>, FormRejection>,
-) -> Result<Vec<(String, String)>, Response> {
-    form.map(|Form(f)| f).map_err(|e| {
-        let error = if e.status() == StatusCode::PAYLOAD_TOO_LARGE {
-            ApiError::TooLarge(e.body_text())
-        } else {
-            ApiError::BadRequest(e.body_text())
-        };
-        error.into_page()
-    })
+) -> Result<Vec<(String, String)>, ApiError> {
+    match form {
+        Ok(Form(fields)) => Ok(fields),
+        Err(e) if e.status() == StatusCode::PAYLOAD_TOO_LARGE => {
+            Err(ApiError::TooLarge(e.body_text()))
+        }
+        Err(_) => Ok(Vec::new()),
+    }
 }
 
 /// `POST /scans/{id}/review`: the decision form; back to the scan's page.
@@ -480,7 +482,7 @@ pub async fn review_form(
     };
     let fields = match form_fields(form) {
         Ok(f) => f,
-        Err(r) => return r,
+        Err(e) => return e.into_page(),
     };
     let curator = match writer(&identity, field(&fields, "csrf")) {
         Ok(c) => c.to_string(),
@@ -580,7 +582,7 @@ pub async fn login(
 ) -> Response {
     let fields = match form_fields(form) {
         Ok(f) => f,
-        Err(r) => return r,
+        Err(e) => return e.into_page(),
     };
     let next = safe_next(field(&fields, "next"));
     let sent = field(&fields, "csrf").unwrap_or("");
@@ -650,7 +652,7 @@ pub async fn logout(
 ) -> Response {
     let fields = match form_fields(form) {
         Ok(f) => f,
-        Err(r) => return r,
+        Err(e) => return e.into_page(),
     };
     let identity = match identify(&state, &headers).await {
         Ok(i) => i,

@@ -7,6 +7,7 @@ pub mod data;
 pub mod exports;
 pub mod faults;
 pub mod fuzz_seeds;
+pub mod http;
 pub mod library;
 pub mod lm;
 pub mod mounting;
