@@ -12,6 +12,7 @@ mod distance;
 mod evaluate;
 mod inspect;
 mod library;
+mod library_add;
 mod matrix;
 mod method;
 mod propagate;

@@ -227,6 +227,8 @@ async fn control_loop(loader: &dyn Loader) -> Result<(), DaemonError> {
     let mut daemon = Daemon::start(loader).await?;
     notify(&[NotifyState::Ready]);
     let mut timers = Timers::start(daemon.watchdog);
+    // The web console asks for a reload when it added a reference.
+    let console_reload = daemon.live.reload_signal();
     loop {
         tokio::select! {
             // Signals first: a stop must not wait behind a busy folder.
@@ -234,6 +236,7 @@ async fn control_loop(loader: &dyn Loader) -> Result<(), DaemonError> {
             _ = signals.term.recv() => break,
             _ = signals.int.recv() => break,
             _ = signals.hup.recv() => daemon.on_reload().await,
+            _ = console_reload.notified() => daemon.on_reload().await,
             Some(line) = daemon.serial_rx.recv() => daemon.on_trigger(line).await,
             Some(event) = daemon.folder.event() => daemon.on_folder_event(event).await,
             _ = timers.settle.tick() => {
@@ -304,9 +307,7 @@ impl<'a> Daemon<'a> {
         let live = crate::http::LiveStatus::new();
         let http = crate::http::Server::start_configured(
             &config.http,
-            &config.database.path,
-            config.library.ranks.clone(),
-            live.clone(),
+            crate::http::Sources::of(&config, live.clone()),
         )?;
         let (classifier, files) = {
             let (store, _) = db.store()?;

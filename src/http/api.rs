@@ -279,6 +279,59 @@ pub async fn review(
     Ok((StatusCode::CREATED, Json(record)))
 }
 
+/// The body of `POST /api/v1/scans/{id}/add-to-library` (may be empty).
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AddBody {
+    /// The reference's name (default: from the scan's file name).
+    #[serde(default)]
+    pub name: Option<String>,
+}
+
+/// `POST /api/v1/scans/{id}/add-to-library`: the scan's original file and
+/// the taxa of its latest decision (a confirmation or a correction) become
+/// a reference of the library; the daemon reloads it. 201 with
+/// `{"scan_id", "reference", "labels", "review_id"}`. One addition at a
+/// time.
+pub async fn add_to_library(
+    State(state): State<Arc<AppState>>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+    body: axum::body::Bytes,
+) -> Result<(StatusCode, Json<Value>), ApiError> {
+    let identity = identify(&state, &headers).await?;
+    let csrf = headers.get(CSRF_HEADER).and_then(|v| v.to_str().ok());
+    let curator = writer(&identity, csrf)?.to_string();
+    let id = scan_id(&id)?;
+    let AddBody { name } = if body.iter().all(u8::is_ascii_whitespace) {
+        AddBody::default()
+    } else {
+        serde_json::from_slice(&body).map_err(|e| ApiError::BadRequest(format!("body: {e}")))?
+    };
+    let _one_at_a_time = state.adding.lock().await;
+    let (library, ranks) = (state.library.clone(), state.ranks.clone());
+    let who = curator.clone();
+    let added = state
+        .pool
+        .run(move |store| {
+            if !store.curator_exists(&who)? {
+                return Err(ApiError::Unauthorized(format!(
+                    "user {who:?} no longer exists"
+                )));
+            }
+            super::grow::add_scan_to_library(store, &library, &ranks, id, name.as_deref())
+                .map_err(ApiError::from)
+        })
+        .await?;
+    tracing::info!(
+        "scan {id} added to the library as {} by {curator} (labels from decision #{}); reloading",
+        added.reference,
+        added.review_id
+    );
+    state.live.request_reload();
+    Ok((StatusCode::CREATED, Json(json!(added))))
+}
+
 /// Anything else: 404 as JSON.
 pub async fn not_found() -> ApiError {
     ApiError::NotFound("no such page or endpoint (see /api/v1/openapi.json)".into())

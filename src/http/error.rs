@@ -115,6 +115,24 @@ impl From<StoreError> for ApiError {
     }
 }
 
+impl From<super::grow::GrowError> for ApiError {
+    fn from(e: super::grow::GrowError) -> Self {
+        use super::grow::GrowError as G;
+        use crate::library::AddError as A;
+        let text = crate::present::error_chain(&e);
+        match e {
+            G::NoSuchScan(_) => ApiError::NotFound(text),
+            G::NotSettled(_) | G::Specimens(_) => ApiError::Conflict(text),
+            G::Add(A::InvalidName(_)) => ApiError::BadRequest(text),
+            G::Add(A::Exists(_) | A::NotASurface(_) | A::Changed(_) | A::Read { .. }) => {
+                ApiError::Conflict(text)
+            }
+            G::Add(A::Library(_) | A::Labels { .. } | A::Write(_)) => ApiError::Internal(text),
+            G::Store(s) => s.into(),
+        }
+    }
+}
+
 impl From<ReviewError> for ApiError {
     fn from(e: ReviewError) -> Self {
         match e {

@@ -28,6 +28,7 @@
 mod api;
 mod auth;
 mod error;
+mod grow;
 mod metrics;
 mod openapi;
 mod pages;
@@ -38,5 +39,6 @@ mod state;
 mod status;
 
 pub use auth::{hash_password, new_api_token, token_hash, verify_password, PasswordError};
-pub use server::{requires_curators, HttpError, Server};
+pub use grow::{add_scan_to_library, settled_labels, AddedReference, GrowError};
+pub use server::{requires_curators, HttpError, Server, Sources};
 pub use status::{calibration_name, DaemonStatus, LiveStatus, SerialStatus};

@@ -134,6 +134,21 @@ pub fn document() -> Value {
                     "409": {"description": "not reviewable now, nothing to confirm, or reviewed meanwhile"},
                     "413": {"description": "body larger than [http] max_body_bytes"}}))
             }},
+            "/api/v1/scans/{id}/add-to-library": {"post": {
+                "summary": "A confirmed or corrected scan becomes a reference: its original file and the taxa of its latest decision; the daemon reloads the library",
+                "parameters": [{"name": "id", "in": "path", "required": true, "schema": {"type": "integer", "minimum": 1}}],
+                "requestBody": {"required": false, "content": {"application/json": {"schema": {
+                    "type": "object", "additionalProperties": false, "properties": {
+                        "name": {"type": "string", "description": "the reference's name (default: the file's stem)"}}}}}},
+                "responses": with_errors(json!({"201": {"description": "added", "content": {"application/json": {"schema": {
+                    "type": "object", "properties": {
+                        "scan_id": {"type": "integer"}, "reference": {"type": "string"},
+                        "labels": {"type": "object", "additionalProperties": {"type": "string"}},
+                        "review_id": {"type": "integer"}}}}}},
+                    "400": {"description": "a bad name"},
+                    "404": {"description": "no such scan"},
+                    "409": {"description": "not confirmed or corrected, not a surface file, the file changed or is gone, or the name is taken"}}))
+            }},
             "/api/v1/references": {"get": {
                 "summary": "The reference library as recorded",
                 "responses": with_errors(json!({"200": {"description": "references", "content": {"application/json": {"schema": {

@@ -14,7 +14,7 @@
 use super::state::AppState;
 use super::status::LiveStatus;
 use super::{api, metrics, openapi, pages};
-use crate::config::Http;
+use crate::config::{Config, Http};
 use crate::store::{Store, StoreError};
 use axum::extract::DefaultBodyLimit;
 use axum::http::{header, HeaderValue, Request, StatusCode};
@@ -24,7 +24,7 @@ use hyper::body::Incoming;
 use hyper_util::rt::{TokioIo, TokioTimer};
 use hyper_util::service::TowerToHyperService;
 use std::net::SocketAddr;
-use std::path::Path;
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::{watch, Semaphore};
@@ -85,6 +85,32 @@ pub enum HttpError {
     },
 }
 
+/// What the console serves: the daemon's database and library, and what
+/// the daemon tells it.
+#[derive(Debug, Clone)]
+pub struct Sources {
+    /// The database file.
+    pub db: PathBuf,
+    /// The library folder.
+    pub library: PathBuf,
+    /// The library's ranks, broadest first (empty: any).
+    pub ranks: Vec<String>,
+    /// The daemon's snapshot, and its reload requests.
+    pub live: LiveStatus,
+}
+
+impl Sources {
+    /// The database and library of `config`.
+    pub fn of(config: &Config, live: LiveStatus) -> Self {
+        Sources {
+            db: config.database.path.clone(),
+            library: config.library.dir.clone(),
+            ranks: config.library.ranks.clone(),
+            live,
+        }
+    }
+}
+
 /// Whether serving on `addr` needs at least one curator: every address but
 /// loopback does (an IPv4-mapped loopback address counts as another).
 pub fn requires_curators(addr: &SocketAddr) -> bool {
@@ -101,30 +127,21 @@ pub struct Server {
 
 impl Server {
     /// Start the server that `settings` configures (`None`: `listen` is not
-    /// set) on the database at `db`; `ranks` are the library's ranks
-    /// (empty: any), `live` what the daemon tells it.
+    /// set) on `sources`.
     pub fn start_configured(
         settings: &Http,
-        db: &Path,
-        ranks: Vec<String>,
-        live: LiveStatus,
+        sources: Sources,
     ) -> Result<Option<Server>, HttpError> {
         match settings.listen_addr().map_err(HttpError::Listen)? {
-            Some(addr) => Server::start(addr, settings, db, ranks, live).map(Some),
+            Some(addr) => Server::start(addr, settings, sources).map(Some),
             None => Ok(None),
         }
     }
 
     /// Start serving on `addr` (port 0: any free port; see
     /// [`Server::local_addr`]).
-    pub fn start(
-        addr: SocketAddr,
-        settings: &Http,
-        db: &Path,
-        ranks: Vec<String>,
-        live: LiveStatus,
-    ) -> Result<Server, HttpError> {
-        if requires_curators(&addr) && Store::open(db)?.curator_count()? == 0 {
+    pub fn start(addr: SocketAddr, settings: &Http, sources: Sources) -> Result<Server, HttpError> {
+        if requires_curators(&addr) && Store::open(&sources.db)?.curator_count()? == 0 {
             return Err(HttpError::NoCurators { addr });
         }
         let listener =
@@ -150,7 +167,7 @@ impl Server {
             tokio::net::TcpListener::from_std(listener)
                 .map_err(|source| HttpError::Bind { addr, source })?
         };
-        let state = Arc::new(AppState::new(settings, db, ranks, live));
+        let state = Arc::new(AppState::new(settings, sources));
         let app = router(Arc::clone(&state));
         let (stop, stopped) = watch::channel(false);
         let limits = Limits::of(settings);
@@ -320,6 +337,10 @@ fn router(state: Arc<AppState>) -> Router {
         .route("/api/v1/scans", get(api::list_scans))
         .route("/api/v1/scans/{id}", get(api::get_scan))
         .route("/api/v1/scans/{id}/review", post(api::review))
+        .route(
+            "/api/v1/scans/{id}/add-to-library",
+            post(api::add_to_library),
+        )
         .route("/api/v1/references", get(api::references))
         .route("/api/v1/status", get(api::status))
         .route("/api/v1/changes", get(api::changes))

@@ -2,6 +2,7 @@
 
 use super::auth::{LoginLimiter, Sessions};
 use super::pool::ReadPool;
+use super::server::Sources;
 use super::status::LiveStatus;
 use crate::config::Http;
 use std::sync::Arc;
@@ -32,6 +33,10 @@ pub struct AppState {
     pub password_checks: Semaphore,
     /// The library's ranks, broadest first (empty: any rank).
     pub ranks: Vec<String>,
+    /// The library folder (references are added to it).
+    pub library: std::path::PathBuf,
+    /// Held while a reference is added: one at a time.
+    pub adding: tokio::sync::Mutex<()>,
     /// Whether cookies are marked `Secure` (served over TLS).
     pub secure_cookies: bool,
     /// A hash no password matches, checked when a login names no curator,
@@ -40,21 +45,24 @@ pub struct AppState {
 }
 
 impl AppState {
-    /// The state of a server with these settings on the database at `db`.
-    pub fn new(
-        settings: &Http,
-        db: &std::path::Path,
-        ranks: Vec<String>,
-        live: LiveStatus,
-    ) -> Self {
+    /// The state of a server with these settings on `sources`.
+    pub fn new(settings: &Http, sources: Sources) -> Self {
+        let Sources {
+            db,
+            library,
+            ranks,
+            live,
+        } = sources;
         AppState {
             settings: settings.clone(),
-            pool: Arc::new(ReadPool::new(db, POOL_SIZE)),
+            pool: Arc::new(ReadPool::new(&db, POOL_SIZE)),
             live,
             sessions: Sessions::new(Duration::from_secs_f64(settings.session_hours * 3600.0)),
             limiter: LoginLimiter::new(settings.login_failures_per_minute),
             password_checks: Semaphore::new(PASSWORD_CHECKS),
             ranks,
+            library,
+            adding: tokio::sync::Mutex::new(()),
             secure_cookies: false,
             dummy_hash: super::auth::hash_password(&super::auth::random_hex(16))
                 .unwrap_or_default(),

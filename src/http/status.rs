@@ -4,6 +4,7 @@
 use crate::classify::CalibrationState;
 use serde::Serialize;
 use std::sync::{Arc, RwLock};
+use tokio::sync::Notify;
 
 /// The daemon's state as the console shows it (`GET /api/v1/status`).
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -44,9 +45,14 @@ pub struct SerialStatus {
     pub trigger: String,
 }
 
-/// The shared snapshot: the daemon writes, the console reads.
+/// The shared snapshot: the daemon writes, the console reads; and the
+/// console's request that the daemon reload its library (a reference was
+/// added).
 #[derive(Debug, Clone, Default)]
-pub struct LiveStatus(Arc<RwLock<DaemonStatus>>);
+pub struct LiveStatus {
+    status: Arc<RwLock<DaemonStatus>>,
+    reload: Arc<Notify>,
+}
 
 impl LiveStatus {
     /// A snapshot saying no daemon runs.
@@ -56,13 +62,26 @@ impl LiveStatus {
 
     /// Change the snapshot (a panic elsewhere never makes it unusable).
     pub fn update(&self, change: impl FnOnce(&mut DaemonStatus)) {
-        let mut guard = self.0.write().unwrap_or_else(|p| p.into_inner());
+        let mut guard = self.status.write().unwrap_or_else(|p| p.into_inner());
         change(&mut guard);
     }
 
     /// A copy of the snapshot.
     pub fn snapshot(&self) -> DaemonStatus {
-        self.0.read().unwrap_or_else(|p| p.into_inner()).clone()
+        self.status
+            .read()
+            .unwrap_or_else(|p| p.into_inner())
+            .clone()
+    }
+
+    /// Ask the daemon to reload its library (kept until it looks).
+    pub fn request_reload(&self) {
+        self.reload.notify_one();
+    }
+
+    /// What the daemon waits on for [`LiveStatus::request_reload`].
+    pub fn reload_signal(&self) -> Arc<Notify> {
+        Arc::clone(&self.reload)
     }
 }
 

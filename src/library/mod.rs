@@ -11,11 +11,13 @@
 //! (learnt from the library's own leave-one-out) into a probability and a
 //! "no close match" flag.
 
+mod add;
 mod cache;
 mod calibration;
 mod identify;
 mod matrix;
 
+pub use add::{add_reference, reference_name_for, valid_reference_name, AddError, NewReference};
 pub use cache::{Cache, CacheError, CachedReference};
 pub use calibration::{
     calibration_pairs, expected_calibration_error, fit_logistic, novelty_score,

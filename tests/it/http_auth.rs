@@ -3,7 +3,7 @@
 //! without curators.
 
 use crate::support::daemon::{self, BIN};
-use crate::support::http::{hidden, settings, Console, PASSWORD};
+use crate::support::http::{hidden, library_folder, settings, sources, Console, PASSWORD};
 use morphoid::http::{LiveStatus, Server};
 use morphoid::store::Store;
 use std::process::Command;
@@ -224,10 +224,15 @@ fn http_beyond_loopback_needs_a_curator() {
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("db.sqlite");
     drop(Store::open(&db).unwrap());
+    let library = library_folder(dir.path());
     for listen in ["0.0.0.0:0", "[::]:0"] {
         let addr = listen.parse().unwrap();
-        let e = Server::start(addr, &settings(true), &db, Vec::new(), LiveStatus::new())
-            .expect_err("no curator");
+        let e = Server::start(
+            addr,
+            &settings(true),
+            sources(&db, &library, &LiveStatus::new()),
+        )
+        .expect_err("no curator");
         let text = e.to_string();
         assert!(
             text.contains(&format!("refusing to serve on {addr}")),
@@ -239,9 +244,7 @@ fn http_beyond_loopback_needs_a_curator() {
     let loopback = Server::start(
         "127.0.0.1:0".parse().unwrap(),
         &settings(true),
-        &db,
-        Vec::new(),
-        LiveStatus::new(),
+        sources(&db, &library, &LiveStatus::new()),
     );
     assert!(loopback.is_ok());
 

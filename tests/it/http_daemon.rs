@@ -76,6 +76,65 @@ fn http_the_console_follows_the_running_daemon() {
     );
     assert!(metrics.contains("morphoid_daemon_running 1"), "{metrics}");
 
+    // A curator confirms it and adds it to the library: the daemon reloads
+    // and uses it, without a restart.
+    let before = daemon.references();
+    let mut store = morphoid::store::Store::open(&env.db).unwrap();
+    let hash = morphoid::http::hash_password("a long password").unwrap();
+    store.add_curator("ana", &hash).unwrap();
+    let token = morphoid::http::new_api_token();
+    store
+        .add_api_token("ana", &morphoid::http::token_hash(&token), "test")
+        .unwrap();
+    drop(store);
+    let post = |path: &str, body: serde_json::Value| {
+        client
+            .post(format!("{base}{path}"))
+            .bearer_auth(&token)
+            .json(&body)
+            .send()
+            .unwrap()
+            .status()
+            .as_u16()
+    };
+    assert_eq!(
+        post(
+            &format!("/api/v1/scans/{id}/review"),
+            serde_json::json!({"decision": "confirm"})
+        ),
+        201
+    );
+    let asked = std::time::Instant::now();
+    assert_eq!(
+        post(
+            &format!("/api/v1/scans/{id}/add-to-library"),
+            serde_json::json!({})
+        ),
+        201
+    );
+    assert!(
+        wait_until(Duration::from_secs(120), || get("/api/v1/references")
+            ["count"]
+            == before + 1
+            && get("/api/v1/status")["references"] == before + 1),
+        "the daemon did not take the new reference:\n{}",
+        daemon.log_text()
+    );
+    eprintln!(
+        "added reference in use after {:.1} s",
+        asked.elapsed().as_secs_f64()
+    );
+    assert!(daemon
+        .log_text()
+        .contains(&format!("reloaded: {} references", before + 1)));
+    let names: Vec<String> = get("/api/v1/references")["references"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["name"].as_str().unwrap().to_string())
+        .collect();
+    assert!(names.contains(&"new".to_string()), "{names:?}");
+
     daemon.signal(libc::SIGTERM);
     let exit = daemon
         .wait_exit(Duration::from_secs(30))

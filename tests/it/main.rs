@@ -46,6 +46,7 @@ mod fuzz_replay;
 mod http_api;
 mod http_auth;
 mod http_daemon;
+mod http_library;
 mod http_pages;
 mod http_refusals;
 mod http_reviews;

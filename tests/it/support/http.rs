@@ -6,7 +6,7 @@
 
 use super::store::{outcome, register_references};
 use morphoid::config::Http;
-use morphoid::http::{hash_password, new_api_token, token_hash, LiveStatus, Server};
+use morphoid::http::{hash_password, new_api_token, token_hash, LiveStatus, Server, Sources};
 use morphoid::library::Confidence;
 use morphoid::store::Store;
 use std::io::{Read, Write};
@@ -30,6 +30,8 @@ pub struct Console {
     pub tmp: tempfile::TempDir,
     /// The database file.
     pub db: PathBuf,
+    /// The library folder ([`library_folder`]).
+    pub library: PathBuf,
     /// What the console shows of the (absent) daemon.
     pub live: LiveStatus,
     /// The server.
@@ -55,6 +57,30 @@ pub struct Seeded {
     pub pending: i64,
     /// `a/ateles-5.ply`: ok, genus Ateles.
     pub ateles_5: i64,
+}
+
+/// What a test console serves.
+pub fn sources(db: &std::path::Path, library: &std::path::Path, live: &LiveStatus) -> Sources {
+    Sources {
+        db: db.to_path_buf(),
+        library: library.to_path_buf(),
+        ranks: RANKS.iter().map(|r| r.to_string()).collect(),
+        live: live.clone(),
+    }
+}
+
+/// A library folder as a person lays it out: `labels.csv` and the
+/// surfaces under `meshes/` (the files' contents are never read here).
+pub fn library_folder(root: &std::path::Path) -> PathBuf {
+    let dir = root.join("library");
+    std::fs::create_dir_all(dir.join("meshes")).expect("library folder");
+    let mut labels = String::from("name,order,family,genus\n");
+    for i in 0..3 {
+        labels.push_str(&format!("ref{i:03},Primates,F{i},G{i}\n"));
+        std::fs::write(dir.join("meshes").join(format!("ref{i:03}.ply")), b"ply\n").expect("mesh");
+    }
+    std::fs::write(dir.join("labels.csv"), labels).expect("labels");
+    dir
 }
 
 /// Settings for the tests: loopback, the given read policy, small limits.
@@ -155,15 +181,11 @@ impl Console {
         let tmp = tempfile::tempdir().expect("temp dir");
         let db = tmp.path().join("db.sqlite");
         let ids = seed(&mut Store::open(&db).expect("open"));
+        let library = library_folder(tmp.path());
         let live = LiveStatus::new();
-        let server = Server::start_configured(
-            settings,
-            &db,
-            RANKS.iter().map(|r| r.to_string()).collect(),
-            live.clone(),
-        )
-        .expect("start")
-        .expect("listen is set");
+        let server = Server::start_configured(settings, sources(&db, &library, &live))
+            .expect("start")
+            .expect("listen is set");
         let base = format!("http://{}", server.local_addr());
         let client = reqwest::blocking::Client::builder()
             .redirect(reqwest::redirect::Policy::none())
@@ -173,6 +195,7 @@ impl Console {
         Console {
             tmp,
             db,
+            library,
             live,
             server,
             base,
