@@ -56,6 +56,11 @@ pub struct Http {
     /// Failed logins allowed per client address (and per user name) in a
     /// minute; more are refused until the minute is over.
     pub login_failures_per_minute: u32,
+    /// PEM certificate chain to serve HTTPS with, with `tls_key` (absent:
+    /// plain HTTP, e.g. behind a reverse proxy that terminates TLS).
+    pub tls_cert: Option<PathBuf>,
+    /// The PEM private key of `tls_cert`.
+    pub tls_key: Option<PathBuf>,
 }
 
 impl Default for Http {
@@ -70,6 +75,8 @@ impl Default for Http {
             max_connections: 256,
             session_hours: 12.0,
             login_failures_per_minute: 5,
+            tls_cert: None,
+            tls_key: None,
         }
     }
 }
@@ -109,6 +116,9 @@ impl Http {
                 "http.max_header_bytes must be at least 8192, not {}",
                 self.max_header_bytes
             ));
+        }
+        if self.tls_cert.is_some() != self.tls_key.is_some() {
+            return Err("http.tls_cert and http.tls_key go together (both or neither)".into());
         }
         if self.login_failures_per_minute == 0 {
             return Err("http.login_failures_per_minute must be at least 1".into());

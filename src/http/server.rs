@@ -28,6 +28,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::{watch, Semaphore};
+use tokio_rustls::TlsAcceptor;
 use tower::ServiceExt as _;
 use tower_http::limit::RequestBodyLimitLayer;
 use tower_http::set_header::SetResponseHeaderLayer;
@@ -70,6 +71,14 @@ pub enum HttpError {
         /// Why.
         #[source]
         source: std::io::Error,
+    },
+    /// The certificate or key of `[http] tls_cert`/`tls_key` is unusable.
+    #[error("cannot serve HTTPS with {}: {message}", path.display())]
+    Tls {
+        /// The certificate or key file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
     },
     /// The database cannot be opened to check for curators.
     #[error("the web console cannot read the database")]
@@ -167,14 +176,17 @@ impl Server {
             tokio::net::TcpListener::from_std(listener)
                 .map_err(|source| HttpError::Bind { addr, source })?
         };
-        let state = Arc::new(AppState::new(settings, sources));
-        let app = router(Arc::clone(&state));
+        let tls = tls_acceptor(settings)?;
+        let mut state = AppState::new(settings, sources);
+        state.secure_cookies = tls.is_some();
+        let app = router(Arc::new(state));
+        let secure = tls.is_some();
         let (stop, stopped) = watch::channel(false);
         let limits = Limits::of(settings);
         let thread = std::thread::Builder::new()
             .name("morphoid-http-accept".into())
             .spawn(move || {
-                runtime.block_on(accept_loop(listener, app, limits, stopped));
+                runtime.block_on(accept_loop(listener, app, tls, limits, stopped));
                 // Requests still running when the grace is over are dropped.
                 runtime.shutdown_timeout(Duration::from_millis(500));
             })
@@ -183,7 +195,8 @@ impl Server {
                 source,
             })?;
         tracing::info!(
-            "web console listening on http://{local} (reads {})",
+            "web console listening on {}://{local} (reads {})",
+            if secure { "https" } else { "http" },
             if settings.public_read {
                 "open to all"
             } else {
@@ -250,11 +263,46 @@ async fn until_stopped(stop: &mut watch::Receiver<bool>) {
     let _ = stop.wait_for(|s| *s).await.map(|_| ());
 }
 
-/// Accept connections until `stopped`, each served on a task of its own;
-/// then wait (up to [`STOP_GRACE`]) for those in progress.
+/// The TLS acceptor of `tls_cert` and `tls_key` (`None`: plain HTTP).
+// rustls deprecates its ring provider for lacking post-quantum key
+// exchange; aws-lc-rs, which has it, needs cmake and NASM to build. ring's
+// TLS 1.2/1.3 suites are what a lab network's browsers negotiate today.
+#[allow(deprecated)]
+fn tls_acceptor(settings: &Http) -> Result<Option<TlsAcceptor>, HttpError> {
+    use rustls::pki_types::pem::PemObject as _;
+    use rustls::pki_types::{CertificateDer, PrivateKeyDer};
+    let (Some(cert), Some(key)) = (&settings.tls_cert, &settings.tls_key) else {
+        return Ok(None);
+    };
+    let bad = |path: &PathBuf, message: String| HttpError::Tls {
+        path: path.clone(),
+        message,
+    };
+    let chain = CertificateDer::pem_file_iter(cert)
+        .and_then(|certs| certs.collect::<Result<Vec<_>, _>>())
+        .map_err(|e| bad(cert, e.to_string()))?;
+    if chain.is_empty() {
+        return Err(bad(cert, "no certificate in the file".into()));
+    }
+    let key_der = PrivateKeyDer::from_pem_file(key).map_err(|e| bad(key, e.to_string()))?;
+    let provider = Arc::new(rustls::crypto::ring::default_provider());
+    let mut config = rustls::ServerConfig::builder_with_provider(provider)
+        .with_safe_default_protocol_versions()
+        .map_err(|e| bad(cert, e.to_string()))?
+        .with_no_client_auth()
+        .with_single_cert(chain, key_der)
+        .map_err(|e| bad(key, e.to_string()))?;
+    config.alpn_protocols = vec![b"http/1.1".to_vec()];
+    Ok(Some(TlsAcceptor::from(Arc::new(config))))
+}
+
+/// Accept connections until `stopped`, each served on a task of its own
+/// (after its TLS handshake, with `tls`); then wait (up to
+/// [`STOP_GRACE`]) for those in progress.
 async fn accept_loop(
     listener: tokio::net::TcpListener,
     app: Router,
+    tls: Option<TlsAcceptor>,
     limits: Limits,
     mut stopped: watch::Receiver<bool>,
 ) {
@@ -289,27 +337,23 @@ async fn accept_loop(
                 request.extensions_mut().insert(PeerAddr(peer));
                 request
             });
-        let mut stop = stopped.clone();
+        let stop = stopped.clone();
+        let tls = tls.clone();
         tokio::spawn(async move {
             let _slot = slot;
-            let mut builder = hyper::server::conn::http1::Builder::new();
-            builder
-                .timer(TokioTimer::new())
-                .header_read_timeout(limits.header_timeout)
-                .max_buf_size(limits.header_bytes.max(8192))
-                .max_header_size(limits.header_bytes);
-            let connection =
-                builder.serve_connection(TokioIo::new(stream), TowerToHyperService::new(service));
-            let mut connection = std::pin::pin!(connection);
-            tokio::select! {
-                served = connection.as_mut() => {
-                    if let Err(e) = served {
-                        tracing::debug!("http: connection from {peer}: {e}");
+            match tls {
+                None => serve_connection(stream, service, limits, stop, peer).await,
+                Some(acceptor) => {
+                    // The handshake gets the time a request head gets.
+                    let handshake =
+                        tokio::time::timeout(limits.header_timeout, acceptor.accept(stream)).await;
+                    match handshake {
+                        Ok(Ok(stream)) => {
+                            serve_connection(stream, service, limits, stop, peer).await
+                        }
+                        Ok(Err(e)) => tracing::debug!("http: TLS handshake with {peer}: {e}"),
+                        Err(_) => tracing::debug!("http: TLS handshake with {peer} timed out"),
                     }
-                }
-                _ = until_stopped(&mut stop) => {
-                    connection.as_mut().graceful_shutdown();
-                    let _ = tokio::time::timeout(STOP_GRACE, connection).await;
                 }
             }
         });
@@ -317,6 +361,44 @@ async fn accept_loop(
     // Every slot back: every connection is done (or the grace is over).
     let all = u32::try_from(limits.connections).unwrap_or(u32::MAX);
     let _ = tokio::time::timeout(STOP_GRACE, slots.acquire_many(all)).await;
+}
+
+/// Serve HTTP/1 on one connection until the client is done, or the stop
+/// (then requests in progress get [`STOP_GRACE`]).
+async fn serve_connection<IO, S>(
+    io: IO,
+    service: S,
+    limits: Limits,
+    mut stop: watch::Receiver<bool>,
+    peer: SocketAddr,
+) where
+    IO: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin + Send + 'static,
+    S: tower::Service<Request<Incoming>, Response = axum::response::Response>
+        + Clone
+        + Send
+        + 'static,
+    S::Future: Send + 'static,
+    S::Error: Into<Box<dyn std::error::Error + Send + Sync>>,
+{
+    let mut builder = hyper::server::conn::http1::Builder::new();
+    builder
+        .timer(TokioTimer::new())
+        .header_read_timeout(limits.header_timeout)
+        .max_buf_size(limits.header_bytes.max(8192))
+        .max_header_size(limits.header_bytes);
+    let connection = builder.serve_connection(TokioIo::new(io), TowerToHyperService::new(service));
+    let mut connection = std::pin::pin!(connection);
+    tokio::select! {
+        served = connection.as_mut() => {
+            if let Err(e) = served {
+                tracing::debug!("http: connection from {peer}: {e}");
+            }
+        }
+        _ = until_stopped(&mut stop) => {
+            connection.as_mut().graceful_shutdown();
+            let _ = tokio::time::timeout(STOP_GRACE, connection).await;
+        }
+    }
 }
 
 /// The routes, and the limits and headers every response gets.

@@ -50,6 +50,7 @@ mod http_library;
 mod http_pages;
 mod http_refusals;
 mod http_reviews;
+mod http_tls;
 mod io_errors;
 mod io_huge_header;
 mod io_real_data;
