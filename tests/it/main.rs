@@ -45,6 +45,7 @@ mod eval_shard;
 mod fuzz_replay;
 mod http_api;
 mod http_auth;
+mod http_browser;
 mod http_daemon;
 mod http_library;
 mod http_pages;
