@@ -123,6 +123,15 @@ fn http_a_slow_client_is_cut_off() {
     );
     assert!(status == 0 || status == 408, "{status}: {text}");
     assert!(!text.contains("queue_length"), "{text}");
+    // A connection that sends nothing at all is not kept either.
+    let started = Instant::now();
+    let (status, text) = raw(c.addr(), b"", Duration::from_secs(15));
+    assert!(
+        started.elapsed() < Duration::from_secs(8),
+        "an idle connection stayed open {:?}",
+        started.elapsed()
+    );
+    assert!(status == 0 || status == 408, "{status}: {text}");
     // Meanwhile and afterwards, others are served.
     assert_eq!(raw_get(c.addr(), "/healthz").0, 200);
 }
