@@ -23,6 +23,9 @@ enum Action {
     Build(ConfigArgs),
     /// Show the references, their labels and whether they are prepared.
     List(ConfigArgs),
+    /// Add a confirmed or corrected scan to the library: its original file
+    /// and the taxa of its latest decision (then reload the daemon).
+    Add(super::library_add::Args),
 }
 
 /// Run `morphoid library`.
@@ -30,6 +33,7 @@ pub(super) fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     match args.action {
         Action::Build(c) => build(&c, config),
         Action::List(c) => list(&c, config),
+        Action::Add(a) => super::library_add::run(a, config),
     }
 }
 

@@ -12,13 +12,16 @@ mod distance;
 mod evaluate;
 mod inspect;
 mod library;
+mod library_add;
 mod matrix;
 mod method;
 mod propagate;
 mod report;
 mod results;
+mod review;
 mod run;
 mod synth;
+mod user;
 
 use clap::{Parser, Subcommand};
 use common::ConfigFile;
@@ -79,6 +82,10 @@ enum Command {
     Propagate(propagate::Args),
     /// Put a whole collection in correspondence: pseudolandmarks, GPA, PCA.
     Align(align::Args),
+    /// Confirm, correct or reject a scan's identification (a curator's decision).
+    Review(review::Args),
+    /// Manage the web console's curators and their API tokens.
+    User(user::Args),
     /// Write man pages and shell completions (for packagers).
     #[command(hide = true)]
     Assets(assets::Args),
@@ -106,6 +113,8 @@ pub(crate) fn main() -> ExitCode {
         Command::Align(a) => align::run(a, config),
         Command::Run(a) => run::run(a, config),
         Command::CheckConfig(a) => check_config::run(a, config),
+        Command::Review(a) => review::run(a, config),
+        Command::User(a) => user::run(a, config),
         Command::Assets(a) => assets::run(a),
     };
     match result {

@@ -27,6 +27,104 @@ pub struct Config {
     pub volume: morphoid_core::volume::VolumeOptions,
     /// Optional result files (absent: the database only).
     pub results: Results,
+    /// The web console and JSON API (off unless `listen` is set).
+    pub http: Http,
+}
+
+/// `[http]`: the web console and JSON API inside `morphoid run`
+/// (`crate::http`). Off unless `listen` is set.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Http {
+    /// Address and port to listen on, e.g. `127.0.0.1:8472` (absent: no
+    /// server). Any address but loopback needs at least one user.
+    pub listen: Option<String>,
+    /// Whether reading (pages, `GET` API, metrics) needs no login.
+    pub public_read: bool,
+    /// Largest request body accepted, in bytes.
+    pub max_body_bytes: usize,
+    /// Largest request head (request line and headers), in bytes.
+    pub max_header_bytes: usize,
+    /// How long a client may take to send a request's head.
+    pub header_timeout_seconds: f64,
+    /// How long one request may take, its body included.
+    pub request_timeout_seconds: f64,
+    /// Connections served at once; more wait to be accepted.
+    pub max_connections: usize,
+    /// How long a login lasts without use.
+    pub session_hours: f64,
+    /// Failed logins allowed per client address (and per user name) in a
+    /// minute; more are refused until the minute is over.
+    pub login_failures_per_minute: u32,
+    /// PEM certificate chain to serve HTTPS with, with `tls_key` (absent:
+    /// plain HTTP, e.g. behind a reverse proxy that terminates TLS).
+    pub tls_cert: Option<PathBuf>,
+    /// The PEM private key of `tls_cert`.
+    pub tls_key: Option<PathBuf>,
+}
+
+impl Default for Http {
+    fn default() -> Self {
+        Http {
+            listen: None,
+            public_read: false,
+            max_body_bytes: 64 * 1024,
+            max_header_bytes: 16 * 1024,
+            header_timeout_seconds: 10.0,
+            request_timeout_seconds: 30.0,
+            max_connections: 256,
+            session_hours: 12.0,
+            login_failures_per_minute: 5,
+            tls_cert: None,
+            tls_key: None,
+        }
+    }
+}
+
+impl Http {
+    /// `listen` as a socket address (`None`: the server is off).
+    pub fn listen_addr(&self) -> Result<Option<std::net::SocketAddr>, String> {
+        self.listen
+            .as_deref()
+            .map(|l| {
+                l.parse().map_err(|_| {
+                    format!("http.listen {l:?} is not an address and port such as 127.0.0.1:8472")
+                })
+            })
+            .transpose()
+    }
+
+    /// Checks of the values the types do not catch.
+    fn validate(&self) -> Result<(), String> {
+        self.listen_addr()?;
+        let positive = |name: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(format!("http.{name} must be a positive number, not {v}"))
+            }
+        };
+        positive("header_timeout_seconds", self.header_timeout_seconds)?;
+        positive("request_timeout_seconds", self.request_timeout_seconds)?;
+        positive("session_hours", self.session_hours)?;
+        if self.max_body_bytes == 0 || self.max_connections == 0 {
+            return Err("http.max_body_bytes and http.max_connections must be positive".into());
+        }
+        // hyper's smallest read buffer: a head must fit in it.
+        if self.max_header_bytes < 8192 {
+            return Err(format!(
+                "http.max_header_bytes must be at least 8192, not {}",
+                self.max_header_bytes
+            ));
+        }
+        if self.tls_cert.is_some() != self.tls_key.is_some() {
+            return Err("http.tls_cert and http.tls_key go together (both or neither)".into());
+        }
+        if self.login_failures_per_minute == 0 {
+            return Err("http.login_failures_per_minute must be at least 1".into());
+        }
+        Ok(())
+    }
 }
 
 /// `[results]`: a folder that receives `<stem>.json` (the `classify --json`
@@ -234,6 +332,7 @@ impl Config {
         if self.watch.ignore.iter().any(String::is_empty) {
             return Err("watch.ignore contains an empty pattern".into());
         }
+        self.http.validate()?;
         Ok(())
     }
 

@@ -7,6 +7,8 @@
 //! - [`classify`]: one scan through preparation, comparison, identification
 //!   and the store;
 //! - [`daemon`]: the export-folder watcher and job loop behind `morphoid run`;
+//! - [`http`]: the web console and JSON API inside `morphoid run`, and
+//!   the curators' decisions;
 //! - [`app`]: what every command decides the same way (configuration
 //!   source, caches, building and calibrating a library).
 
@@ -14,6 +16,7 @@ pub mod app;
 pub mod classify;
 pub mod config;
 pub mod daemon;
+pub mod http;
 pub mod identify;
 pub mod report;
 pub mod store;

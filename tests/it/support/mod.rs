@@ -7,6 +7,7 @@ pub(crate) mod data;
 pub(crate) mod exports;
 pub(crate) mod faults;
 pub(crate) mod fuzz_seeds;
+pub(crate) mod http;
 pub(crate) mod library;
 pub(crate) mod lm;
 pub(crate) mod mounting;

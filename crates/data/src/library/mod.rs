@@ -11,8 +11,10 @@
 //! (learnt from the library's own leave-one-out) into a probability and a
 //! "no close match" flag.
 
+mod add;
 mod cache;
 
+pub use add::{add_reference, reference_name_for, valid_reference_name, AddError, NewReference};
 pub use cache::{Cache, CacheError, CachedReference};
 
 use crate::hash::content_hash;

@@ -109,6 +109,9 @@ pub enum DaemonError {
     /// Signal handlers could not be installed.
     #[error("cannot install signal handlers: {0}")]
     Signals(#[source] std::io::Error),
+    /// The web console could not start (`[http]`).
+    #[error(transparent)]
+    Http(#[from] crate::http::HttpError),
     /// The async runtime or a thread could not be started.
     #[error("cannot start the {what}: {source}")]
     Start {
@@ -223,6 +226,8 @@ async fn control_loop(loader: &dyn Loader) -> Result<(), DaemonError> {
     let mut daemon = Daemon::start(loader).await?;
     notify(&[NotifyState::Ready]);
     let mut timers = Timers::start(daemon.watchdog);
+    // The web console asks for a reload when it added a reference.
+    let console_reload = daemon.live.reload_signal();
     loop {
         tokio::select! {
             // Signals first: a stop must not wait behind a busy folder.
@@ -230,6 +235,7 @@ async fn control_loop(loader: &dyn Loader) -> Result<(), DaemonError> {
             _ = signals.term.recv() => break,
             _ = signals.int.recv() => break,
             _ = signals.hup.recv() => daemon.on_reload().await,
+            _ = console_reload.notified() => daemon.on_reload().await,
             Some(line) = daemon.serial_rx.recv() => daemon.on_trigger(line).await,
             Some(event) = daemon.folder.event() => daemon.on_folder_event(event).await,
             _ = timers.settle.tick() => {
@@ -281,6 +287,10 @@ struct Daemon<'a> {
     last_status: String,
     last_status_at: Option<Instant>,
     last_checkpoint: Instant,
+    /// What the web console shows of the daemon.
+    live: crate::http::LiveStatus,
+    /// The web console, when `[http] listen` is set.
+    http: Option<crate::http::Server>,
 }
 
 impl<'a> Daemon<'a> {
@@ -292,6 +302,12 @@ impl<'a> Daemon<'a> {
         let trigger = compile_trigger(&config)?;
         let health = Health::default();
         let mut db = Db::open(&config.database.path, health.clone())?;
+        // Before the library: the console answers while it is prepared.
+        let live = crate::http::LiveStatus::new();
+        let http = crate::http::Server::start_configured(
+            &config.http,
+            crate::http::Sources::of(&config, live.clone()),
+        )?;
         let (classifier, files) = {
             let (store, _) = db.store()?;
             let requeued = store.requeue_running()?;
@@ -346,6 +362,8 @@ impl<'a> Daemon<'a> {
             last_status: String::new(),
             last_status_at: None,
             last_checkpoint: Instant::now(),
+            live,
+            http,
         };
         // Files that arrived while the daemon was down.
         let ready = daemon.folder.rescan(false);
@@ -523,6 +541,9 @@ impl<'a> Daemon<'a> {
                 if config.database.path != self.config.database.path {
                     tracing::warn!("database.path changes only at restart");
                 }
+                if config.http != self.config.http {
+                    tracing::warn!("[http] changes only at restart");
+                }
                 if config.watch != self.config.watch {
                     self.folder = FolderWatch::start(&config.watch);
                 }
@@ -640,8 +661,30 @@ impl<'a> Daemon<'a> {
                 notify(&[NotifyState::Status(&status)]);
                 self.last_status = status;
             }
+            self.publish_status();
             self.last_status_at = Some(Instant::now());
         }
+    }
+
+    /// What the web console shows of the daemon: the status line's parts.
+    fn publish_status(&self) {
+        let config = &self.config;
+        self.live.update(|s| {
+            s.running = true;
+            s.current_scan = self.worker.progress().current();
+            s.references = self.references;
+            s.calibration = crate::http::calibration_name(self.calibration.state()).into();
+            s.degraded = self.health.summary();
+            s.serial = config.serial.as_ref().map(|c| crate::http::SerialStatus {
+                port: c.port.clone(),
+                baud: c.baud,
+                trigger: c.trigger.clone(),
+            });
+            s.status_line = self.last_status.clone();
+            s.watching = config.watch.dir.display().to_string();
+            s.library = config.library.dir.display().to_string();
+            s.updated_at_ms = now_ms();
+        });
     }
 
     /// Stop: the worker finishes its job within the grace period, or the
@@ -649,6 +692,9 @@ impl<'a> Daemon<'a> {
     async fn stop(mut self) {
         tracing::info!("stopping");
         notify(&[NotifyState::Stopping]);
+        self.live.update(|s| s.running = false);
+        // Joins the console's thread: its requests have a short grace.
+        drop(self.http.take());
         self.worker.request_stop();
         drop(self.serial.take());
         let deadline = Instant::now() + stop_grace();

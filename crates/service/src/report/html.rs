@@ -63,7 +63,7 @@ pub fn thumbnail(scene: &Scene) -> Image {
 }
 
 /// A time in Unix milliseconds as `YYYY-MM-DD hh:mm:ss UTC`.
-pub(crate) fn utc_time(ms: i64) -> String {
+pub fn utc_time(ms: i64) -> String {
     let secs = ms.div_euclid(1000);
     let (days, rem) = (secs.div_euclid(86_400), secs.rem_euclid(86_400));
     // Civil date from days since 1970-01-01 (Howard Hinnant's algorithm).

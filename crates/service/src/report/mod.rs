@@ -16,6 +16,7 @@ mod render;
 mod scene;
 
 pub(crate) use html::report_html;
+pub use html::utc_time;
 pub use html::{file_name, thumbnail};
 pub(crate) use index::{
     href_of, index_html, page_name, IndexRow, PageLink, INDEX_PAGE, INDEX_RECENT,

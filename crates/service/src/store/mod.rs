@@ -69,13 +69,19 @@ mod error;
 mod queue;
 mod references;
 mod results;
+mod reviews;
 mod schema;
+mod search;
 mod types;
+mod users;
 
 pub use error::StoreError;
+pub use reviews::{Decision, NewReview, ReviewError, ReviewRecord};
 pub use schema::{migrate, APPLICATION_ID, MIGRATIONS, SCHEMA_VERSION};
+pub use search::{IdentificationTimes, ScanPage, ScanQuery, IDENTIFICATION_BUCKETS_S};
 pub use types::{Enqueued, Labels, ReferenceState, ScanRecord, ScanStatus};
 pub(crate) use types::{Job, Original, ReferenceRecord, StatusCounts};
+pub use users::{CuratorRecord, UserError};
 
 use rusqlite::{Connection, OptionalExtension};
 use std::path::{Path, PathBuf};

@@ -11,7 +11,7 @@ use rusqlite::{params, Connection, Row};
 use std::collections::BTreeMap;
 
 /// The `scan` columns [`scan_from_row`] reads.
-const SCAN_COLUMNS: &str = "id, path, content_hash, size, status, error, attempts, \
+pub(super) const SCAN_COLUMNS: &str = "id, path, content_hash, size, status, error, attempts, \
      created_at, started_at, finished_at, timings, cleaning, duplicate_of, files_error, \
      calibrating, superseded_by, parent_id, specimen, position, specimens";
 
@@ -125,7 +125,7 @@ fn scan_where(
 }
 
 /// A `scan` row ([`SCAN_COLUMNS`]) as a record, without its result.
-fn scan_from_row(r: &Row<'_>) -> Result<ScanRecord, StoreError> {
+pub(super) fn scan_from_row(r: &Row<'_>) -> Result<ScanRecord, StoreError> {
     let id: i64 = r.get("id")?;
     let size: i64 = r.get("size")?;
     let status: String = r.get("status")?;
@@ -201,7 +201,7 @@ fn specimens_of(
 /// Fill `record`'s ranks, its `nearest_count` nearest references and its
 /// carried landmarks; a duplicate's are those of the earlier scan it points
 /// at, whose path, status and error it gets too.
-fn load_result(
+pub(super) fn load_result(
     conn: &Connection,
     record: &mut ScanRecord,
     nearest_count: usize,

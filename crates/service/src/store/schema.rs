@@ -22,6 +22,7 @@ pub const MIGRATIONS: &[&str] = &[
     MIGRATION_5,
     MIGRATION_6,
     MIGRATION_7,
+    MIGRATION_8,
 ];
 
 /// The schema version this build writes and understands.
@@ -249,6 +250,60 @@ DROP INDEX scan_content;
 CREATE UNIQUE INDEX scan_content ON scan (content_hash)
     WHERE status NOT IN ('duplicate', 'superseded') AND parent_id IS NULL;
 CREATE UNIQUE INDEX scan_specimen ON scan (parent_id, specimen) WHERE parent_id IS NOT NULL;
+"#;
+
+/// Migration 8: the web console's curators (issue 32). `curator`: users
+/// with their argon2 password hash (PHC string); `api_token`: the SHA-256
+/// of each API token, never the token. `review`: every decision a curator
+/// took on a scan (confirm, correct with a taxon per rank, reject), with
+/// who, when, what the identification said then, and its place in the
+/// scan's sequence of decisions (`seq`, `previous_id`; unique per scan, so
+/// two decisions taken at once are both kept, one after the other). An
+/// audit trail: triggers refuse every UPDATE and DELETE. No foreign key to
+/// `scan`: a specimen's row goes when its scan is identified again, the
+/// decisions taken on it stay (with the content hash and path they were
+/// taken on).
+const MIGRATION_8: &str = r#"
+CREATE TABLE curator (
+    id            INTEGER PRIMARY KEY,
+    name          TEXT NOT NULL UNIQUE CHECK (length(name) BETWEEN 1 AND 64),
+    password_hash TEXT NOT NULL,
+    created_at    INTEGER NOT NULL
+);
+CREATE TABLE api_token (
+    id          INTEGER PRIMARY KEY,
+    curator_id  INTEGER NOT NULL REFERENCES curator (id) ON DELETE CASCADE,
+    token_hash  TEXT NOT NULL UNIQUE,
+    label       TEXT NOT NULL DEFAULT '',
+    created_at  INTEGER NOT NULL
+);
+CREATE INDEX api_token_curator ON api_token (curator_id);
+CREATE TABLE review (
+    id           INTEGER PRIMARY KEY AUTOINCREMENT,
+    scan_id      INTEGER NOT NULL,
+    seq          INTEGER NOT NULL CHECK (seq >= 1),
+    previous_id  INTEGER REFERENCES review (id),
+    content_hash TEXT NOT NULL,
+    path         TEXT NOT NULL,
+    curator      TEXT NOT NULL CHECK (length(curator) >= 1),
+    decided_at   INTEGER NOT NULL,
+    decision     TEXT NOT NULL CHECK (decision IN ('confirm', 'correct', 'reject')),
+    -- {"rank": "taxon"}: the taxa confirmed or given; {} for a rejection
+    taxa         TEXT NOT NULL CHECK (json_valid(taxa)),
+    -- {"rank": "taxon"}: what the identification said when the decision was taken
+    identified   TEXT NOT NULL CHECK (json_valid(identified)),
+    comment      TEXT,
+    UNIQUE (scan_id, seq),
+    CHECK ((seq = 1) = (previous_id IS NULL))
+);
+CREATE TRIGGER review_append_only_update BEFORE UPDATE ON review
+BEGIN
+    SELECT RAISE(ABORT, 'review is an audit trail: a decision is never rewritten');
+END;
+CREATE TRIGGER review_append_only_delete BEFORE DELETE ON review
+BEGIN
+    SELECT RAISE(ABORT, 'review is an audit trail: a decision is never deleted');
+END;
 "#;
 
 /// Bring the database on `conn` to [`SCHEMA_VERSION`]: refuse a file of

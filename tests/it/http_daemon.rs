@@ -1,0 +1,148 @@
+//! The console inside the real `morphoid run`: it starts with the daemon,
+//! shows what the daemon does (its state and each scan as it is
+//! identified) and stops with it.
+
+use crate::support::daemon::{env, genus, put, scan_bytes, wait_until, Daemon};
+use std::time::Duration;
+
+#[test]
+fn http_the_console_follows_the_running_daemon() {
+    let env = env(
+        0.5,
+        "",
+        "[http]\nlisten = \"127.0.0.1:0\"\npublic_read = true\n",
+    );
+    let mut daemon = Daemon::start(&env);
+    let log = daemon.log_text();
+    let base = log
+        .split("web console listening on ")
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .unwrap_or_else(|| panic!("no listening line:\n{log}"))
+        .to_string();
+    let client = reqwest::blocking::Client::builder()
+        .timeout(Duration::from_secs(20))
+        .build()
+        .unwrap();
+    let get = |path: &str| -> serde_json::Value {
+        client
+            .get(format!("{base}{path}"))
+            .send()
+            .and_then(|r| r.error_for_status())
+            .and_then(|r| r.json())
+            .unwrap_or(serde_json::Value::Null)
+    };
+    assert!(
+        wait_until(Duration::from_secs(30), || get("/api/v1/status")["running"]
+            == true),
+        "the daemon's state never reached the console"
+    );
+    let status = get("/api/v1/status");
+    assert_eq!(status["references"], daemon.references());
+    assert_eq!(status["watching"], env.export.display().to_string());
+    assert_eq!(get("/api/v1/references")["count"], daemon.references());
+
+    put(&env, &env.export.join("new.ply"), &scan_bytes(1, 77));
+    assert!(
+        wait_until(Duration::from_secs(300), || get("/api/v1/scans?status=ok")
+            ["scans"]
+            .as_array()
+            .is_some_and(|s| s.len() == 1)),
+        "the scan was not shown identified:\n{}",
+        daemon.log_text()
+    );
+    let scans = get("/api/v1/scans?status=ok");
+    let scan = &scans["scans"][0];
+    assert_eq!(
+        scan["scan"],
+        env.export.join("new.ply").display().to_string()
+    );
+    assert_eq!(scan["ranks"]["genus"]["taxon"], genus(1));
+    let id = scan["id"].as_i64().unwrap();
+    let by_genus = get(&format!("/api/v1/scans?genus={}", genus(1)));
+    assert_eq!(by_genus["scans"][0]["id"], id);
+    let page = client.get(format!("{base}/scans/{id}")).send().unwrap();
+    assert_eq!(page.status().as_u16(), 200);
+    assert!(page.text().unwrap().contains("new.ply"));
+    let metrics = client
+        .get(format!("{base}/metrics"))
+        .send()
+        .unwrap()
+        .text()
+        .unwrap();
+    assert!(
+        metrics.contains("morphoid_identification_seconds_count 1"),
+        "{metrics}"
+    );
+    assert!(metrics.contains("morphoid_daemon_running 1"), "{metrics}");
+
+    // A curator confirms it and adds it to the library: the daemon reloads
+    // and uses it, without a restart.
+    let before = daemon.references();
+    let mut store = morphoid_service::store::Store::open(&env.db).unwrap();
+    let hash = morphoid_service::http::hash_password("a long password").unwrap();
+    store.add_curator("ana", &hash).unwrap();
+    let token = morphoid_service::http::new_api_token();
+    store
+        .add_api_token("ana", &morphoid_service::http::token_hash(&token), "test")
+        .unwrap();
+    drop(store);
+    let post = |path: &str, body: serde_json::Value| {
+        client
+            .post(format!("{base}{path}"))
+            .bearer_auth(&token)
+            .json(&body)
+            .send()
+            .unwrap()
+            .status()
+            .as_u16()
+    };
+    assert_eq!(
+        post(
+            &format!("/api/v1/scans/{id}/review"),
+            serde_json::json!({"decision": "confirm"})
+        ),
+        201
+    );
+    let asked = std::time::Instant::now();
+    assert_eq!(
+        post(
+            &format!("/api/v1/scans/{id}/add-to-library"),
+            serde_json::json!({})
+        ),
+        201
+    );
+    assert!(
+        wait_until(Duration::from_secs(120), || get("/api/v1/references")
+            ["count"]
+            == before + 1
+            && get("/api/v1/status")["references"] == before + 1),
+        "the daemon did not take the new reference:\n{}",
+        daemon.log_text()
+    );
+    eprintln!(
+        "added reference in use after {:.1} s",
+        asked.elapsed().as_secs_f64()
+    );
+    assert!(daemon
+        .log_text()
+        .contains(&format!("reloaded: {} references", before + 1)));
+    let names: Vec<String> = get("/api/v1/references")["references"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["name"].as_str().unwrap().to_string())
+        .collect();
+    assert!(names.contains(&"new".to_string()), "{names:?}");
+
+    daemon.signal(libc::SIGTERM);
+    let exit = daemon
+        .wait_exit(Duration::from_secs(30))
+        .expect("the daemon stops");
+    assert!(exit.success(), "{exit:?}\n{}", daemon.log_text());
+    assert!(daemon.log_text().contains("web console stopped"));
+    assert!(
+        client.get(format!("{base}/healthz")).send().is_err(),
+        "still served after the stop"
+    );
+}
