@@ -46,6 +46,7 @@ mod fuzz_replay;
 mod http_api;
 mod http_auth;
 mod http_browser;
+mod http_config;
 mod http_daemon;
 mod http_library;
 mod http_pages;
