@@ -1,7 +1,7 @@
 //! `[http]` in the configuration: its defaults, and each wrong value
 //! refused naming its key.
 
-use morphoid::config::{Config, Http};
+use morphoid_service::config::{Config, Http};
 use std::path::Path;
 
 #[test]
