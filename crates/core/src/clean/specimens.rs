@@ -50,10 +50,8 @@ pub fn surface_specimens(mesh: &Mesh, weld_tolerance: f64) -> Option<SurfaceSpec
     if mesh.faces.len() < 8 {
         return None;
     }
-    // A surface that shares its vertices has its components already; a
-    // soup (three vertices a face) must be welded to show them.
     let welded;
-    let m = if mesh.vertices.len() >= mesh.faces.len() {
+    let m = if is_soup(mesh) {
         welded = weld_vertices(mesh, weld_tolerance * bbox_diagonal(mesh)).0;
         &welded
     } else {
@@ -63,36 +61,13 @@ pub fn surface_specimens(mesh: &Mesh, weld_tolerance: f64) -> Option<SurfaceSpec
     if count < 2 {
         return None;
     }
-    let mut area = vec![0.0; count];
-    for (l, a) in labels.iter().zip(face_areas(m)) {
-        area[*l as usize] += a;
-    }
-    let largest = area.iter().copied().fold(0.0, f64::max);
-    let large: Vec<usize> = (0..count)
-        .filter(|&c| area[c] >= SPECIMEN_SHARE * largest)
-        .collect();
+    let large = large_components(m, &labels, count);
     // The common case, one large component and debris: nothing to split,
     // and nothing more to compute on a surface of millions of faces.
     if large.len() < 2 {
         return None;
     }
-    let part = |c: usize| {
-        let faces = m
-            .faces
-            .iter()
-            .zip(&labels)
-            .filter_map(|(f, &l)| (l as usize == c).then_some(*f))
-            .collect();
-        remove_unreferenced_vertices(&Mesh::new(m.vertices.clone(), faces))
-    };
-    let closed: Vec<Mesh> = large
-        .iter()
-        .map(|&c| part(c))
-        .filter(|p| {
-            widest_boundary_loop_extent(p)
-                .is_none_or(|extent| extent < NEARLY_CLOSED * bbox_diagonal(p))
-        })
-        .collect();
+    let closed = closed_parts(m, &labels, &large);
     if closed.len() < 2 {
         return None;
     }
@@ -100,6 +75,69 @@ pub fn surface_specimens(mesh: &Mesh, weld_tolerance: f64) -> Option<SurfaceSpec
         .iter()
         .map(|p| bounding_box(p).unwrap_or(([0.0; 3], [0.0; 3])))
         .collect();
+    let outer = outermost_parts(&closed, &boxes);
+    let nested_parts = closed.len() - outer.len();
+    if outer.len() < 2 {
+        return None;
+    }
+    let order = in_order_along_longest_axis(m, outer, &boxes)?;
+    let nested =
+        nested_parts + nested_small_components(m, &labels, count, &large, &order, &closed, &boxes);
+    let debris = count - order.len() - nested;
+    let mut closed: Vec<Option<Mesh>> = closed.into_iter().map(Some).collect();
+    let parts = order.iter().filter_map(|&k| closed[k].take()).collect();
+    Some(SurfaceSpecimens {
+        parts,
+        debris,
+        nested,
+    })
+}
+
+/// Whether `mesh` is a triangle soup (about three vertices a face) that
+/// must be welded to show its components; a surface that shares its
+/// vertices has them already.
+fn is_soup(mesh: &Mesh) -> bool {
+    mesh.vertices.len() >= mesh.faces.len()
+}
+
+/// The components (by face `labels`, `count` of them) holding at least
+/// [`SPECIMEN_SHARE`] of the largest one's area.
+fn large_components(m: &Mesh, labels: &[u32], count: usize) -> Vec<usize> {
+    let mut area = vec![0.0; count];
+    for (l, a) in labels.iter().zip(face_areas(m)) {
+        area[*l as usize] += a;
+    }
+    let largest = area.iter().copied().fold(0.0, f64::max);
+    (0..count)
+        .filter(|&c| area[c] >= SPECIMEN_SHARE * largest)
+        .collect()
+}
+
+/// The `large` components of `m` as surfaces of their own, those closed
+/// or nearly (every hole small), in the order of `large`.
+fn closed_parts(m: &Mesh, labels: &[u32], large: &[usize]) -> Vec<Mesh> {
+    let part = |c: usize| {
+        let faces = m
+            .faces
+            .iter()
+            .zip(labels)
+            .filter_map(|(f, &l)| (l as usize == c).then_some(*f))
+            .collect();
+        remove_unreferenced_vertices(&Mesh::new(m.vertices.clone(), faces))
+    };
+    large
+        .iter()
+        .map(|&c| part(c))
+        .filter(|p| {
+            widest_boundary_loop_extent(p)
+                .is_none_or(|extent| extent < NEARLY_CLOSED * bbox_diagonal(p))
+        })
+        .collect()
+}
+
+/// The indices of the `closed` parts that lie inside no other (by their
+/// `boxes`, then by ray parity from one vertex).
+fn outermost_parts(closed: &[Mesh], boxes: &[([f64; 3], [f64; 3])]) -> Vec<usize> {
     let inside = |i: usize, j: usize| {
         let (a, b) = (boxes[i], boxes[j]);
         (0..3).all(|k| a.0[k] >= b.0[k] && a.1[k] <= b.1[k])
@@ -108,13 +146,19 @@ pub fn surface_specimens(mesh: &Mesh, weld_tolerance: f64) -> Option<SurfaceSpec
                 .first()
                 .is_some_and(|&p| point_inside_by_parity(&closed[j], p))
     };
-    let outer: Vec<usize> = (0..closed.len())
+    (0..closed.len())
         .filter(|&i| !(0..closed.len()).any(|j| j != i && inside(i, j)))
-        .collect();
-    let nested = closed.len() - outer.len();
-    if outer.len() < 2 {
-        return None;
-    }
+        .collect()
+}
+
+/// The `outer` parts in order along the longest axis of `m`'s bounding
+/// box, by the centre of each of their `boxes` (`None` when `m` has no
+/// box).
+fn in_order_along_longest_axis(
+    m: &Mesh,
+    outer: Vec<usize>,
+    boxes: &[([f64; 3], [f64; 3])],
+) -> Option<Vec<usize>> {
     let (lo, hi) = bounding_box(m)?;
     let axis = (0..3)
         .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])).then(b.cmp(&a)))
@@ -124,13 +168,46 @@ pub fn surface_specimens(mesh: &Mesh, weld_tolerance: f64) -> Option<SurfaceSpec
         let c = |k: usize| boxes[k].0[axis] + boxes[k].1[axis];
         c(a).total_cmp(&c(b)).then(a.cmp(&b))
     });
-    // The small components: inside a specimen (a cavity, a canal) or
-    // debris. Each test casts rays through a specimen, so a crowd of
-    // crumbs is checked only as far as MAX_NESTED_CHECKS.
-    let mut nested = nested;
-    // Each small component's box and one of its vertices, in one pass.
+    Some(order)
+}
+
+/// How many of the small components (not `large`) lie inside one of the
+/// specimens (`order` indexes `closed` and `boxes`): a cavity, a canal.
+/// Each test casts rays through a specimen, so a crowd of crumbs is
+/// checked only as far as [`MAX_NESTED_CHECKS`]; the rest are debris.
+fn nested_small_components(
+    m: &Mesh,
+    labels: &[u32],
+    count: usize,
+    large: &[usize],
+    order: &[usize],
+    closed: &[Mesh],
+    boxes: &[([f64; 3], [f64; 3])],
+) -> usize {
+    small_component_boxes(m, labels, count, large)
+        .into_iter()
+        .flatten()
+        .take(MAX_NESTED_CHECKS)
+        .filter(|&(a, b, p)| {
+            order.iter().any(|&k| {
+                let (lo, hi) = boxes[k];
+                (0..3).all(|i| a[i] >= lo[i] && b[i] <= hi[i])
+                    && point_inside_by_parity(&closed[k], p)
+            })
+        })
+        .count()
+}
+
+/// Each small component's box and one of its vertices (`None` for the
+/// `large` ones), in one pass over the faces.
+fn small_component_boxes(
+    m: &Mesh,
+    labels: &[u32],
+    count: usize,
+    large: &[usize],
+) -> Vec<Option<BoxAndPoint>> {
     let mut small_box: Vec<Option<BoxAndPoint>> = vec![None; count];
-    for (f, &l) in m.faces.iter().zip(&labels) {
+    for (f, &l) in m.faces.iter().zip(labels) {
         let l = l as usize;
         if large.contains(&l) {
             continue;
@@ -144,23 +221,7 @@ pub fn surface_specimens(mesh: &Mesh, weld_tolerance: f64) -> Option<SurfaceSpec
             }
         }
     }
-    for (a, b, p) in small_box.into_iter().flatten().take(MAX_NESTED_CHECKS) {
-        let within = order.iter().any(|&k| {
-            let (lo, hi) = boxes[k];
-            (0..3).all(|i| a[i] >= lo[i] && b[i] <= hi[i]) && point_inside_by_parity(&closed[k], p)
-        });
-        if within {
-            nested += 1;
-        }
-    }
-    let debris = count - order.len() - nested;
-    let mut closed: Vec<Option<Mesh>> = closed.into_iter().map(Some).collect();
-    let parts = order.iter().filter_map(|&k| closed[k].take()).collect();
-    Some(SurfaceSpecimens {
-        parts,
-        debris,
-        nested,
-    })
+    small_box
 }
 
 #[cfg(test)]

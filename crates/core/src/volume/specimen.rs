@@ -324,107 +324,18 @@ fn candidate_levels(values: &[f32]) -> Option<(Vec<f64>, f64)> {
 pub(crate) fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen, SpecimenError> {
     let (levels, background) = candidate_levels(values).ok_or(SpecimenError::Uniform)?;
     let mut views: Vec<Option<Level>> = (0..levels.len()).map(|_| None).collect();
-    let mut rejected: Vec<(f64, usize, String)> = Vec::new();
-
-    // The seed: at the highest level, the largest object that can be one.
-    let mut seed = None;
-    for (j, &t) in levels.iter().enumerate() {
-        let v = level_view(values, dims, t);
-        let mut order: Vec<usize> = (0..v.stats.len())
-            .filter(|&l| v.stats[l].voxels >= MIN_SPECIMEN_VOXELS)
-            .collect();
-        order.sort_by_key(|&l| std::cmp::Reverse(v.stats[l].voxels));
-        for l in order {
-            let region = select(&v.labels, l as u32);
-            match mount_like(values, dims, &region, &v, l as u32, background) {
-                None => {
-                    seed = Some((j, l as u32, region));
-                    break;
-                }
-                Some(why) => rejected.push((t, v.stats[l].voxels, why)),
-            }
-        }
-        keep_if_lowest(&mut views, j, v);
-        if seed.is_some() {
-            break;
-        }
-    }
-    let Some((seed_j, _, seed_region)) = seed else {
-        return Err(SpecimenError::NotFound(not_found_reason(
-            values, dims, &levels, &rejected,
-        )));
-    };
-
-    // Down the levels while the object grows by its own material.
+    let (seed_j, seed_region) = seed_object(values, dims, &levels, background, &mut views)?;
     let probe = seed_region.iter().position(|&b| b).unwrap_or(0);
-    let (mut accepted_j, mut accepted) = (seed_j, seed_region);
-    let mut lowest_ok = seed_j;
-    let mut stop: Option<(usize, u32, String)> = None;
-    for (i, &t) in levels.iter().enumerate().skip(seed_j + 1) {
-        let v = level_view(values, dims, t);
-        let l = v.labels[probe];
-        if l == u32::MAX {
-            keep_if_lowest(&mut views, i, v);
-            break;
-        }
-        let st = &v.stats[l as usize];
-        if let Some(span) = v.spans(l, dims) {
-            stop = Some((
-                i,
-                l,
-                format!("{}: mounting material or background", span_detail(span)),
-            ));
-            views[i] = Some(v);
-            break;
-        }
-        let grown = select(&v.labels, l);
-        // What this level adds: samples no higher than the accepted level
-        // (brighter ones are the specimen's own, cut off by the opening
-        // before).
-        let below = levels[accepted_j];
-        let added: Vec<bool> = grown
-            .iter()
-            .zip(&accepted)
-            .zip(values)
-            .map(|((&g, &a), &x)| g && !a && f64::from(x) <= below)
-            .collect();
-        let deep = erode_cube(&added, dims, THIN_RADIUS)
-            .iter()
-            .filter(|&&b| b)
-            .count();
-        if (deep as f64) < MATERIAL_FRACTION * st.voxels as f64 {
-            // Only the blur at the edge: an admissible level, not a material.
-            lowest_ok = i;
-            keep_if_lowest(&mut views, i, v);
-            continue;
-        }
-        let why = textured(values, dims, &added, background)
-            .map(|r| format!("local variation {r:.2} of its contrast, over {TEXTURED}"))
-            .or_else(|| {
-                uneven(values, dims, &added, background)
-                    .map(|r| format!("spread {r:.2} of its contrast, over {UNEVEN}"))
-            });
-        if let Some(why) = why {
-            stop = Some((
-                i,
-                l,
-                format!("what lies around the specimen is textured like foam ({why})"),
-            ));
-            views[i] = Some(v);
-            break;
-        }
-        accepted_j = i;
-        accepted = grown;
-        lowest_ok = i;
-        keep_if_lowest(&mut views, i, v);
-    }
-
-    // Between the specimen's material and what surrounds it.
-    let (top, bottom) = (levels[accepted_j], levels[lowest_ok]);
-    let level = match inner_and_ring(values, dims, &accepted) {
-        (Some(a), Some(b)) => (0.5 * (a + b)).clamp(bottom, top),
-        _ => top,
-    };
+    let growth = grow_down_levels(
+        values,
+        dims,
+        &levels,
+        background,
+        (seed_j, seed_region),
+        probe,
+        &mut views,
+    );
+    let level = final_level(values, dims, &levels, &growth);
     let view = level_view(values, dims, level);
     let spec_label = view.labels[probe];
     if spec_label == u32::MAX {
@@ -437,10 +348,217 @@ pub(crate) fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen
         levels: levels.clone(),
         ..Default::default()
     };
+    let (kept_labels, mount) = classify_objects(values, dims, &view, spec_label, background);
+    let cores = cut_at_necks(&view, &kept_labels, dims, &mut report.warnings);
+    let (mut specimens, claimed) = grow_back_cores(&cores, &view, dims);
+    drop(cores);
+    // Boxes before the thin parts are given back: they decide both which
+    // thin parts stay within reach and the specimens' order.
+    let boxes: Vec<Option<[[usize; 3]; 2]>> = specimens.iter().map(|s| bbox_of(s, dims)).collect();
+    let thin = give_back_thin_parts(values, dims, &view, &mut specimens, &claimed, &boxes);
+    let specimens = in_order_along_longest_axis(specimens, &boxes, dims);
+    report_kept(&mut report, values, dims, &specimens, level);
+    let kept_count = specimens.len();
+    report_dropped_at_level(&mut report, &view, &kept_labels, mount, level);
+    report_thin_parts(&mut report, &thin, dims, level);
+    let around = around_specimens(&specimens, dims, values.len());
+    for (i, container) in levels_below(&levels, level, growth.stop) {
+        let v = views[i]
+            .take()
+            .unwrap_or_else(|| level_view(values, dims, levels[i]));
+        report_below(&mut report, values, dims, &v, &around, probe, container);
+    }
+    list_largest_dropped(&mut report, kept_count);
+    let masks = fill_specimen_cavities(specimens, dims, &mut report);
+    Ok(Specimen {
+        masks,
+        level,
+        report,
+    })
+}
 
-    // The specimens: the seed's object and every other object at its level
-    // that is large, not mounting material, and at least a share of the
-    // largest of them (batch scans); smaller ones are fragments.
+/// The seed, from the highest level down: the first large object, largest
+/// first, that is not mounting material; its level's index and samples.
+/// When there is none, the error says what was found instead.
+fn seed_object(
+    values: &[f32],
+    dims: [usize; 3],
+    levels: &[f64],
+    background: f64,
+    views: &mut [Option<Level>],
+) -> Result<(usize, Vec<bool>), SpecimenError> {
+    let mut rejected: Vec<(f64, usize, String)> = Vec::new();
+    for (j, &t) in levels.iter().enumerate() {
+        let v = level_view(values, dims, t);
+        let mut order: Vec<usize> = (0..v.stats.len())
+            .filter(|&l| v.stats[l].voxels >= MIN_SPECIMEN_VOXELS)
+            .collect();
+        order.sort_by_key(|&l| std::cmp::Reverse(v.stats[l].voxels));
+        let mut seed = None;
+        for l in order {
+            let region = select(&v.labels, l as u32);
+            match mount_like(values, dims, &region, &v, l as u32, background) {
+                None => {
+                    seed = Some(region);
+                    break;
+                }
+                Some(why) => rejected.push((t, v.stats[l].voxels, why)),
+            }
+        }
+        keep_if_lowest(views, j, v);
+        if let Some(region) = seed {
+            return Ok((j, region));
+        }
+    }
+    Err(SpecimenError::NotFound(not_found_reason(
+        values, dims, levels, &rejected,
+    )))
+}
+
+/// Where going down the levels stopped short of the lowest: the level's
+/// index, the object there that holds the specimen, and why it is
+/// mounting material or background.
+struct Stop {
+    index: usize,
+    label: u32,
+    why: String,
+}
+
+/// What going down the levels from the seed found.
+struct Growth {
+    /// The index of the lowest level whose object was the specimen's own
+    /// material.
+    accepted_j: usize,
+    /// That object's samples.
+    accepted: Vec<bool>,
+    /// The index of the lowest level that kept the specimen alone (it may
+    /// add only the blur at its edge).
+    lowest_ok: usize,
+    /// Where and why the search stopped, if at a level that took in
+    /// mounting material or background.
+    stop: Option<Stop>,
+}
+
+/// Down the levels from the seed while the object holding sample `probe`
+/// grows by its own material (see the module documentation).
+fn grow_down_levels(
+    values: &[f32],
+    dims: [usize; 3],
+    levels: &[f64],
+    background: f64,
+    (seed_j, seed_region): (usize, Vec<bool>),
+    probe: usize,
+    views: &mut [Option<Level>],
+) -> Growth {
+    let mut growth = Growth {
+        accepted_j: seed_j,
+        accepted: seed_region,
+        lowest_ok: seed_j,
+        stop: None,
+    };
+    for (i, &t) in levels.iter().enumerate().skip(seed_j + 1) {
+        let v = level_view(values, dims, t);
+        let l = v.labels[probe];
+        if l == u32::MAX {
+            keep_if_lowest(views, i, v);
+            break;
+        }
+        let st = &v.stats[l as usize];
+        if let Some(span) = v.spans(l, dims) {
+            growth.stop = Some(Stop {
+                index: i,
+                label: l,
+                why: format!("{}: mounting material or background", span_detail(span)),
+            });
+            views[i] = Some(v);
+            break;
+        }
+        let grown = select(&v.labels, l);
+        let added = added_samples(&grown, &growth.accepted, values, levels[growth.accepted_j]);
+        if !adds_material(&added, dims, st.voxels) {
+            // Only the blur at the edge: an admissible level, not a material.
+            growth.lowest_ok = i;
+            keep_if_lowest(views, i, v);
+            continue;
+        }
+        if let Some(why) = foam_texture(values, dims, &added, background) {
+            growth.stop = Some(Stop {
+                index: i,
+                label: l,
+                why: format!("what lies around the specimen is textured like foam ({why})"),
+            });
+            views[i] = Some(v);
+            break;
+        }
+        growth.accepted_j = i;
+        growth.accepted = grown;
+        growth.lowest_ok = i;
+        keep_if_lowest(views, i, v);
+    }
+    growth
+}
+
+/// What a lower level's object `grown` adds to the `accepted` one: its
+/// samples no higher than the accepted level `below` (brighter ones are
+/// the specimen's own, cut off by the opening before).
+fn added_samples(grown: &[bool], accepted: &[bool], values: &[f32], below: f64) -> Vec<bool> {
+    grown
+        .iter()
+        .zip(accepted)
+        .zip(values)
+        .map(|((&g, &a), &x)| g && !a && f64::from(x) <= below)
+        .collect()
+}
+
+/// Whether the `added` samples hold a material rather than the blur at the
+/// edge of an object of `voxels` samples: more than
+/// [`MATERIAL_FRACTION`] of it lies more than [`THIN_RADIUS`] deep.
+fn adds_material(added: &[bool], dims: [usize; 3], voxels: usize) -> bool {
+    let deep = erode_cube(added, dims, THIN_RADIUS)
+        .iter()
+        .filter(|&&b| b)
+        .count();
+    (deep as f64) >= MATERIAL_FRACTION * voxels as f64
+}
+
+/// Why the material `added` around the specimen is foam (textured or
+/// uneven), if it is.
+fn foam_texture(
+    values: &[f32],
+    dims: [usize; 3],
+    added: &[bool],
+    background: f64,
+) -> Option<String> {
+    textured(values, dims, added, background)
+        .map(|r| format!("local variation {r:.2} of its contrast, over {TEXTURED}"))
+        .or_else(|| {
+            uneven(values, dims, added, background)
+                .map(|r| format!("spread {r:.2} of its contrast, over {UNEVEN}"))
+        })
+}
+
+/// The level the specimen is cut at: between its material and what
+/// surrounds it, within the levels that kept it alone.
+fn final_level(values: &[f32], dims: [usize; 3], levels: &[f64], growth: &Growth) -> f64 {
+    let (top, bottom) = (levels[growth.accepted_j], levels[growth.lowest_ok]);
+    match inner_and_ring(values, dims, &growth.accepted) {
+        (Some(a), Some(b)) => (0.5 * (a + b)).clamp(bottom, top),
+        _ => top,
+    }
+}
+
+/// The specimens at the final level: the seed's object `spec_label` and
+/// every other object that is large, not mounting material, and at least
+/// [`SPECIMEN_SHARE`] of the largest of them (batch scans); smaller ones
+/// are fragments. Also why each large object is mounting material, if it
+/// is.
+fn classify_objects(
+    values: &[f32],
+    dims: [usize; 3],
+    view: &Level,
+    spec_label: u32,
+    background: f64,
+) -> (Vec<u32>, Vec<Option<String>>) {
     let mut candidates: Vec<u32> = vec![spec_label];
     let mut mount: Vec<Option<String>> = vec![None; view.stats.len()];
     for (l, s) in view.stats.iter().enumerate() {
@@ -448,7 +566,7 @@ pub(crate) fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen
             continue;
         }
         let region = select(&view.labels, l as u32);
-        mount[l] = mount_like(values, dims, &region, &view, l as u32, background);
+        mount[l] = mount_like(values, dims, &region, view, l as u32, background);
         if mount[l].is_none() {
             candidates.push(l as u32);
         }
@@ -460,56 +578,73 @@ pub(crate) fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen
         .unwrap_or(0);
     let share = |l: u32| view.stats[l as usize].voxels as f64 >= SPECIMEN_SHARE * largest as f64;
     let kept_labels: Vec<u32> = candidates.iter().copied().filter(|&l| share(l)).collect();
+    (kept_labels, mount)
+}
 
-    // Each kept object cut at its thin necks (touching specimens).
-    let mut cores: Vec<(Vec<bool>, u32)> = Vec::new();
-    for &l in &kept_labels {
+/// Each kept object's samples, cut at its thin necks (touching
+/// specimens), with a warning for each cut or possibly fused object.
+fn cut_at_necks(
+    view: &Level,
+    kept_labels: &[u32],
+    dims: [usize; 3],
+    warnings: &mut Vec<String>,
+) -> Vec<Vec<bool>> {
+    let mut cores: Vec<Vec<bool>> = Vec::new();
+    for &l in kept_labels {
         let core = select(&view.labels, l);
         match separate_at_necks(&core, dims) {
             Separation::Cut { parts, radius } => {
-                report.warnings.push(format!(
+                warnings.push(format!(
                     "an object of {} samples was cut at a neck {} samples wide into {} \
                      specimens",
                     view.stats[l as usize].voxels,
                     2 * radius + 1,
                     parts.len()
                 ));
-                cores.extend(parts.into_iter().map(|p| (p, l)));
+                cores.extend(parts);
             }
             Separation::Fused { radius } => {
-                report.warnings.push(format!(
+                warnings.push(format!(
                     "an object of {} samples may be two specimens fused over a junction \
                      about {} samples wide (no thin neck to cut it at): identified as one",
                     view.stats[l as usize].voxels,
                     2 * radius + 1
                 ));
-                cores.push((core, l));
+                cores.push(core);
             }
-            Separation::Whole => cores.push((core, l)),
+            Separation::Whole => cores.push(core),
         }
     }
+    cores
+}
 
-    // Each specimen: its core grown back over the opening's reach within
-    // the level's mask (the parts of a cut object do not take each other's
-    // samples).
-    let mut claimed = vec![false; values.len()];
-    let mut specimens: Vec<Vec<bool>> = Vec::with_capacity(cores.len());
-    for (core, _) in &cores {
-        let grown: Vec<bool> = dilate_cube(core, dims, THIN_RADIUS)
-            .iter()
-            .zip(&view.mask)
-            .zip(core)
-            .map(|((&d, &m), &c)| c || (d && m))
-            .collect();
-        specimens.push(grown);
-    }
+/// Each specimen: its core grown back over the opening's reach within the
+/// level's mask, a sample two share going to the first (the parts of a cut
+/// object do not take each other's samples); and all the samples claimed.
+fn grow_back_cores(
+    cores: &[Vec<bool>],
+    view: &Level,
+    dims: [usize; 3],
+) -> (Vec<Vec<bool>>, Vec<bool>) {
+    let mut specimens: Vec<Vec<bool>> = cores
+        .iter()
+        .map(|core| {
+            dilate_cube(core, dims, THIN_RADIUS)
+                .iter()
+                .zip(&view.mask)
+                .zip(core)
+                .map(|((&d, &m), &c)| c || (d && m))
+                .collect()
+        })
+        .collect();
+    let mut claimed = vec![false; view.mask.len()];
     for s in &specimens {
         for (c, &b) in claimed.iter_mut().zip(s) {
             *c |= b;
         }
     }
-    // A sample two grown parts share goes to the first (cores never overlap).
-    let mut seen = vec![false; values.len()];
+    // Cores never overlap, so the first holder keeps its own samples.
+    let mut seen = vec![false; view.mask.len()];
     for s in &mut specimens {
         for (b, v) in s.iter_mut().zip(seen.iter_mut()) {
             if *b && *v {
@@ -518,10 +653,28 @@ pub(crate) fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen
             *v |= *b;
         }
     }
+    (specimens, claimed)
+}
 
-    // Thin parts: what the opening cut off and its dilation does not give
-    // back. Small ones on a specimen are its own (cusp tips, noise); long
-    // ones are tubes, walls and pins.
+/// The thin parts at the final level: what the opening cut off and its
+/// dilation does not give back, with the specimen each is given back to.
+struct ThinParts {
+    stats: Vec<ObjectStats>,
+    joins: Vec<Option<usize>>,
+}
+
+/// The thin parts at the final level (see [`ThinParts`]), each that lies
+/// on a specimen and stays within its reach (a cusp tip, a root apex, an
+/// enamel edge) added to that specimen; one that leads away from it (a
+/// pin, a tube wall it touches) is not. `boxes` are the specimens' boxes.
+fn give_back_thin_parts(
+    values: &[f32],
+    dims: [usize; 3],
+    view: &Level,
+    specimens: &mut [Vec<bool>],
+    claimed: &[bool],
+    boxes: &[Option<[[usize; 3]; 2]>],
+) -> ThinParts {
     let thick_back = dilate_cube(&view.opened, dims, THIN_RADIUS);
     let residue: Vec<bool> = view
         .mask
@@ -530,21 +683,17 @@ pub(crate) fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen
         .map(|(&m, &t)| m && !t)
         .collect();
     let (res_labels, res_sizes) = connected_components(&residue, dims);
-    let res_stats = object_stats(&res_labels, res_sizes.len(), values, dims);
+    let stats = object_stats(&res_labels, res_sizes.len(), values, dims);
     // Which specimen each thin part touches first.
     let mut touches: Vec<Option<usize>> = vec![None; res_sizes.len()];
     for (i, &l) in res_labels.iter().enumerate() {
-        if l == u32::MAX || touches[l as usize].is_some() || !neighbours_any(i, dims, &claimed) {
+        if l == u32::MAX || touches[l as usize].is_some() || !neighbours_any(i, dims, claimed) {
             continue;
         }
         touches[l as usize] = specimens.iter().position(|s| neighbours_any(i, dims, s));
     }
-    // A thin part on a specimen that stays within its reach (a cusp tip, a
-    // root apex, an enamel edge) is its own; one that leads away from it
-    // (a pin, a tube wall it touches) is not.
     let reach = 4 * THIN_RADIUS + 1;
-    let boxes: Vec<Option<[[usize; 3]; 2]>> = specimens.iter().map(|s| bbox_of(s, dims)).collect();
-    let joins: Vec<Option<usize>> = res_stats
+    let joins: Vec<Option<usize>> = stats
         .iter()
         .zip(&touches)
         .map(|(s, &t)| {
@@ -562,20 +711,36 @@ pub(crate) fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen
             }
         }
     }
+    ThinParts { stats, joins }
+}
 
-    // In order along the volume's longest axis (physical extent is the
-    // caller's: here the grid's longest), by the centre of each box.
+/// The specimens in order along the volume's longest axis (physical extent
+/// is the caller's: here the grid's longest), by the centre of each of
+/// `boxes`.
+fn in_order_along_longest_axis(
+    specimens: Vec<Vec<bool>>,
+    boxes: &[Option<[[usize; 3]; 2]>],
+    dims: [usize; 3],
+) -> Vec<Vec<bool>> {
     let axis = (0..3)
         .max_by_key(|&a| (dims[a], usize::MAX - a))
         .unwrap_or(0);
     let mut order: Vec<usize> = (0..specimens.len()).collect();
     let centre = |k: usize| boxes[k].map_or(0, |b| b[0][axis] + b[1][axis]);
     order.sort_by_key(|&k| (centre(k), k));
-    let specimens: Vec<Vec<bool>> = {
-        let mut slots: Vec<Option<Vec<bool>>> = specimens.into_iter().map(Some).collect();
-        order.iter().filter_map(|&k| slots[k].take()).collect()
-    };
-    for s in &specimens {
+    let mut slots: Vec<Option<Vec<bool>>> = specimens.into_iter().map(Some).collect();
+    order.iter().filter_map(|&k| slots[k].take()).collect()
+}
+
+/// The kept specimens, listed first in `report`.
+fn report_kept(
+    report: &mut SegmentReport,
+    values: &[f32],
+    dims: [usize; 3],
+    specimens: &[Vec<bool>],
+    level: f64,
+) {
+    for s in specimens {
         let voxels = s.iter().filter(|&&b| b).count();
         report.objects.push(SegmentObject {
             kept: true,
@@ -592,9 +757,17 @@ pub(crate) fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen
         });
         report.kept_voxels += voxels;
     }
-    let kept_count = specimens.len();
+}
 
-    // The other objects at the specimens' level.
+/// The other objects at the specimens' level, dropped: too small, mounting
+/// material (`mount` says why), or fragments.
+fn report_dropped_at_level(
+    report: &mut SegmentReport,
+    view: &Level,
+    kept_labels: &[u32],
+    mut mount: Vec<Option<String>>,
+    level: f64,
+) {
     for (l, s) in view.stats.iter().enumerate() {
         if kept_labels.contains(&(l as u32)) {
             continue;
@@ -618,57 +791,65 @@ pub(crate) fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen
                 ),
             }
         };
-        push_object(&mut report, reason, detail, level, s);
+        push_object(report, reason, detail, level, s);
     }
-    for (l, s) in res_stats.iter().enumerate() {
-        if joins[l].is_some() {
+}
+
+/// The thin parts not given back to a specimen, dropped as thin shells.
+fn report_thin_parts(report: &mut SegmentReport, thin: &ThinParts, dims: [usize; 3], level: f64) {
+    for (s, join) in thin.stats.iter().zip(&thin.joins) {
+        if join.is_some() {
             continue;
         }
         report.dropped_components += 1;
         report.dropped_voxels += s.voxels;
         push_object(
-            &mut report,
+            report,
             DropReason::ThinShell,
             thin_detail(s, dims),
             level,
             s,
         );
     }
-    let specimen: Vec<bool> = specimens
-        .iter()
-        .fold(vec![false; values.len()], |mut acc, s| {
-            for (a, &b) in acc.iter_mut().zip(s) {
-                *a |= b;
-            }
-            acc
-        });
-    // Below the specimen: what stopped the search, and everything at the
-    // lowest level (the foam as a whole, the tube).
-    // Past the blur at the specimen's edge.
-    let around = dilate_cube(&specimen, dims, THIN_RADIUS + 1);
+}
+
+/// The specimens' samples and those within the blur at their edge: what
+/// the levels below leave out of their objects.
+fn around_specimens(specimens: &[Vec<bool>], dims: [usize; 3], len: usize) -> Vec<bool> {
+    let specimen: Vec<bool> = specimens.iter().fold(vec![false; len], |mut acc, s| {
+        for (a, &b) in acc.iter_mut().zip(s) {
+            *a |= b;
+        }
+        acc
+    });
+    dilate_cube(&specimen, dims, THIN_RADIUS + 1)
+}
+
+/// The levels below the specimens' whose objects are reported, by index:
+/// the one that stopped the search, with the object there holding the
+/// specimen and why, then the lowest (the foam as a whole, the tube) when
+/// it is another and lies below `level`.
+fn levels_below(
+    levels: &[f64],
+    level: f64,
+    stop: Option<Stop>,
+) -> Vec<(usize, Option<(u32, String)>)> {
     let last = levels.len() - 1;
-    if let Some((i, l, why)) = &stop {
-        let v = views[*i]
-            .take()
-            .unwrap_or_else(|| level_view(values, dims, levels[*i]));
-        report_below(
-            &mut report,
-            values,
-            dims,
-            &v,
-            &around,
-            probe,
-            Some((*l, why.clone())),
-        );
+    let mut below = Vec::new();
+    let stopped_at_last = stop.as_ref().is_some_and(|s| s.index == last);
+    if let Some(Stop { index, label, why }) = stop {
+        below.push((index, Some((label, why))));
     }
-    if stop.as_ref().is_none_or(|(i, _, _)| *i != last) && level > levels[last] {
-        let v = views[last]
-            .take()
-            .unwrap_or_else(|| level_view(values, dims, levels[last]));
-        report_below(&mut report, values, dims, &v, &around, probe, None);
+    if !stopped_at_last && level > levels[last] {
+        below.push((last, None));
     }
-    // The largest dropped objects are listed, the rest counted (foam bright
-    // enough to reach the specimen's level would crowd the list).
+    below
+}
+
+/// The largest dropped objects listed (those after the first `kept_count`
+/// kept ones), the rest counted: foam bright enough to reach the
+/// specimen's level would crowd the list.
+fn list_largest_dropped(report: &mut SegmentReport, kept_count: usize) {
     let mut dropped = report.objects.split_off(kept_count);
     dropped.sort_by_key(|o| std::cmp::Reverse(o.voxels));
     for o in dropped.split_off(dropped.len().min(LISTED_DROPPED)) {
@@ -676,8 +857,16 @@ pub(crate) fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen
         report.small_voxels += o.voxels;
     }
     report.objects.extend(dropped);
-    drop(specimen);
-    let masks = specimens
+}
+
+/// Each specimen's mask with its internal cavities filled, counted in
+/// `report`.
+fn fill_specimen_cavities(
+    specimens: Vec<Vec<bool>>,
+    dims: [usize; 3],
+    report: &mut SegmentReport,
+) -> Vec<Vec<bool>> {
+    specimens
         .into_iter()
         .map(|s| {
             let (mask, cavities, filled) = fill_cavities(s, dims);
@@ -685,12 +874,7 @@ pub(crate) fn find_specimen(values: &[f32], dims: [usize; 3]) -> Result<Specimen
             report.filled_voxels += filled;
             mask
         })
-        .collect();
-    Ok(Specimen {
-        masks,
-        level,
-        report,
-    })
+        .collect()
 }
 
 /// The objects of `v` (a level below the specimen's) outside `around`

@@ -191,21 +191,127 @@ pub fn whole_tooth(
     let lp = longest_boundary_loop(crown).ok_or(WholeToothError::NotDisk(0))?;
     let (axis, centre) = occlusal_axis(crown, &lp).ok_or(WholeToothError::Degenerate)?;
     let (eu, ev) = frame(axis);
-    let height = |p: [f64; 3]| dot(sub(p, centre), axis);
+    let axes = Axes {
+        axis,
+        centre,
+        eu,
+        ev,
+    };
+    let crown_height = crown_height(crown, &lp, &axes)?;
+    let shape = draw_shape(params, crown_height, seed);
+    let margin = margin_directions(crown, &lp, &axes);
+    let outward = faces_point_outward(crown, axis);
+
+    let mut vertices = crown.vertices.clone();
+    let mut faces: Vec<[u32; 3]> = if outward {
+        crown.faces.clone()
+    } else {
+        morphoid_core::mesh::reversed_winding(&crown.faces)
+    };
+    let crown_face_count = faces.len();
+    // With inward faces the loop's half-edges run the other way.
+    let n = lp.len();
+    let (ring0, order): (Vec<u32>, Vec<usize>) = if outward {
+        (lp.clone(), (0..n).collect())
+    } else {
+        (lp.iter().rev().copied().collect(), (0..n).rev().collect())
+    };
+    let ring1 = enamel_edge(&margin, &order, outward, &shape, axis, &mut vertices);
+    let ring1_polar: Vec<(f64, f64, f64)> = ring1
+        .iter()
+        .map(|&v| {
+            let p = vertices[v as usize];
+            let (t, r) = axes.radial(p);
+            (t, r, axes.height(p))
+        })
+        .collect();
+    let mut rings = vec![ring0, ring1];
+    rings.extend(neck_and_root_rings(
+        &axes,
+        &shape,
+        crown_height,
+        params.noise,
+        margin.edge_len,
+        &ring1_polar,
+        &mut vertices,
+    ));
+    stitch_rings(&rings, &mut faces);
+    close_apex(&rings, axis, margin.edge_len, &mut vertices, &mut faces);
+    let mut crown_faces = vec![false; faces.len()];
+    crown_faces[..crown_face_count].fill(true);
+    Ok(WholeTooth {
+        mesh: Mesh::new(vertices, faces),
+        crown_faces,
+        occlusal: axis,
+    })
+}
+
+/// The crown's frame: the occlusal axis, the centre of its boundary loop
+/// and two unit vectors across the axis.
+struct Axes {
+    axis: [f64; 3],
+    centre: [f64; 3],
+    eu: [f64; 3],
+    ev: [f64; 3],
+}
+
+impl Axes {
+    /// The height of `p` along the axis above the centre.
+    fn height(&self, p: [f64; 3]) -> f64 {
+        dot(sub(p, self.centre), self.axis)
+    }
+
+    /// The angle and radius of `p` about the axis.
+    fn radial(&self, p: [f64; 3]) -> (f64, f64) {
+        let d = sub(p, self.centre);
+        let (x, y) = (dot(d, self.eu), dot(d, self.ev));
+        (y.atan2(x), (x * x + y * y).sqrt())
+    }
+}
+
+/// The crown's height above the lowest point of its boundary loop `lp`,
+/// or why it has none.
+fn crown_height(crown: &Mesh, lp: &[u32], axes: &Axes) -> Result<f64, WholeToothError> {
     let top = crown
         .vertices
         .iter()
-        .map(|&p| height(p))
+        .map(|&p| axes.height(p))
         .fold(f64::MIN, f64::max);
     let low = lp
         .iter()
-        .map(|&v| height(crown.vertices[v as usize]))
+        .map(|&v| axes.height(crown.vertices[v as usize]))
         .fold(f64::MAX, f64::min);
     let crown_height = top - low;
     let min_height = 1e-9 * bbox_diagonal(crown).max(f64::MIN_POSITIVE);
     if crown_height.is_nan() || crown_height <= min_height {
         return Err(WholeToothError::Degenerate);
     }
+    Ok(crown_height)
+}
+
+/// The shape below the crown, drawn from the seed.
+struct Shape {
+    /// Inward turn of the enamel edge, radians.
+    turn: f64,
+    /// The enamel step over the mean crown radius.
+    step_frac: f64,
+    neck_len: f64,
+    constriction: f64,
+    root_len: f64,
+    lobes: u32,
+    lobe_depth: f64,
+    lobe_phase: f64,
+    flare: f64,
+    taper_power: f64,
+    bend: [f64; 2],
+    /// Smooth noise: (angular order, vertical frequency, phase, amplitude).
+    waves: Vec<(u32, f64, f64, f64)>,
+}
+
+/// The shape below the crown drawn within `params`' ranges (lengths
+/// scaled by `crown_height`); the draws keep their order, so a seed gives
+/// the same tooth.
+fn draw_shape(params: &WholeToothParams, crown_height: f64, seed: u64) -> Shape {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let turn = draw(&mut rng, params.enamel_turn_degrees).to_radians();
     let step_frac = draw(&mut rng, params.enamel_step);
@@ -237,18 +343,43 @@ pub fn whole_tooth(
             )
         })
         .collect();
+    Shape {
+        turn,
+        step_frac,
+        neck_len,
+        constriction,
+        root_len,
+        lobes,
+        lobe_depth,
+        lobe_phase,
+        flare,
+        taper_power,
+        bend,
+        waves,
+    }
+}
 
-    // Per loop vertex: angle and radius about the axis, and the crown's
-    // outward direction along its wall (in the face plane, perpendicular
-    // to the boundary edge) and outward normal.
+/// The crown at its boundary loop, per loop vertex.
+struct Margin {
+    /// Positions.
+    pos: Vec<[f64; 3]>,
+    /// The crown's outward direction along its wall (in the face plane,
+    /// perpendicular to the boundary edge), summed over the edges' faces.
+    wall: Vec<[f64; 3]>,
+    /// The crown's normal, summed over the same faces.
+    normal: Vec<[f64; 3]>,
+    /// The loop's mean radius about the axis.
+    mean_radius: f64,
+    /// The loop's mean edge length.
+    edge_len: f64,
+}
+
+/// The crown's wall and normal directions at each vertex of its boundary
+/// loop `lp`, with the loop's mean radius and edge length.
+fn margin_directions(crown: &Mesh, lp: &[u32], axes: &Axes) -> Margin {
     let n = lp.len();
     let pos: Vec<[f64; 3]> = lp.iter().map(|&v| crown.vertices[v as usize]).collect();
-    let radial = |p: [f64; 3]| {
-        let d = sub(p, centre);
-        let (x, y) = (dot(d, eu), dot(d, ev));
-        (y.atan2(x), (x * x + y * y).sqrt())
-    };
-    let polar: Vec<(f64, f64)> = pos.iter().map(|&p| radial(p)).collect();
+    let polar: Vec<(f64, f64)> = pos.iter().map(|&p| axes.radial(p)).collect();
     let mean_radius = polar.iter().map(|p| p.1).sum::<f64>() / n as f64;
     let mut wall = vec![[0.0; 3]; n];
     let mut normal = vec![[0.0; 3]; n];
@@ -283,8 +414,22 @@ pub fn whole_tooth(
             }
         }
     }
-    // Outward sense of the crown's faces: the vector area points from the
-    // boundary towards the body for outward normals.
+    let edge_len = (0..n)
+        .map(|i| norm(sub(pos[(i + 1) % n], pos[i])))
+        .sum::<f64>()
+        / n as f64;
+    Margin {
+        pos,
+        wall,
+        normal,
+        mean_radius,
+        edge_len,
+    }
+}
+
+/// Whether the crown's faces point outward: their vector area points from
+/// the boundary towards the body, along `axis`.
+fn faces_point_outward(crown: &Mesh, axis: [f64; 3]) -> bool {
     let vector_area = crown.faces.iter().fold([0.0; 3], |acc, f| {
         add3(
             acc,
@@ -295,37 +440,26 @@ pub fn whole_tooth(
             ),
         )
     });
-    let outward = dot(vector_area, axis) >= 0.0;
-    let edge_len = (0..n)
-        .map(|i| norm(sub(pos[(i + 1) % n], pos[i])))
-        .sum::<f64>()
-        / n as f64;
+    dot(vector_area, axis) >= 0.0
+}
 
-    let mut vertices = crown.vertices.clone();
-    let mut faces: Vec<[u32; 3]> = if outward {
-        crown.faces.clone()
-    } else {
-        morphoid_core::mesh::reversed_winding(&crown.faces)
-    };
-    let crown_face_count = faces.len();
-    // With inward faces the loop's half-edges run the other way.
-    let ring0: Vec<u32> = if outward {
-        lp.clone()
-    } else {
-        lp.iter().rev().copied().collect()
-    };
-    let order: Vec<usize> = if outward {
-        (0..n).collect()
-    } else {
-        (0..n).rev().collect()
-    };
-
-    // Ring 1: the enamel edge, a short step turned inward from the wall.
-    let step = step_frac * mean_radius;
-    let mut ring1 = Vec::with_capacity(n);
-    for &i in &order {
-        let w = unit(wall[i]).unwrap_or(scale3(axis, -1.0));
-        let mut nv = unit(normal[i]).unwrap_or([0.0; 3]);
+/// Ring 1, the enamel edge: from each loop vertex (in `order`), a short
+/// step turned inward from the wall by the shape's angle, kept going down
+/// the tooth. Its vertices are added to `vertices`.
+fn enamel_edge(
+    margin: &Margin,
+    order: &[usize],
+    outward: bool,
+    shape: &Shape,
+    axis: [f64; 3],
+    vertices: &mut Vec<[f64; 3]>,
+) -> Vec<u32> {
+    let step = shape.step_frac * margin.mean_radius;
+    let turn = shape.turn;
+    let mut ring1 = Vec::with_capacity(order.len());
+    for &i in order {
+        let w = unit(margin.wall[i]).unwrap_or(scale3(axis, -1.0));
+        let mut nv = unit(margin.normal[i]).unwrap_or([0.0; 3]);
         if !outward {
             nv = scale3(nv, -1.0);
         }
@@ -336,18 +470,17 @@ pub fn whole_tooth(
         }
         let d = unit(d).unwrap_or(scale3(axis, -1.0));
         ring1.push(vertices.len() as u32);
-        vertices.push(add3(pos[i], scale3(d, step)));
+        vertices.push(add3(margin.pos[i], scale3(d, step)));
     }
-    let ring1_polar: Vec<(f64, f64, f64)> = ring1
-        .iter()
-        .map(|&v| {
-            let p = vertices[v as usize];
-            let (t, r) = radial(p);
-            (t, r, height(p))
-        })
-        .collect();
-    // Circularly smoothed radii: the root is rounder than the margin.
-    let smooth: Vec<f64> = (0..n)
+    ring1
+}
+
+/// The radii of the enamel edge (`ring1_polar`: angle, radius, height)
+/// averaged circularly over a twelfth of the ring: the root is rounder
+/// than the margin.
+fn smoothed_radii(ring1_polar: &[(f64, f64, f64)]) -> Vec<f64> {
+    let n = ring1_polar.len();
+    (0..n)
         .map(|i| {
             let w = (n / 12).max(1);
             let s: f64 = (0..=2 * w)
@@ -355,54 +488,62 @@ pub fn whole_tooth(
                 .sum();
             s / (2 * w + 1) as f64
         })
-        .collect();
-    let neck_bottom = ring1_polar.iter().map(|p| p.2).fold(f64::MAX, f64::min) - neck_len;
-    let neck_rings = ((neck_len / edge_len).ceil() as usize).clamp(3, 60);
-    let root_rings = ((root_len / edge_len).ceil() as usize).clamp(6, 300);
-    let mut rings = vec![ring0, ring1];
+        .collect()
+}
+
+/// The rings below the enamel edge: the neck down to its waist, then the
+/// root trunk to just above the apex. Their vertices are added to
+/// `vertices`.
+fn neck_and_root_rings(
+    axes: &Axes,
+    shape: &Shape,
+    crown_height: f64,
+    noise: f64,
+    edge_len: f64,
+    ring1_polar: &[(f64, f64, f64)],
+    vertices: &mut Vec<[f64; 3]>,
+) -> Vec<Vec<u32>> {
+    let n = ring1_polar.len();
+    let smooth = smoothed_radii(ring1_polar);
+    let neck_bottom = ring1_polar.iter().map(|p| p.2).fold(f64::MAX, f64::min) - shape.neck_len;
+    let neck_rings = ((shape.neck_len / edge_len).ceil() as usize).clamp(3, 60);
+    let root_rings = ((shape.root_len / edge_len).ceil() as usize).clamp(6, 300);
     let total = neck_rings + root_rings;
+    let mut rings = Vec::with_capacity(total);
     for k in 1..=total {
         let mut ring = Vec::with_capacity(n);
         for (i, &(theta, r1, z1)) in ring1_polar.iter().enumerate() {
             let (z, r, u) = if k <= neck_rings {
                 let t = k as f64 / neck_rings as f64;
                 // Constrict fast below the crease, level off at the waist.
-                let shrink = 1.0 - constriction * (t * std::f64::consts::FRAC_PI_2).sin();
+                let shrink = 1.0 - shape.constriction * (t * std::f64::consts::FRAC_PI_2).sin();
                 let base = r1 + (smooth[i] - r1) * t;
                 (z1 + (neck_bottom - z1) * t, base * shrink, 0.0)
             } else {
                 let u = (k - neck_rings) as f64 / root_rings as f64;
-                let waist = smooth[i] * (1.0 - constriction);
-                let flared = waist * (1.0 + flare * (std::f64::consts::PI * u).sin());
-                let taper = 1.0 - 0.85 * u.powf(taper_power);
-                let groove =
-                    lobe_depth * u * (0.5 - 0.5 * (lobes as f64 * (theta - lobe_phase)).cos());
-                (
-                    neck_bottom - root_len * u,
-                    flared * taper * (1.0 - groove),
-                    u,
-                )
+                root_profile(shape, smooth[i], theta, u, neck_bottom)
             };
-            let wobble: f64 = waves
+            let wobble: f64 = shape
+                .waves
                 .iter()
                 .map(|&(m, fz, ph, amp)| {
                     amp * (m as f64 * theta + fz * TAU * (neck_bottom - z) / crown_height + ph)
                         .sin()
                 })
                 .sum::<f64>()
-                * params.noise
+                * noise
                 * (k as f64 / total as f64).min(1.0)
                 / 2.0;
             let r = r * (1.0 + wobble);
             let off = [
-                bend[0] * u * u * crown_height,
-                bend[1] * u * u * crown_height,
+                shape.bend[0] * u * u * crown_height,
+                shape.bend[1] * u * u * crown_height,
             ];
             let p = add3(
-                add3(centre, scale3(axis, z)),
+                add3(axes.centre, scale3(axes.axis, z)),
                 add3(
-                    scale3(eu, r * theta.cos() + off[0]),
-                    scale3(ev, r * theta.sin() + off[1]),
+                    scale3(axes.eu, r * theta.cos() + off[0]),
+                    scale3(axes.ev, r * theta.sin() + off[1]),
                 ),
             );
             ring.push(vertices.len() as u32);
@@ -410,15 +551,56 @@ pub fn whole_tooth(
         }
         rings.push(ring);
     }
+    rings
+}
+
+/// Height, radius and the fraction `u` of the root's length at angle
+/// `theta`, `u` of the way from the waist (below a smoothed margin radius
+/// `smooth`) to the apex: flared, tapering, grooved between the lobes.
+fn root_profile(
+    shape: &Shape,
+    smooth: f64,
+    theta: f64,
+    u: f64,
+    neck_bottom: f64,
+) -> (f64, f64, f64) {
+    let waist = smooth * (1.0 - shape.constriction);
+    let flared = waist * (1.0 + shape.flare * (std::f64::consts::PI * u).sin());
+    let taper = 1.0 - 0.85 * u.powf(shape.taper_power);
+    let groove = shape.lobe_depth
+        * u
+        * (0.5 - 0.5 * (shape.lobes as f64 * (theta - shape.lobe_phase)).cos());
+    (
+        neck_bottom - shape.root_len * u,
+        flared * taper * (1.0 - groove),
+        u,
+    )
+}
+
+/// Two faces between each pair of consecutive vertices of each pair of
+/// consecutive rings, wound outward.
+fn stitch_rings(rings: &[Vec<u32>], faces: &mut Vec<[u32; 3]>) {
     for w in rings.windows(2) {
         let (a, b) = (&w[0], &w[1]);
+        let n = a.len();
         for i in 0..n {
             let j = (i + 1) % n;
             faces.push([a[j], a[i], b[i]]);
             faces.push([a[j], b[i], b[j]]);
         }
     }
-    // Close at the apex.
+}
+
+/// The apex: a vertex half an edge below the centre of the last ring,
+/// joined to it by a fan of faces.
+fn close_apex(
+    rings: &[Vec<u32>],
+    axis: [f64; 3],
+    edge_len: f64,
+    vertices: &mut Vec<[f64; 3]>,
+    faces: &mut Vec<[u32; 3]>,
+) {
+    let n = rings[0].len();
     let last = rings.last().cloned().unwrap_or_default();
     let apex_centre = last.iter().fold([0.0; 3], |acc, &v| {
         add3(acc, scale3(vertices[v as usize], 1.0 / n as f64))
@@ -429,13 +611,6 @@ pub fn whole_tooth(
     for i in 0..n {
         faces.push([last[(i + 1) % n], last[i], ai]);
     }
-    let mut crown_faces = vec![false; faces.len()];
-    crown_faces[..crown_face_count].fill(true);
-    Ok(WholeTooth {
-        mesh: Mesh::new(vertices, faces),
-        crown_faces,
-        occlusal: axis,
-    })
 }
 
 #[cfg(test)]

@@ -2,6 +2,10 @@
 //! readers take. Slices are made and written one at a time, so a stack far
 //! larger than memory can be written.
 
+use dicom_core::value::{PrimitiveValue, C};
+use dicom_core::{DataElement, VR};
+use dicom_dictionary_std::tags;
+use dicom_object::mem::InMemElement;
 use morphoid_core::mesh::Grid;
 use rand::{Rng, SeedableRng};
 use std::io::Write;
@@ -76,119 +80,25 @@ pub fn write_volume(
     spec: &StackSpec,
 ) -> std::io::Result<[f64; 3]> {
     let dims = spec.dims.unwrap_or(grid.dims);
-    let voxel = [0, 1, 2]
-        .map(|a| grid.spacing[a] * (grid.dims[a].max(2) - 1) as f64 / (dims[a].max(2) - 1) as f64);
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(spec.seed);
-    let slice = |z: usize, rng: &mut rand_chacha::ChaCha8Rng| -> Vec<f32> {
-        let mut out = Vec::with_capacity(dims[0] * dims[1]);
-        for y in 0..dims[1] {
-            for x in 0..dims[0] {
-                let p = [0, 1, 2].map(|a| grid.origin[a] + [x, y, z][a] as f64 * voxel[a]);
-                let n: f32 = if spec.noise > 0.0 {
-                    // Box–Muller.
-                    let u1: f32 = rng.gen_range(f32::EPSILON..1.0);
-                    let u2: f32 = rng.gen();
-                    (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos() * spec.noise
-                } else {
-                    0.0
-                };
-                out.push((grid.trilinear(p) + n).clamp(0.0, 1.0));
-            }
-        }
-        out
+    let voxel = voxel_size(grid, dims);
+    let mut slices = Slices {
+        grid,
+        dims,
+        voxel,
+        noise: spec.noise,
+        rng: rand_chacha::ChaCha8Rng::seed_from_u64(spec.seed),
     };
-    let to8 = |s: &[f32]| {
-        s.iter()
-            .map(|v| (v * 255.0).round() as u8)
-            .collect::<Vec<u8>>()
-    };
-    let to16 = |s: &[f32]| {
-        s.iter()
-            .map(|v| (v * 65535.0).round() as u16)
-            .collect::<Vec<u16>>()
-    };
-    let (w, h) = (dims[0] as u32, dims[1] as u32);
-    let other = |e: Box<dyn std::error::Error + Send + Sync>| std::io::Error::other(e);
     match format {
         SynthFormat::Nrrd { .. } | SynthFormat::Nifti { .. } => {}
         _ => std::fs::create_dir_all(path)?,
     }
     match format {
-        SynthFormat::Tiff8 | SynthFormat::Tiff16 => {
-            for z in 0..dims[2] {
-                let s = slice(z, &mut rng);
-                let file = std::fs::File::create(path.join(format!("slice_{z:04}.tif")))?;
-                let mut enc = tiff::encoder::TiffEncoder::new(std::io::BufWriter::new(file))
-                    .map_err(|e| other(Box::new(e)))?;
-                if format == SynthFormat::Tiff8 {
-                    enc.write_image::<tiff::encoder::colortype::Gray8>(w, h, &to8(&s))
-                } else {
-                    enc.write_image::<tiff::encoder::colortype::Gray16>(w, h, &to16(&s))
-                }
-                .map_err(|e| other(Box::new(e)))?;
-            }
-        }
+        SynthFormat::Tiff8 | SynthFormat::Tiff16 => write_tiff_slices(&mut slices, path, format)?,
         SynthFormat::Png8 | SynthFormat::Png16 | SynthFormat::Bmp => {
-            for z in 0..dims[2] {
-                let s = slice(z, &mut rng);
-                let (ext, f) = match format {
-                    SynthFormat::Bmp => ("bmp", image::ImageFormat::Bmp),
-                    _ => ("png", image::ImageFormat::Png),
-                };
-                let file = path.join(format!("slice_{z:04}.{ext}"));
-                let r = if format == SynthFormat::Png16 {
-                    image::ImageBuffer::<image::Luma<u16>, _>::from_raw(w, h, to16(&s))
-                        .map(|b| b.save_with_format(&file, f))
-                } else {
-                    image::ImageBuffer::<image::Luma<u8>, _>::from_raw(w, h, to8(&s))
-                        .map(|b| b.save_with_format(&file, f))
-                };
-                r.ok_or_else(|| std::io::Error::other("slice buffer size"))?
-                    .map_err(|e| other(Box::new(e)))?;
-            }
+            write_image_slices(&mut slices, path, format)?
         }
-        SynthFormat::Nrrd { gzip } => {
-            let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
-            write!(
-                out,
-                "NRRD0004\ntype: uint16\ndimension: 3\nsizes: {} {} {}\nspacings: {} {} {}\nspace units: \"{u}\" \"{u}\" \"{u}\"\nendian: little\nencoding: {}\n\n",
-                dims[0], dims[1], dims[2], voxel[0], voxel[1], voxel[2],
-                if gzip { "gzip" } else { "raw" },
-                u = spec.unit
-            )?;
-            let mut sink: Box<dyn Write> = if gzip {
-                Box::new(flate2::write::GzEncoder::new(
-                    out,
-                    flate2::Compression::fast(),
-                ))
-            } else {
-                Box::new(out)
-            };
-            for z in 0..dims[2] {
-                let s = slice(z, &mut rng);
-                let bytes: Vec<u8> = to16(&s).iter().flat_map(|v| v.to_le_bytes()).collect();
-                sink.write_all(&bytes)?;
-            }
-            sink.flush()?;
-        }
-        SynthFormat::Nifti { gzip } => {
-            let file = std::io::BufWriter::new(std::fs::File::create(path)?);
-            let mut sink: Box<dyn Write> = if gzip {
-                Box::new(flate2::write::GzEncoder::new(
-                    file,
-                    flate2::Compression::fast(),
-                ))
-            } else {
-                Box::new(file)
-            };
-            sink.write_all(&nifti_header(dims, voxel, spec.unit))?;
-            for z in 0..dims[2] {
-                let s = slice(z, &mut rng);
-                let bytes: Vec<u8> = to16(&s).iter().flat_map(|v| v.to_le_bytes()).collect();
-                sink.write_all(&bytes)?;
-            }
-            sink.flush()?;
-        }
+        SynthFormat::Nrrd { gzip } => write_nrrd(&mut slices, path, gzip, spec.unit)?,
+        SynthFormat::Nifti { gzip } => write_nifti(&mut slices, path, gzip, spec.unit)?,
         SynthFormat::Dicom {
             bits,
             signed,
@@ -204,13 +114,167 @@ pub fn write_volume(
                 seed: spec.seed,
             };
             for z in 0..dims[2] {
-                let s = slice(z, &mut rng);
+                let s = slices.slice(z);
                 let file = path.join(format!("IM_{}_{z:04}.dcm", spec.seed));
                 write_dicom_slice(&file, &series, z, &s).map_err(other)?;
             }
         }
     }
     Ok(voxel)
+}
+
+/// The voxel size of `grid` resampled to `dims` samples, the first and
+/// last samples kept where they are.
+fn voxel_size(grid: &Grid, dims: [usize; 3]) -> [f64; 3] {
+    [0, 1, 2]
+        .map(|a| grid.spacing[a] * (grid.dims[a].max(2) - 1) as f64 / (dims[a].max(2) - 1) as f64)
+}
+
+/// The slices of a written volume, made one at a time: `grid` resampled
+/// to `dims` samples of size `voxel`, with Gaussian noise drawn in slice
+/// order from `rng`.
+struct Slices<'a> {
+    grid: &'a Grid,
+    dims: [usize; 3],
+    voxel: [f64; 3],
+    noise: f32,
+    rng: rand_chacha::ChaCha8Rng,
+}
+
+impl Slices<'_> {
+    /// Slice `z`, grey values clamped to 0..1, x fastest.
+    fn slice(&mut self, z: usize) -> Vec<f32> {
+        let dims = self.dims;
+        let mut out = Vec::with_capacity(dims[0] * dims[1]);
+        for y in 0..dims[1] {
+            for x in 0..dims[0] {
+                let p =
+                    [0, 1, 2].map(|a| self.grid.origin[a] + [x, y, z][a] as f64 * self.voxel[a]);
+                let n: f32 = if self.noise > 0.0 {
+                    // Box–Muller.
+                    let u1: f32 = self.rng.gen_range(f32::EPSILON..1.0);
+                    let u2: f32 = self.rng.gen();
+                    (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos() * self.noise
+                } else {
+                    0.0
+                };
+                out.push((self.grid.trilinear(p) + n).clamp(0.0, 1.0));
+            }
+        }
+        out
+    }
+
+    /// Width and height of a slice.
+    fn size(&self) -> (u32, u32) {
+        (self.dims[0] as u32, self.dims[1] as u32)
+    }
+}
+
+/// Grey values 0..1 as 8-bit samples.
+fn to8(s: &[f32]) -> Vec<u8> {
+    s.iter().map(|v| (v * 255.0).round() as u8).collect()
+}
+
+/// Grey values 0..1 as 16-bit samples.
+fn to16(s: &[f32]) -> Vec<u16> {
+    s.iter().map(|v| (v * 65535.0).round() as u16).collect()
+}
+
+/// Grey values 0..1 as 16-bit little-endian bytes.
+fn le16_bytes(s: &[f32]) -> Vec<u8> {
+    to16(s).iter().flat_map(|v| v.to_le_bytes()).collect()
+}
+
+/// An encoder's error as an I/O error.
+fn other(e: Box<dyn std::error::Error + Send + Sync>) -> std::io::Error {
+    std::io::Error::other(e)
+}
+
+/// `out`, gzip-compressed when `gzip`.
+fn maybe_gzip<'a>(out: impl Write + 'a, gzip: bool) -> Box<dyn Write + 'a> {
+    if gzip {
+        Box::new(flate2::write::GzEncoder::new(
+            out,
+            flate2::Compression::fast(),
+        ))
+    } else {
+        Box::new(out)
+    }
+}
+
+/// A folder of 8- or 16-bit TIFF slices, `slice_<z>.tif`.
+fn write_tiff_slices(slices: &mut Slices, path: &Path, format: SynthFormat) -> std::io::Result<()> {
+    let (w, h) = slices.size();
+    for z in 0..slices.dims[2] {
+        let s = slices.slice(z);
+        let file = std::fs::File::create(path.join(format!("slice_{z:04}.tif")))?;
+        let mut enc = tiff::encoder::TiffEncoder::new(std::io::BufWriter::new(file))
+            .map_err(|e| other(Box::new(e)))?;
+        if format == SynthFormat::Tiff8 {
+            enc.write_image::<tiff::encoder::colortype::Gray8>(w, h, &to8(&s))
+        } else {
+            enc.write_image::<tiff::encoder::colortype::Gray16>(w, h, &to16(&s))
+        }
+        .map_err(|e| other(Box::new(e)))?;
+    }
+    Ok(())
+}
+
+/// A folder of 8- or 16-bit PNG or 8-bit BMP slices,
+/// `slice_<z>.<ext>`.
+fn write_image_slices(
+    slices: &mut Slices,
+    path: &Path,
+    format: SynthFormat,
+) -> std::io::Result<()> {
+    let (w, h) = slices.size();
+    for z in 0..slices.dims[2] {
+        let s = slices.slice(z);
+        let (ext, f) = match format {
+            SynthFormat::Bmp => ("bmp", image::ImageFormat::Bmp),
+            _ => ("png", image::ImageFormat::Png),
+        };
+        let file = path.join(format!("slice_{z:04}.{ext}"));
+        let r = if format == SynthFormat::Png16 {
+            image::ImageBuffer::<image::Luma<u16>, _>::from_raw(w, h, to16(&s))
+                .map(|b| b.save_with_format(&file, f))
+        } else {
+            image::ImageBuffer::<image::Luma<u8>, _>::from_raw(w, h, to8(&s))
+                .map(|b| b.save_with_format(&file, f))
+        };
+        r.ok_or_else(|| std::io::Error::other("slice buffer size"))?
+            .map_err(|e| other(Box::new(e)))?;
+    }
+    Ok(())
+}
+
+/// One NRRD file of 16-bit samples, raw or gzip-encoded after its header.
+fn write_nrrd(slices: &mut Slices, path: &Path, gzip: bool, unit: &str) -> std::io::Result<()> {
+    let (dims, voxel) = (slices.dims, slices.voxel);
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
+    write!(
+        out,
+        "NRRD0004\ntype: uint16\ndimension: 3\nsizes: {} {} {}\nspacings: {} {} {}\nspace units: \"{u}\" \"{u}\" \"{u}\"\nendian: little\nencoding: {}\n\n",
+        dims[0], dims[1], dims[2], voxel[0], voxel[1], voxel[2],
+        if gzip { "gzip" } else { "raw" },
+        u = unit
+    )?;
+    let mut sink = maybe_gzip(out, gzip);
+    for z in 0..dims[2] {
+        sink.write_all(&le16_bytes(&slices.slice(z)))?;
+    }
+    sink.flush()
+}
+
+/// One NIfTI-1 file of 16-bit samples, the whole file gzipped when `gzip`.
+fn write_nifti(slices: &mut Slices, path: &Path, gzip: bool, unit: &str) -> std::io::Result<()> {
+    let file = std::io::BufWriter::new(std::fs::File::create(path)?);
+    let mut sink = maybe_gzip(file, gzip);
+    sink.write_all(&nifti_header(slices.dims, slices.voxel, unit))?;
+    for z in 0..slices.dims[2] {
+        sink.write_all(&le16_bytes(&slices.slice(z)))?;
+    }
+    sink.flush()
 }
 
 /// What every file of a written DICOM series shares.
@@ -233,49 +297,83 @@ fn write_dicom_slice(
     z: usize,
     values: &[f32],
 ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-    use dicom_core::value::{PrimitiveValue, C};
-    use dicom_core::{DataElement, VR};
-    use dicom_dictionary_std::tags;
     use dicom_object::{FileMetaTableBuilder, InMemDicomObject};
-    let ds = |v: f64| format!("{v:.6}");
-    let strs = |v: Vec<String>| PrimitiveValue::Strs(C::from_vec(v));
-    // UIDs under the 2.25 root (a UUID-derived integer), from the seed.
+    let scale = StoredScale::of(series);
+    let obj = InMemDicomObject::from_element_iter(
+        dicom_identity(series, z)
+            .into_iter()
+            .chain(dicom_geometry(series, z))
+            .chain(dicom_sample_format(series, &scale))
+            .chain([dicom_pixels(series.bits, &scale.stored(values))]),
+    );
+    let syntax = if series.implicit {
+        "1.2.840.10008.1.2"
+    } else {
+        "1.2.840.10008.1.2.1"
+    };
+    obj.with_meta(FileMetaTableBuilder::new().transfer_syntax(syntax))?
+        .write_to_file(path)?;
+    Ok(())
+}
+
+/// How grey values 0..1 are stored in a series and mapped back.
+struct StoredScale {
+    /// The stored value of grey 1 (before the offset).
+    full_scale: f64,
+    /// Subtracted from the stored values: signed samples are centred on
+    /// zero.
+    offset: f64,
+    /// The rescale slope and intercept (the intercept restores the
+    /// offset).
+    slope: f64,
+    intercept: f64,
+}
+
+impl StoredScale {
+    /// The scale of `series`' sample format.
+    fn of(series: &DicomSeriesSpec) -> StoredScale {
+        let full_scale = if series.bits == 8 { 255.0 } else { 4095.0 };
+        let offset = if series.signed {
+            (full_scale + 1.0) / 2.0
+        } else {
+            0.0
+        };
+        let (slope, intercept) = (0.5, -1024.0 + 0.5 * offset);
+        StoredScale {
+            full_scale,
+            offset,
+            slope,
+            intercept,
+        }
+    }
+
+    /// The stored values of grey `values`.
+    fn stored(&self, values: &[f32]) -> Vec<i32> {
+        values
+            .iter()
+            .map(|&v| (f64::from(v) * self.full_scale - self.offset).round() as i32)
+            .collect()
+    }
+}
+
+/// A decimal string as DICOM writes one.
+fn ds(v: f64) -> String {
+    format!("{v:.6}")
+}
+
+/// Several strings as one value.
+fn strs(v: Vec<String>) -> dicom_core::value::PrimitiveValue {
+    dicom_core::value::PrimitiveValue::Strs(dicom_core::value::C::from_vec(v))
+}
+
+/// The slice's SOP class, modality and UIDs (under the 2.25 root, a
+/// UUID-derived integer, from the seed) and its instance number.
+fn dicom_identity(series: &DicomSeriesSpec, z: usize) -> Vec<InMemElement> {
     let root = 2_000_000_000_000 + series.seed;
     let study = format!("2.25.{root}1");
     let series_uid = format!("2.25.{root}2");
     let instance = format!("2.25.{root}3.{}", z + 1);
-    let full_scale = if series.bits == 8 { 255.0 } else { 4095.0 };
-    // Signed samples centred on zero; the intercept restores the scale.
-    let offset = if series.signed {
-        (full_scale + 1.0) / 2.0
-    } else {
-        0.0
-    };
-    let (slope, intercept) = (0.5, -1024.0 + 0.5 * offset);
-    let stored: Vec<i32> = values
-        .iter()
-        .map(|&v| (f64::from(v) * full_scale - offset).round() as i32)
-        .collect();
-    let pixels = if series.bits == 8 {
-        DataElement::new(
-            tags::PIXEL_DATA,
-            VR::OB,
-            PrimitiveValue::U8(C::from_vec(stored.iter().map(|&s| s as u8).collect())),
-        )
-    } else {
-        DataElement::new(
-            tags::PIXEL_DATA,
-            VR::OW,
-            PrimitiveValue::U16(C::from_vec(stored.iter().map(|&s| s as u16).collect())),
-        )
-    };
-    let position = [
-        series.origin[0],
-        series.origin[1],
-        series.origin[2] + z as f64 * series.voxel[2],
-    ];
-    let [w, h, _] = series.dims;
-    let obj = InMemDicomObject::from_element_iter([
+    vec![
         DataElement::new(
             tags::SOP_CLASS_UID,
             VR::UI,
@@ -302,6 +400,17 @@ fn write_dicom_slice(
             VR::IS,
             PrimitiveValue::from((z + 1).to_string()),
         ),
+    ]
+}
+
+/// Where slice `z` lies: its position, orientation and thickness.
+fn dicom_geometry(series: &DicomSeriesSpec, z: usize) -> Vec<InMemElement> {
+    let position = [
+        series.origin[0],
+        series.origin[1],
+        series.origin[2] + z as f64 * series.voxel[2],
+    ];
+    vec![
         DataElement::new(
             tags::IMAGE_POSITION_PATIENT,
             VR::DS,
@@ -317,6 +426,14 @@ fn write_dicom_slice(
             VR::DS,
             PrimitiveValue::from(ds(series.voxel[2])),
         ),
+    ]
+}
+
+/// The sample format: one grey channel, the slice's size and pixel
+/// spacing, the bits, the sign and the rescale to the CT-like scale.
+fn dicom_sample_format(series: &DicomSeriesSpec, scale: &StoredScale) -> Vec<InMemElement> {
+    let [w, h, _] = series.dims;
+    vec![
         DataElement::new(tags::SAMPLES_PER_PIXEL, VR::US, PrimitiveValue::from(1u16)),
         DataElement::new(
             tags::PHOTOMETRIC_INTERPRETATION,
@@ -354,19 +471,32 @@ fn write_dicom_slice(
         DataElement::new(
             tags::RESCALE_INTERCEPT,
             VR::DS,
-            PrimitiveValue::from(ds(intercept)),
+            PrimitiveValue::from(ds(scale.intercept)),
         ),
-        DataElement::new(tags::RESCALE_SLOPE, VR::DS, PrimitiveValue::from(ds(slope))),
-        pixels,
-    ]);
-    let syntax = if series.implicit {
-        "1.2.840.10008.1.2"
+        DataElement::new(
+            tags::RESCALE_SLOPE,
+            VR::DS,
+            PrimitiveValue::from(ds(scale.slope)),
+        ),
+    ]
+}
+
+/// The pixel data: the `stored` values as 8-bit (OB) or 16-bit (OW)
+/// samples.
+fn dicom_pixels(bits: u16, stored: &[i32]) -> InMemElement {
+    if bits == 8 {
+        DataElement::new(
+            tags::PIXEL_DATA,
+            VR::OB,
+            PrimitiveValue::U8(C::from_vec(stored.iter().map(|&s| s as u8).collect())),
+        )
     } else {
-        "1.2.840.10008.1.2.1"
-    };
-    obj.with_meta(FileMetaTableBuilder::new().transfer_syntax(syntax))?
-        .write_to_file(path)?;
-    Ok(())
+        DataElement::new(
+            tags::PIXEL_DATA,
+            VR::OW,
+            PrimitiveValue::U16(C::from_vec(stored.iter().map(|&s| s as u16).collect())),
+        )
+    }
 }
 
 /// The SOP class of CT images.
