@@ -68,7 +68,7 @@ pub enum AddError {
 }
 
 /// Whether `name` can name a reference: a plain file stem.
-pub fn valid_reference_name(name: &str) -> bool {
+pub(crate) fn valid_reference_name(name: &str) -> bool {
     !name.is_empty()
         && name.len() <= 100
         && !name.starts_with('.')

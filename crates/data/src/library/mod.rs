@@ -14,7 +14,7 @@
 mod add;
 mod cache;
 
-pub use add::{add_reference, reference_name_for, valid_reference_name, AddError, NewReference};
+pub use add::{add_reference, reference_name_for, AddError, NewReference};
 pub use cache::{Cache, CacheError, CachedReference};
 
 use crate::hash::content_hash;

@@ -50,7 +50,7 @@ pub struct AddedReference {
 
 /// The labels a settled decision gives (`None`: not confirmed or
 /// corrected).
-pub fn settled_labels(review: &ReviewRecord) -> Option<BTreeMap<String, String>> {
+pub(crate) fn settled_labels(review: &ReviewRecord) -> Option<BTreeMap<String, String>> {
     match review.decision.as_str() {
         "confirm" | "correct" => {
             let mut labels = review.identified.clone();

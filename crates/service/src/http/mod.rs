@@ -38,7 +38,8 @@ mod server;
 mod state;
 mod status;
 
-pub use auth::{hash_password, new_api_token, token_hash, verify_password, PasswordError};
-pub use grow::{add_scan_to_library, settled_labels, AddedReference, GrowError};
-pub use server::{requires_curators, HttpError, Server, Sources};
-pub use status::{calibration_name, DaemonStatus, LiveStatus, SerialStatus};
+pub use auth::{hash_password, new_api_token, token_hash, PasswordError};
+pub use grow::{add_scan_to_library, AddedReference, GrowError};
+pub use server::{HttpError, Server, Sources};
+pub(crate) use status::calibration_name;
+pub use status::{DaemonStatus, LiveStatus, SerialStatus};

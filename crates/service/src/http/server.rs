@@ -122,7 +122,7 @@ impl Sources {
 
 /// Whether serving on `addr` needs at least one curator: every address but
 /// loopback does (an IPv4-mapped loopback address counts as another).
-pub fn requires_curators(addr: &SocketAddr) -> bool {
+pub(crate) fn requires_curators(addr: &SocketAddr) -> bool {
     !addr.ip().is_loopback()
 }
 

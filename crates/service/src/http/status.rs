@@ -86,7 +86,7 @@ impl LiveStatus {
 }
 
 /// The name the console and the API give a calibration state.
-pub fn calibration_name(state: CalibrationState) -> &'static str {
+pub(crate) fn calibration_name(state: CalibrationState) -> &'static str {
     match state {
         CalibrationState::Off => "off",
         CalibrationState::Calibrating => "calibrating",

@@ -7,7 +7,7 @@ use super::{ScanRecord, ScanStatus, Store, StoreError, DEFAULT_NEAREST};
 use rusqlite::types::Value;
 
 /// Upper bounds (seconds) of the identification-time histogram's buckets.
-pub const IDENTIFICATION_BUCKETS_S: [f64; 11] = [
+pub(crate) const IDENTIFICATION_BUCKETS_S: [f64; 11] = [
     0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 30.0, 60.0, 120.0, 300.0, 600.0,
 ];
 
