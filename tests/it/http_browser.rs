@@ -5,6 +5,7 @@
 //! (the pages' Content-Security-Policy) on the way. Skips without Chromium
 //! unless `MORPHOID_REQUIRE_BROWSER=1`.
 
+use crate::support::browser::chromium_or_skip;
 use crate::support::http::{identified, settings, Console, PASSWORD};
 use morphoid_service::store::Store;
 use serde_json::{json, Value};
@@ -16,19 +17,6 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::sync::mpsc::{channel, Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
-
-/// The Chromium binary, if installed.
-fn chromium() -> Option<PathBuf> {
-    ["chromium", "chromium-browser", "google-chrome"]
-        .iter()
-        .find_map(|name| {
-            std::env::var_os("PATH").and_then(|paths| {
-                std::env::split_paths(&paths)
-                    .map(|d| d.join(name))
-                    .find(|p| p.is_file())
-            })
-        })
-}
 
 /// A pipe whose ends close on exec: (read end, write end).
 fn pipe() -> (RawFd, RawFd) {
@@ -186,12 +174,7 @@ impl Drop for Browser {
 
 #[test]
 fn http_a_curator_confirms_in_chromium_and_the_overview_follows() {
-    let Some(binary) = chromium() else {
-        assert!(
-            std::env::var_os("MORPHOID_REQUIRE_BROWSER").is_none(),
-            "MORPHOID_REQUIRE_BROWSER is set but chromium is not installed"
-        );
-        eprintln!("skipped: chromium is not installed");
+    let Some(binary) = chromium_or_skip() else {
         return;
     };
     let c = Console::start(&settings(false));

@@ -7,21 +7,9 @@
 //! `MORPHOID_REQUIRE_BROWSER=1`.
 
 use super::report_pages::{report_path, reported};
-use std::path::{Path, PathBuf};
+use crate::support::browser::chromium_or_skip;
+use std::path::Path;
 use std::process::Command;
-
-/// The Chromium binary, if installed.
-fn chromium() -> Option<PathBuf> {
-    ["chromium", "chromium-browser", "google-chrome"]
-        .iter()
-        .find_map(|name| {
-            std::env::var_os("PATH").and_then(|paths| {
-                std::env::split_paths(&paths)
-                    .map(|d| d.join(name))
-                    .find(|p| p.is_file())
-            })
-        })
-}
 
 /// Headless Chromium on `page` with `extra` arguments: (stdout, console
 /// lines of the log).
@@ -57,12 +45,7 @@ fn open(browser: &Path, page: &Path, extra: &[&str]) -> (String, Vec<String>) {
 
 #[test]
 fn reports_open_in_headless_chromium() {
-    let Some(browser) = chromium() else {
-        assert!(
-            std::env::var_os("MORPHOID_REQUIRE_BROWSER").is_none(),
-            "MORPHOID_REQUIRE_BROWSER is set but chromium is not installed"
-        );
-        eprintln!("skipped: chromium is not installed");
+    let Some(browser) = chromium_or_skip() else {
         return;
     };
     let r = reported();

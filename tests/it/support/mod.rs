@@ -1,5 +1,6 @@
 //! Helpers shared by the integration tests, one module per area.
 
+pub(crate) mod browser;
 pub(crate) mod clean;
 pub(crate) mod cp;
 pub(crate) mod daemon;
