@@ -60,6 +60,9 @@ pub struct Classifier {
     /// The prepared references, in library order (shared with a
     /// calibration running in the background, so the library is held once).
     references: Arc<Vec<CachedReference>>,
+    /// Their screening signatures, in the same order (see
+    /// [`identify::screened_references`]).
+    signatures: Arc<Vec<cp::Signature>>,
     /// Their labels at the configured ranks.
     labels: Labels,
     /// Preparation and engine settings (the same for scans and references).
@@ -234,6 +237,14 @@ fn fit_calibration(
     calibration
 }
 
+/// The screening signature of each reference, in order.
+fn signatures_of(references: &[CachedReference]) -> Vec<cp::Signature> {
+    references
+        .par_iter()
+        .map(|r| cp::shape_signature(r.prepared()))
+        .collect()
+}
+
 /// Why a scan could not be identified; the message names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum ClassifyError {
@@ -250,6 +261,7 @@ impl Classifier {
     /// `labels`, without landmarks or result files.
     pub fn new(references: Vec<CachedReference>, labels: Labels, settings: Settings) -> Self {
         Classifier {
+            signatures: Arc::new(signatures_of(&references)),
             references: Arc::new(references),
             labels,
             settings,
@@ -306,6 +318,7 @@ impl Classifier {
         let mut outcome = library::build(library, cache, settings, progress)?;
         let (references, landmarks) = outcome.take_references();
         let classifier = Classifier {
+            signatures: Arc::new(signatures_of(&references)),
             references: Arc::new(references),
             labels: library.labels().clone(),
             settings: settings.clone(),
@@ -661,13 +674,21 @@ impl Classifier {
     /// identify it; `load_ms` is the time it took to read.
     fn compare_prepared(&self, name: &str, surface: &PreparedSurface, load_ms: f64) -> ScanOutcome {
         let t = Instant::now();
+        let compared = self.screened(&surface.prepared);
+        let screen_ms = t.elapsed().as_secs_f64() * 1e3;
+        let t = Instant::now();
         let distances: Vec<DistanceRow> = {
-            let _s =
-                tracing::info_span!("compare", scan = %name, references = self.references.len())
-                    .entered();
-            self.references
+            let _s = tracing::info_span!(
+                "compare",
+                scan = %name,
+                references = self.references.len(),
+                compared = compared.len()
+            )
+            .entered();
+            compared
                 .par_iter()
-                .map(|r| {
+                .map(|&i| {
+                    let r = &self.references[i];
                     let c = cp::compare(&surface.prepared, r.prepared(), &self.settings.cp.compare);
                     DistanceRow {
                         reference: r.name().to_string(),
@@ -693,6 +714,9 @@ impl Classifier {
             ("prepare".to_string(), surface.timings.prepare),
             ("compare".to_string(), compare_ms),
         ]);
+        if compared.len() < self.references.len() {
+            timings_ms.insert("screen".into(), screen_ms);
+        }
         let t = Instant::now();
         let landmarks = self.nearest_landmarks(&distances, surface);
         if landmarks.is_some() {
@@ -717,6 +741,29 @@ impl Classifier {
             landmarks,
             calibrating,
         }
+    }
+
+    /// The indices of the references a scan prepared as `scan` is compared
+    /// with: those the screen keeps (all, in a library too small to
+    /// screen), and, when the answer will carry a confidence, those its
+    /// novelty score reads ([`identify::median_sample`]).
+    fn screened(&self, scan: &cp::Prepared) -> Vec<usize> {
+        let params = &self.settings.cp.screen;
+        let n = self.references.len();
+        if !params.screens(n) {
+            return (0..n).collect();
+        }
+        let always = if self.calibration.get().is_some() {
+            identify::median_sample(n)
+        } else {
+            Vec::new()
+        };
+        identify::screened_references(
+            &cp::shape_signature(scan),
+            &self.signatures,
+            params,
+            &always,
+        )
     }
 
     /// The landmarks of the nearest reference (smallest distance, ties by

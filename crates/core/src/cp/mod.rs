@@ -37,6 +37,7 @@ mod prepared;
 mod procrustes;
 mod samples;
 mod search;
+mod signature;
 mod warp;
 
 pub use compare::{compare, compare_directed};
@@ -46,11 +47,12 @@ pub use mobius::Mobius;
 pub(crate) use optimize::nelder_mead;
 pub(crate) use params::Requirement;
 pub(crate) use params::{check, check_count};
-pub use params::{CompareParams, CpParams, ParamError, PrepareParams};
+pub use params::{CompareParams, CpParams, ParamError, PrepareParams, ScreenParams, Screening};
 pub use prepare::prepare;
 pub use prepared::Prepared;
 pub use procrustes::{Handedness, Moments};
 pub(crate) use search::{candidate_maps, directed_for_mobius};
+pub use signature::{shape_signature, signature_distance, signature_terms, Signature};
 
 /// A prepared synthetic crown of 1,500 vertices (genus index, seed): the
 /// unit tests' fixture.

@@ -2,7 +2,9 @@
 //! ([`PrepareParams`]: they shape the prepared surface, so they key the
 //! cache of prepared surfaces) and what the comparison uses
 //! ([`CompareParams`]: changing them never prepares a surface again).
-//! The `[cp]` configuration section keeps both in one flat table.
+//! [`ScreenParams`] say when a library is screened by signature before
+//! the cP distance is computed. The `[cp]` configuration section keeps all
+//! three in one flat table.
 
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -107,6 +109,73 @@ impl Default for CompareParams {
     }
 }
 
+/// When identification screens the library by signature
+/// ([`shape_signature`](super::shape_signature)) before the cP distance.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Screening {
+    /// Screen libraries of more than [`ScreenParams::screen_from`]
+    /// references; compare a smaller one with every reference.
+    #[default]
+    Auto,
+    /// Always screen.
+    On,
+    /// Never screen: every reference is compared (exhaustive search).
+    Off,
+}
+
+/// Parameters of the screen that picks the references a scan is compared
+/// with in a large library.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ScreenParams {
+    /// Whether to screen ([`Screening`]).
+    pub screening: Screening,
+    /// The cP distance is computed for this many references nearest by
+    /// signature,
+    pub screen_keep: usize,
+    /// and for every other whose signature distance is within this
+    /// fraction of the last one kept.
+    pub screen_margin: f64,
+    /// Under [`Screening::Auto`], libraries of more references than this
+    /// are screened.
+    pub screen_from: usize,
+}
+
+impl Default for ScreenParams {
+    fn default() -> Self {
+        Self {
+            screening: Screening::Auto,
+            screen_keep: 32,
+            screen_margin: 0.1,
+            screen_from: 200,
+        }
+    }
+}
+
+impl ScreenParams {
+    /// Whether a library of `references` references is screened.
+    pub fn screens(&self, references: usize) -> bool {
+        match self.screening {
+            Screening::On => true,
+            Screening::Off => false,
+            Screening::Auto => references > self.screen_from,
+        }
+    }
+
+    /// Check every value; the error names the first bad one.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        at_least_one("screen_keep", self.screen_keep)?;
+        let margin = self.screen_margin;
+        check(
+            "screen_margin",
+            margin,
+            Requirement::NonNegative,
+            margin.is_finite() && margin >= 0.0,
+        )
+    }
+}
+
 /// All parameters of the cP engine (the `[cp]` configuration section).
 /// Written and read as one flat table: the split into preparation and
 /// comparison parameters is not the user's concern.
@@ -117,6 +186,8 @@ pub struct CpParams {
     pub prepare: PrepareParams,
     /// What comparison uses.
     pub compare: CompareParams,
+    /// When a library is screened before comparison.
+    pub screen: ScreenParams,
 }
 
 /// The `[cp]` table as the user writes it; every key optional. (serde's
@@ -145,6 +216,10 @@ struct FlatParams {
     descent_smoothing: usize,
     descent_damping: f64,
     descent_both_directions: bool,
+    screening: Screening,
+    screen_keep: usize,
+    screen_margin: f64,
+    screen_from: usize,
 }
 
 impl Default for FlatParams {
@@ -179,6 +254,12 @@ impl From<CpParams> for FlatParams {
             descent_damping,
             descent_both_directions,
         } = p.compare;
+        let ScreenParams {
+            screening,
+            screen_keep,
+            screen_margin,
+            screen_from,
+        } = p.screen;
         FlatParams {
             samples,
             coarse_samples,
@@ -200,6 +281,10 @@ impl From<CpParams> for FlatParams {
             descent_smoothing,
             descent_damping,
             descent_both_directions,
+            screening,
+            screen_keep,
+            screen_margin,
+            screen_from,
         }
     }
 }
@@ -230,6 +315,12 @@ impl From<FlatParams> for CpParams {
                 descent_smoothing: f.descent_smoothing,
                 descent_damping: f.descent_damping,
                 descent_both_directions: f.descent_both_directions,
+            },
+            screen: ScreenParams {
+                screening: f.screening,
+                screen_keep: f.screen_keep,
+                screen_margin: f.screen_margin,
+                screen_from: f.screen_from,
             },
         }
     }
@@ -381,6 +472,7 @@ impl CpParams {
     pub fn validate(&self) -> Result<(), ParamError> {
         self.prepare.validate()?;
         self.compare.validate()?;
+        self.screen.validate()?;
         let coarse = self.compare.coarse_samples;
         check(
             "coarse_samples",
@@ -412,13 +504,14 @@ mod tests {
         let mut want: Vec<String> = [
             serde_json::to_value(PrepareParams::default()).unwrap(),
             serde_json::to_value(CompareParams::default()).unwrap(),
+            serde_json::to_value(ScreenParams::default()).unwrap(),
         ]
         .iter()
         .flat_map(flat_keys)
         .collect();
         want.sort();
         assert_eq!(flat_keys(&json), want);
-        assert_eq!(want.len(), 20);
+        assert_eq!(want.len(), 24);
         assert!(json.as_object().unwrap().values().all(|v| !v.is_object()));
     }
 

@@ -26,6 +26,7 @@ mod statistic;
 
 pub(crate) use cached::calibration_pairs;
 pub use cached::reference_distances;
+use cached::CALIBRATION_SAMPLE;
 use statistic::{
     conformal_quantile, fit_rank_weight, mean_within_taxon_rank, rank_term, relative_distance,
 };
@@ -50,6 +51,24 @@ pub(crate) const MIN_HELD: usize = 6;
 /// one rule, at least [`MIN_HELD`] of them.
 pub(crate) fn calibratable(references: usize) -> bool {
     references >= MIN_HELD
+}
+
+/// How many references a scan's median distance to a library of more
+/// than [`CALIBRATION_SAMPLE`] references is taken over (see
+/// [`median_sample`]).
+const MEDIAN_SAMPLE: usize = 48;
+
+/// The references (indices in library order) over which a scan's median
+/// distance to a library of `n` references is taken, in the novelty score:
+/// all of them up to [`CALIBRATION_SAMPLE`], else [`MEDIAN_SAMPLE`] spread
+/// evenly over the library. A fixed sample, so that a screened
+/// identification, which compares the scan with these and with the
+/// references the screen keeps, scores it as the exhaustive one does.
+pub(crate) fn median_sample(n: usize) -> Vec<usize> {
+    if n <= CALIBRATION_SAMPLE {
+        return (0..n).collect();
+    }
+    (0..MEDIAN_SAMPLE).map(|k| k * n / MEDIAN_SAMPLE).collect()
 }
 
 /// Fewest held-out references whose taxon the rest of the library holds,
@@ -365,8 +384,11 @@ impl Calibration {
         nearest: usize,
         distance: f64,
     ) -> Option<Evidence> {
-        let all: Vec<f64> = scan.iter().flatten().copied().collect();
-        let median = upper_median(&all)?;
+        let sampled: Vec<f64> = median_sample(scan.len())
+            .into_iter()
+            .filter_map(|j| scan.get(j).copied().flatten())
+            .collect();
+        let median = upper_median(&sampled)?;
         let rank = if self.distances.is_complete() {
             let taxon = taxa.get(nearest).copied().flatten()?;
             let members: Vec<(usize, f64)> = scan
