@@ -141,11 +141,12 @@ pub fn build_library(
     })?;
     let n = outcome.references().len();
     let calibration = calibrates(config, n).then(|| {
-        let total = identify::calibration_pairs(n);
-        let distances =
-            identify::reference_distances(outcome.references(), &settings, Some(&cache), |done| {
-                progress(Progress::Calibrating { done, total })
-            });
+        let distances = identify::reference_distances(
+            outcome.references(),
+            &settings,
+            Some(&cache),
+            |done, total| progress(Progress::Calibrating { done, total }),
+        );
         Calibration::fit(distances, lib.labels())
     });
     Ok(LibraryBuild {

@@ -223,7 +223,7 @@ fn fit_calibration(
     cache: Option<&Cache>,
     log_ranks: bool,
 ) -> Calibration {
-    let distances = identify::reference_distances(references, settings, cache, |_| {});
+    let distances = identify::reference_distances(references, settings, cache, |_, _| {});
     let calibration = identify::Calibration::fit(distances, labels);
     for r in calibration.ranks().iter().filter(|_| log_ranks) {
         tracing::info!(

@@ -45,7 +45,7 @@ pub(crate) fn real_library() -> Option<RealLibrary> {
         classifier.references(),
         &settings,
         Some(&cache),
-        |_| {},
+        |_, _| {},
     );
     Some(RealLibrary {
         dir,

@@ -8,7 +8,7 @@ mod calibration;
 mod nearest;
 mod screen;
 
-pub(crate) use calibration::{calibratable, calibration_pairs, median_sample};
+pub(crate) use calibration::{calibratable, median_sample};
 pub use calibration::{
     expected_calibration_error, reference_distances, reliability, roc_auc, share_caught_at,
     Calibration, ReferenceDistances,

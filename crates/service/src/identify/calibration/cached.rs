@@ -4,8 +4,9 @@
 //! distances), so a changed, added or removed reference or changed
 //! settings compute them again.
 
-use super::ReferenceDistances;
-use morphoid_core::cp::compare;
+use super::{median_sample, ReferenceDistances};
+use crate::identify::screened_references;
+use morphoid_core::cp::{compare, shape_signature, ScreenParams, Signature};
 use morphoid_data::atomic_write::write_atomic;
 use morphoid_data::hash::hex;
 use morphoid_data::library::{Cache, CachedReference};
@@ -19,18 +20,10 @@ use sha2::{Digest, Sha256};
 /// each compared with every reference, instead of every pair.
 pub(crate) const CALIBRATION_SAMPLE: usize = 200;
 
-/// How many comparisons the distances among `n` references take: every
-/// pair up to [`CALIBRATION_SAMPLE`] references, else the pairs with at
-/// least one of the sample.
-pub(crate) fn calibration_pairs(n: usize) -> usize {
-    let held = n.min(CALIBRATION_SAMPLE);
-    let rest = n - held;
-    held * held.saturating_sub(1) / 2 + held * rest
-}
-
 /// Bumped whenever the file's layout or the meaning of the distances
-/// changes.
-const FORMAT: u32 = 1;
+/// changes (2: rows of a screened library leave NaN where no comparison
+/// was made).
+const FORMAT: u32 = 2;
 
 /// File name prefix and extension of the cached distances.
 const PREFIX: &str = "calibration-";
@@ -74,21 +67,62 @@ fn held_out(references: &[CachedReference]) -> Vec<usize> {
     order
 }
 
-/// The cP distances between the held-out references and every reference,
-/// pairs in parallel (each unordered pair once); `progress` gets the
-/// number of pairs done.
+/// The pairs (each unordered pair once, `i < j`) whose distances the
+/// calibration reads: every pair with a held-out reference; in a library
+/// that is screened and larger than [`CALIBRATION_SAMPLE`], only each
+/// held-out reference with those the screen keeps for it and with the
+/// median sample, as its identification would compare.
+fn calibration_pairs_of(
+    references: &[CachedReference],
+    held: &[usize],
+    settings: &Settings,
+) -> Vec<(usize, usize)> {
+    let n = references.len();
+    let screen = &settings.cp.screen;
+    if n <= CALIBRATION_SAMPLE || !screen.screens(n) {
+        let is_held: Vec<bool> = (0..n).map(|i| held.binary_search(&i).is_ok()).collect();
+        return (0..n)
+            .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
+            .filter(|&(i, j)| is_held[i] || is_held[j])
+            .collect();
+    }
+    let signatures: Vec<Signature> = references
+        .par_iter()
+        .map(|r| shape_signature(r.prepared()))
+        .collect();
+    let always = median_sample(n);
+    let mut pairs: Vec<(usize, usize)> = held
+        .iter()
+        .flat_map(|&h| {
+            // The held-out reference itself is the nearest by signature;
+            // one more is kept so that it leaves `screen_keep` others.
+            let params = ScreenParams {
+                screen_keep: screen.screen_keep + 1,
+                ..screen.clone()
+            };
+            screened_references(&signatures[h], &signatures, &params, &always)
+                .into_iter()
+                .filter(move |&j| j != h)
+                .map(move |j| (h.min(j), h.max(j)))
+        })
+        .collect();
+    pairs.sort_unstable();
+    pairs.dedup();
+    pairs
+}
+
+/// The cP distances between the held-out references and the references
+/// [`calibration_pairs_of`] names (NaN for the others), pairs in parallel
+/// (each unordered pair once); `progress` gets the number of pairs done
+/// and of pairs in all.
 fn compute(
     references: &[CachedReference],
     settings: &Settings,
-    progress: &(impl Fn(usize) + Sync),
+    progress: &(impl Fn(usize, usize) + Sync),
 ) -> ReferenceDistances {
     let n = references.len();
     let held = held_out(references);
-    let is_held: Vec<bool> = (0..n).map(|i| held.binary_search(&i).is_ok()).collect();
-    let pairs: Vec<(usize, usize)> = (0..n)
-        .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
-        .filter(|&(i, j)| is_held[i] || is_held[j])
-        .collect();
+    let pairs = calibration_pairs_of(references, &held, settings);
     let done = std::sync::atomic::AtomicUsize::new(0);
     let values: Vec<f64> = pairs
         .par_iter()
@@ -98,7 +132,10 @@ fn compute(
                 references[j].prepared(),
                 &settings.cp.compare,
             );
-            progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
+            progress(
+                done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1,
+                pairs.len(),
+            );
             c.distance
         })
         .collect();
@@ -109,7 +146,10 @@ fn compute(
         }
         s
     };
-    let mut rows = vec![vec![0.0; n]; held.len()];
+    let mut rows = vec![vec![f64::NAN; n]; held.len()];
+    for (k, &h) in held.iter().enumerate() {
+        rows[k][h] = 0.0;
+    }
     for (&(i, j), &v) in pairs.iter().zip(&values) {
         if let Some(k) = slot[i] {
             rows[k][j] = v;
@@ -126,13 +166,14 @@ fn compute(
 /// The distances among `references` (prepared with `settings`) from
 /// `cache` when it holds them for exactly these references and settings,
 /// else computed now (see [`CALIBRATION_SAMPLE`]) and stored there,
-/// replacing older ones. The cache only saves time: a file that cannot be
-/// read or written is logged and the distances are computed.
+/// replacing older ones; `progress` gets the comparisons done and in all.
+/// The cache only saves time: a file that cannot be read or written is
+/// logged and the distances are computed.
 pub fn reference_distances(
     references: &[CachedReference],
     settings: &Settings,
     cache: Option<&Cache>,
-    progress: impl Fn(usize) + Sync,
+    progress: impl Fn(usize, usize) + Sync,
 ) -> ReferenceDistances {
     let key = key(references, settings);
     let path = cache.map(|c| c.dir().join(format!("{PREFIX}{key}.{EXTENSION}")));
@@ -206,20 +247,5 @@ impl ReferenceDistances {
             && self.rows.iter().all(|r| r.len() == references.len())
             && self.held.len() == self.rows.len()
             && self.held.iter().all(|&h| h < references.len())
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn pairs_of_a_whole_and_of_a_sampled_library() {
-        assert_eq!(calibration_pairs(0), 0);
-        assert_eq!(calibration_pairs(5), 10);
-        assert_eq!(calibration_pairs(116), 6670);
-        let (n, h) = (250, CALIBRATION_SAMPLE);
-        // Pairs among the sample, and each of the sample with the rest.
-        assert_eq!(calibration_pairs(n), h * (h - 1) / 2 + h * (n - h));
     }
 }

@@ -24,7 +24,6 @@
 mod cached;
 mod statistic;
 
-pub(crate) use cached::calibration_pairs;
 pub use cached::reference_distances;
 use cached::CALIBRATION_SAMPLE;
 use statistic::{
