@@ -126,48 +126,14 @@ fn main() -> Result<()> {
 
     let mut rows = Vec::new();
     for &size in &sizes {
-        let references = &plan[..size];
-        let lib = work.join(format!("library-{size}"));
-        link_library(&teeth.header, references, &pool, &lib)?;
-        let config = work.join(format!("morphoid-{size}.toml"));
-        let cache = work.join(format!("cache-{size}"));
-        write_config(
-            &config,
-            &lib,
-            &cache,
-            &work.join(format!("ids-{size}.sqlite")),
-        )?;
-        let build = prepare_library(bin, &config, work)?;
-        let cache_bytes = folder_bytes(&cache)?;
-        println!(
-            "{size} references: library build {:.1} s wall, {:.1} s CPU, {:.0} MB peak RSS; cache {:.1} MB; {}",
-            build.cost.wall,
-            build.cost.cpu,
-            build.cost.peak_rss_mb,
-            cache_bytes as f64 / 1e6,
-            build.summary
-        );
-        for scan in &scans {
-            let id = identify_scan(bin, &config, &scan.path, work)?;
-            println!(
-                "  {}: {:.2} s wall, {:.2} s CPU, {:.0} MB peak RSS, comparing {:.2} s; genus {} (truth {})",
-                scan.name,
-                id.cost.wall,
-                id.cost.cpu,
-                id.cost.peak_rss_mb,
-                id.compare_seconds,
-                id.genus,
-                scan.genus
-            );
-            rows.push(Row {
-                composition: Composition::of(references),
-                build: build.clone(),
-                cache_bytes,
-                scan: scan.name.clone(),
-                expected_genus: scan.genus.clone(),
-                identification: id,
-            });
-        }
+        let library = LibraryRun {
+            bin,
+            work,
+            header: &teeth.header,
+            references: &plan[..size],
+            pool: &pool,
+        };
+        rows.extend(measure_library(&library, &scans)?);
     }
     print_rows(&rows);
     print_summary(&rows);
@@ -177,6 +143,66 @@ fn main() -> Result<()> {
         println!("rows written to {}", path.display());
     }
     Ok(())
+}
+
+/// What one library's measurement needs.
+struct LibraryRun<'a> {
+    /// The `morphoid` binary.
+    bin: &'a Path,
+    /// The temporary folder.
+    work: &'a Path,
+    /// The columns of `labels.csv`.
+    header: &'a [String],
+    /// The library's references.
+    references: &'a [Reference],
+    /// The folder holding every reference's file.
+    pool: &'a Path,
+}
+
+/// Make the library of `run.references`, prepare it into a cache of its
+/// own with `morphoid library build`, then identify each scan against it
+/// with `morphoid classify`: one row per scan.
+fn measure_library(run: &LibraryRun, scans: &[Scan]) -> Result<Vec<Row>> {
+    let size = run.references.len();
+    let lib = run.work.join(format!("library-{size}"));
+    link_library(run.header, run.references, run.pool, &lib)?;
+    let config = run.work.join(format!("morphoid-{size}.toml"));
+    let cache = run.work.join(format!("cache-{size}"));
+    let db = run.work.join(format!("ids-{size}.sqlite"));
+    write_config(&config, &lib, &cache, &db)?;
+    let build = prepare_library(run.bin, &config, run.work)?;
+    let cache_bytes = folder_bytes(&cache)?;
+    println!(
+        "{size} references: library build {:.1} s wall, {:.1} s CPU, {:.0} MB peak RSS; cache {:.1} MB; {}",
+        build.cost.wall,
+        build.cost.cpu,
+        build.cost.peak_rss_mb,
+        cache_bytes as f64 / 1e6,
+        build.summary
+    );
+    let mut rows = Vec::new();
+    for scan in scans {
+        let id = identify_scan(run.bin, &config, &scan.path, run.work)?;
+        println!(
+            "  {}: {:.2} s wall, {:.2} s CPU, {:.0} MB peak RSS, comparing {:.2} s; genus {} (truth {})",
+            scan.name,
+            id.cost.wall,
+            id.cost.cpu,
+            id.cost.peak_rss_mb,
+            id.compare_seconds,
+            id.genus,
+            scan.genus
+        );
+        rows.push(Row {
+            composition: Composition::of(run.references),
+            build: build.clone(),
+            cache_bytes,
+            scan: scan.name.clone(),
+            expected_genus: scan.genus.clone(),
+            identification: id,
+        });
+    }
+    Ok(rows)
 }
 
 /// GNU time, which measures each morphoid process.
@@ -514,12 +540,16 @@ fn synthetic_labels_row(header: &[String], name: &str, genus: &CrownGenus) -> Ve
 /// How many references of each kind a library holds.
 #[derive(Debug, Clone, Copy, Default)]
 struct Composition {
+    /// Real teeth, their files copied.
     real: usize,
+    /// Perturbed copies of real teeth.
     perturbed: usize,
+    /// Synthetic crowns.
     synthetic: usize,
 }
 
 impl Composition {
+    /// The kinds of `references`.
     fn of(references: &[Reference]) -> Self {
         let mut c = Composition::default();
         for r in references {
@@ -532,6 +562,7 @@ impl Composition {
         c
     }
 
+    /// All references.
     fn total(&self) -> usize {
         self.real + self.perturbed + self.synthetic
     }
@@ -701,9 +732,13 @@ fn run_measured(bin: &Path, args: &[&OsStr], work: &Path) -> Result<(Cost, Strin
 /// prepared and how many failed, and its summary line.
 #[derive(Debug, Clone)]
 struct Preparation {
+    /// The process's cost.
     cost: Cost,
+    /// References prepared.
     prepared: usize,
+    /// References that could not be prepared.
     failed: usize,
+    /// Its summary line, without the folder in front.
     summary: String,
 }
 
@@ -752,6 +787,7 @@ fn count_before(line: &str, word: &str) -> Option<usize> {
 /// One scan identified by `morphoid classify`.
 #[derive(Debug, Clone)]
 struct Identification {
+    /// The process's cost.
     cost: Cost,
     /// The genus answered.
     genus: String,
@@ -815,11 +851,17 @@ fn folder_bytes(dir: &Path) -> Result<u64> {
 
 /// One scan against one library: the table's row.
 struct Row {
+    /// The library's kinds of references.
     composition: Composition,
+    /// Its preparation.
     build: Preparation,
+    /// Its cache's size on disk.
     cache_bytes: u64,
+    /// The held-out tooth the scan was made from.
     scan: String,
+    /// Its genus.
     expected_genus: String,
+    /// The scan's identification.
     identification: Identification,
 }
 
