@@ -1198,6 +1198,50 @@ mod tests {
     }
 
     #[test]
+    fn a_screened_identification_compares_fewer_references_and_answers_alike() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (classifier, _) = small_classifier(tmp.path());
+        let scan = tmp.path().join("scan.ply");
+        let crown = synth::crown(&synth::CROWN_GENERA[2], 99, 600);
+        morphoid_data::mesh_io::save(&scan, &crown).unwrap();
+        let with = |screening: cp::Screening| {
+            let mut settings = classifier.settings().clone();
+            settings.cp.screen = cp::ScreenParams {
+                screening,
+                screen_keep: 3,
+                screen_margin: 0.0,
+                ..settings.cp.screen
+            };
+            classifier
+                .clone()
+                .with_settings(settings)
+                .classify_file(&scan)
+                .unwrap()
+        };
+        let exhaustive = with(cp::Screening::Off);
+        let screened = with(cp::Screening::On);
+        assert_eq!(exhaustive.distances.len(), 10);
+        assert_eq!(screened.distances.len(), 3, "only the screen's three");
+        assert!(screened.timings_ms.contains_key("screen"));
+        assert!(!exhaustive.timings_ms.contains_key("screen"));
+        // Every distance the screen kept is the exhaustive one, and the
+        // nearest reference is among them.
+        for row in &screened.distances {
+            assert!(exhaustive.distances.contains(row), "{row:?}");
+        }
+        let answers = |o: &ScanOutcome| -> Vec<(String, String, f64)> {
+            o.ranks
+                .iter()
+                .map(|r| (r.taxon.clone(), r.reference.clone(), r.distance))
+                .collect()
+        };
+        assert_eq!(answers(&screened), answers(&exhaustive));
+        // Under "auto", a library of 10 is compared whole.
+        let auto = with(cp::Screening::Auto);
+        assert_eq!(auto.distances.len(), 10);
+    }
+
+    #[test]
     fn a_calibration_that_never_runs_counts_as_failed() {
         let tmp = tempfile::tempdir().unwrap();
         let (classifier, _) = small_classifier(tmp.path());
