@@ -22,7 +22,8 @@ pub(crate) const CALIBRATION_SAMPLE: usize = 200;
 
 /// Bumped whenever the file's layout or the meaning of the distances
 /// changes (2: rows of a screened library leave NaN where no comparison
-/// was made).
+/// was made; each file names its references' content and its settings,
+/// so that a changed library reuses what it can).
 const FORMAT: u32 = 2;
 
 /// File name prefix and extension of the cached distances.
@@ -33,7 +34,79 @@ const EXTENSION: &str = "dist";
 struct Entry {
     format: u32,
     key: String,
+    /// [`settings_key`] of the settings the distances were made with.
+    settings: String,
+    /// The content hash of each reference, in the order of the names.
+    hashes: Vec<String>,
     distances: ReferenceDistances,
+}
+
+/// The distances an earlier calibration file holds, by the name and
+/// content of both references: what a library that has changed since
+/// (a reference added, removed or replaced) need not compute again.
+#[derive(Default)]
+struct Known {
+    index: std::collections::HashMap<(String, String), usize>,
+    distances: Option<ReferenceDistances>,
+}
+
+impl Known {
+    /// The distance between `a` and `b` (name and content hash) if the
+    /// earlier file has it.
+    fn get(&self, a: (&str, &str), b: (&str, &str)) -> Option<f64> {
+        let d = self.distances.as_ref()?;
+        let i = *self.index.get(&(a.0.to_string(), a.1.to_string()))?;
+        let j = *self.index.get(&(b.0.to_string(), b.1.to_string()))?;
+        let row = |i: usize, j: usize| d.row(i).and_then(|r| r.get(j)).copied();
+        [row(i, j), row(j, i)]
+            .into_iter()
+            .flatten()
+            .find(|v| v.is_finite())
+    }
+}
+
+/// The key of the settings the distances depend on.
+fn settings_key(settings: &Settings) -> String {
+    let params = serde_json::to_string(&(&settings.clean, &settings.cp)).unwrap_or_default();
+    hex(&Sha256::digest(params.as_bytes())[..16])
+}
+
+/// The distances of the calibration files in `cache` made with the same
+/// settings (the newest, when several are there).
+fn known_distances(cache: &Cache, settings: &Settings) -> Known {
+    let want = settings_key(settings);
+    let Ok(entries) = std::fs::read_dir(cache.dir()) else {
+        return Known::default();
+    };
+    let newest = entries
+        .flatten()
+        .filter(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            name.starts_with(PREFIX) && name.ends_with(&format!(".{EXTENSION}"))
+        })
+        .filter_map(|e| Some((e.metadata().ok()?.modified().ok()?, e.path())))
+        .max();
+    let Some(entry) = newest
+        .and_then(|(_, path)| std::fs::read(path).ok())
+        .and_then(|bytes| postcard::from_bytes::<Entry>(&bytes).ok())
+        .filter(|e| e.format == FORMAT && e.settings == want)
+        .filter(|e| e.hashes.len() == e.distances.names.len())
+    else {
+        return Known::default();
+    };
+    let index = entry
+        .distances
+        .names
+        .iter()
+        .cloned()
+        .zip(entry.hashes.iter().cloned())
+        .enumerate()
+        .map(|(i, k)| (k, i))
+        .collect();
+    Known {
+        index,
+        distances: Some(entry.distances),
+    }
 }
 
 /// The key of a library's distances: its references (name and content, in
@@ -47,8 +120,7 @@ fn key(references: &[CachedReference], settings: &Settings) -> String {
         h.update(r.content_hash().as_bytes());
         h.update([0]);
     }
-    let params = serde_json::to_string(&(&settings.clean, &settings.cp)).unwrap_or_default();
-    h.update(params.as_bytes());
+    h.update(settings_key(settings).as_bytes());
     hex(&h.finalize()[..16])
 }
 
@@ -113,20 +185,38 @@ fn calibration_pairs_of(
 
 /// The cP distances between the held-out references and the references
 /// [`calibration_pairs_of`] names (NaN for the others), pairs in parallel
-/// (each unordered pair once); `progress` gets the number of pairs done
-/// and of pairs in all.
+/// (each unordered pair once), those `known` holds taken from it;
+/// `progress` gets the number of pairs done and of pairs to compute.
 fn compute(
     references: &[CachedReference],
     settings: &Settings,
+    known: &Known,
     progress: &(impl Fn(usize, usize) + Sync),
 ) -> ReferenceDistances {
     let n = references.len();
     let held = held_out(references);
     let pairs = calibration_pairs_of(references, &held, settings);
+    let id = |i: usize| (references[i].name(), references[i].content_hash());
+    let reused: Vec<Option<f64>> = pairs
+        .iter()
+        .map(|&(i, j)| known.get(id(i), id(j)))
+        .collect();
+    let to_compute = reused.iter().filter(|v| v.is_none()).count();
+    if to_compute < pairs.len() {
+        tracing::info!(
+            reused = pairs.len() - to_compute,
+            computed = to_compute,
+            "the calibration reuses the distances of the library's earlier calibration"
+        );
+    }
     let done = std::sync::atomic::AtomicUsize::new(0);
     let values: Vec<f64> = pairs
         .par_iter()
-        .map(|&(i, j)| {
+        .zip(&reused)
+        .map(|(&(i, j), known)| {
+            if let Some(v) = *known {
+                return v;
+            }
             let c = compare(
                 references[i].prepared(),
                 references[j].prepared(),
@@ -134,7 +224,7 @@ fn compute(
             );
             progress(
                 done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1,
-                pairs.len(),
+                to_compute,
             );
             c.distance
         })
@@ -167,7 +257,10 @@ fn compute(
 /// `cache` when it holds them for exactly these references and settings,
 /// else computed now (see [`CALIBRATION_SAMPLE`]) and stored there,
 /// replacing older ones; `progress` gets the comparisons done and in all.
-/// The cache only saves time: a file that cannot be read or written is
+/// A library that changed since its last calibration (a reference added,
+/// removed or replaced) computes only the pairs its earlier file lacks:
+/// adding one reference to a library of n costs n comparisons, not all of
+/// them again. The cache only saves time: a file that cannot be read or written is
 /// logged and the distances are computed.
 pub fn reference_distances(
     references: &[CachedReference],
@@ -197,12 +290,18 @@ pub fn reference_distances(
         tracing::info!(
             "comparing the references with each other for the calibration (once per library)"
         );
-        compute(references, settings, &progress)
+        let known = cache.map_or_else(Known::default, |c| known_distances(c, settings));
+        compute(references, settings, &known, &progress)
     };
     if let (Some(cache), Some(path)) = (cache, &path) {
         let entry = Entry {
             format: FORMAT,
             key,
+            settings: settings_key(settings),
+            hashes: references
+                .iter()
+                .map(|r| r.content_hash().to_string())
+                .collect(),
             distances,
         };
         let stored = postcard::to_stdvec(&entry)
@@ -247,5 +346,49 @@ impl ReferenceDistances {
             && self.rows.iter().all(|r| r.len() == references.len())
             && self.held.len() == self.rows.len()
             && self.held.iter().all(|&h| h < references.len())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use morphoid_data::library::{self, Library};
+    use morphoid_synth::mesh::{self as synth, LibrarySpec};
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    #[test]
+    fn a_library_with_one_reference_more_computes_only_that_references_pairs() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("library");
+        let spec = LibrarySpec {
+            per_genus: 2,
+            target_vertices: 500,
+            seed: 11,
+            random_pose: false,
+        };
+        synth::write_synthetic_library(&dir, &spec).unwrap();
+        let lib = Library::open(&dir, None).unwrap();
+        let cache = Cache::open(&tmp.path().join("cache")).unwrap();
+        let mut settings = Settings::default();
+        settings.clean.target_vertices = 500;
+        let mut built = library::build(&lib, &cache, &settings, |_| {}).unwrap();
+        let (all, _) = built.take_references();
+        let n = all.len();
+        let computed = |refs: &[CachedReference], cache: Option<&Cache>| {
+            let count = AtomicUsize::new(0);
+            let d = reference_distances(refs, &settings, cache, |_, _| {
+                count.fetch_add(1, Ordering::Relaxed);
+            });
+            (d, count.into_inner())
+        };
+        let (_, first) = computed(&all[..n - 1], Some(&cache));
+        assert_eq!(first, (n - 1) * (n - 2) / 2);
+        let (grown, second) = computed(&all, Some(&cache));
+        assert_eq!(second, n - 1, "only the new reference's pairs");
+        // The same table as one computed from nothing.
+        let (fresh, _) = computed(&all, None);
+        assert_eq!(grown, fresh);
+        // Unchanged: nothing computed, from the file.
+        assert_eq!(computed(&all, Some(&cache)).1, 0);
     }
 }
