@@ -38,7 +38,8 @@ pub(crate) struct Foam {
     pub fill: f64,
 }
 
-/// A plastic tube (or straw) along z, spanning the whole stack.
+/// A plastic tube (or straw) along z, from the end of the stack the roots
+/// point to.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Tube {
     /// Inner radius over the tooth's largest distance from the tube axis.
@@ -47,6 +48,9 @@ pub(crate) struct Tube {
     pub wall: f64,
     /// Grey of the wall (a little above foam).
     pub grey: f32,
+    /// Fraction of the mount's height the tube covers (1: the whole stack;
+    /// less: a short tube, the rest of the tooth in air or foam above it).
+    pub length: f64,
 }
 
 /// How a tooth is mounted and scanned.
@@ -95,6 +99,7 @@ impl Default for Mount {
                 clearance: 1.25,
                 wall: 3.0,
                 grey: 0.27,
+                length: 1.0,
             }),
             wax_blobs: 0,
             pin: false,
@@ -128,6 +133,7 @@ impl Mount {
                 clearance: r.gen_range(1.08..1.6),
                 wall: r.gen_range(2.0..4.5),
                 grey: r.gen_range(0.24..0.32),
+                length: 1.0,
             }),
             wax_blobs: r.gen_range(0..3),
             pin: r.gen_bool(0.4),
@@ -148,6 +154,9 @@ pub(crate) struct Mounted {
     /// The crown surface in the stack's voxel coordinates (sample (x, y, z)
     /// at (x, y, z)); empty without a tooth.
     pub crown: Mesh,
+    /// The whole tooth's box (crown and root; lowest and highest corner)
+    /// in the stack's voxel coordinates.
+    pub tooth_box: [[f64; 3]; 2],
     /// Samples along x, y, z.
     pub dims: [usize; 3],
 }
@@ -530,8 +539,12 @@ pub(crate) fn write_batch(teeth: &[(&Mesh, Mount)], gap: i64, path: &Path) -> Ve
             .iter()
             .map(|p| [p[0] + x0 as f64, p[1] + y0 as f64, p[2]])
             .collect();
+        let offset = [x0 as f64, y0 as f64, 0.0];
         out.push(Mounted {
             crown: Mesh::new(crown, mounted.crown.faces.clone()),
+            tooth_box: mounted
+                .tooth_box
+                .map(|c| [0, 1, 2].map(|a| c[a] + offset[a])),
             dims,
         });
         x0 += g.dims[0] as i64 + gap;
@@ -770,9 +783,16 @@ fn mounted_grid(crown: &Mesh, mount: &Mount) -> (Grid, Mounted) {
         });
     }
     if let Some(tube) = &mount.tube {
+        let end = tube.length * dims[2] as f64;
         values.par_iter_mut().enumerate().for_each(|(i, v)| {
             let r = radial(i);
-            if r >= inner && r < inner + tube.wall {
+            let z = (i / (dims[0] * dims[1])) as f64;
+            let along = if mount.crown_down {
+                z >= dims[2] as f64 - end
+            } else {
+                z < end
+            };
+            if r >= inner && r < inner + tube.wall && along {
                 *v = tube.grey;
             }
         });
@@ -883,6 +903,7 @@ fn mounted_grid(crown: &Mesh, mount: &Mount) -> (Grid, Mounted) {
         } else {
             Mesh::new(Vec::new(), Vec::new())
         },
+        tooth_box: [lo, hi].map(|c| [0, 1, 2].map(|a| c[a] + shift[a])),
         dims,
     };
     (grid, mounted)

@@ -7,13 +7,18 @@
 //! split into 6-connected objects. From the highest level down, the first
 //! large object that neither spans the field of view nor is textured like
 //! foam is the seed (enamel, or the whole tooth). Going down the levels,
-//! the object containing it grows by its own denser materials (dentine
+//! the object containing it grows by its own dense materials (dentine
 //! under enamel) and the search stops where it would take in mounting
-//! material or background: the object spans the field of view (foam in a
-//! tube, the tube, the background) or what it gains is textured (foam). A
-//! level that adds only a thin layer (the blur at the specimen's edge) is
-//! passed over. The final level lies between the specimen's material and
-//! what surrounds it, within the levels that kept the specimen alone.
+//! material or background, recognised by what it is rather than where it
+//! reaches: what the object gains is much lighter than the specimen's own
+//! material ([`DENSE_SHARE`]: foam, plastic, wax), porous next to it
+//! ([`POROUS`]) or textured for its own contrast (foam), whatever the
+//! height of the mount; or the object spans the field of view (foam in a
+//! tube, the tube, the background). A level that adds only a thin layer
+//! (the blur at the specimen's edge) is passed over. The final level lies
+//! between the specimen's material and what surrounds it, within the
+//! levels that kept the specimen alone; there, another large object is a
+//! specimen too unless it is mounting material by the same rules.
 
 use super::segment::{connected_components, fill_cavities, SegmentReport};
 use super::shape::{
@@ -63,6 +68,20 @@ pub(crate) const STANDS_OUT: f64 = 0.25;
 /// even with cupping, measures under 0.1; foam 0.2 and more.
 pub(crate) const UNEVEN: f64 = 0.2;
 
+/// Share of the specimen's own contrast above the darkest class (the
+/// median of its deep samples) under which a material is too light to be
+/// the specimen's: mineralised tissue is dense (dentine shows 0.55 to 0.7
+/// of enamel's contrast), mounting materials are not (foam, plastic, wax
+/// 0.35 of dentine's and less, whatever height the mount has).
+pub(crate) const DENSE_SHARE: f64 = 0.5;
+
+/// Local variation of a material over that of the specimen's own material
+/// above which it is porous like foam: the specimen's variation is the
+/// scanner's noise on a homogeneous material, foam adds its texture to it
+/// (twice and more, even when block averaging has smoothed the texture
+/// below [`TEXTURED`]).
+pub(crate) const POROUS: f64 = 2.0;
+
 /// Fraction of the grown object that the samples added at a lower level
 /// must hold more than [`THIN_RADIUS`] deep for the level to add a
 /// material rather than the blur at the specimen's edge.
@@ -73,7 +92,8 @@ const MATERIAL_FRACTION: f64 = 0.05;
 #[serde(rename_all = "snake_case")]
 pub enum DropReason {
     /// Mounting material or background: below the specimen's level,
-    /// spanning the field of view, or textured like foam.
+    /// spanning the field of view, textured like foam, or much lighter
+    /// than the specimen's material.
     BackgroundClass,
     /// Thinner than `2 * THIN_RADIUS + 1` samples everywhere: a tube or
     /// straw wall, a pin.
@@ -481,11 +501,12 @@ fn grow_down_levels(
             keep_if_lowest(views, i, v);
             continue;
         }
-        if let Some(why) = foam_texture(values, dims, &added, background) {
+        let own = material_of(values, dims, &growth.accepted);
+        if let Some(why) = mounting_material(values, dims, &added, own.as_ref(), background) {
             growth.stop = Some(Stop {
                 index: i,
                 label: l,
-                why: format!("what lies around the specimen is textured like foam ({why})"),
+                why: format!("what lies around the specimen is mounting material ({why})"),
             });
             views[i] = Some(v);
             break;
@@ -521,19 +542,83 @@ fn adds_material(added: &[bool], dims: [usize; 3], voxels: usize) -> bool {
     (deep as f64) >= MATERIAL_FRACTION * voxels as f64
 }
 
-/// Why the material `added` around the specimen is foam (textured or
-/// uneven), if it is.
-fn foam_texture(
+/// The typical grey and sample-to-sample variation of a material: the
+/// median of `region`'s deep samples (more than [`THIN_RADIUS`] inside,
+/// away from the blur at its edge) and their local variation.
+struct Material {
+    median: f64,
+    variation: Option<f64>,
+}
+
+/// The material of `region` (see [`Material`]); `None` when nothing of it
+/// lies deep inside.
+fn material_of(values: &[f32], dims: [usize; 3], region: &[bool]) -> Option<Material> {
+    let deep = erode_cube(region, dims, THIN_RADIUS);
+    let samples: Vec<f32> = deep
+        .iter()
+        .zip(values)
+        .filter_map(|(&b, &v)| b.then_some(v))
+        .collect();
+    Some(Material {
+        median: quantile(samples, 0.5)?,
+        variation: local_variation(values, &deep, dims).map(|(v, _)| v),
+    })
+}
+
+/// The contrast of `material` above `background` as a share of the
+/// specimen's (`own`), when it is under [`DENSE_SHARE`]: too light to be
+/// the specimen's own material.
+fn too_light(material: &Material, own: &Material, background: f64) -> Option<f64> {
+    let share = (material.median - background) / (own.median - background).max(f64::MIN_POSITIVE);
+    (share < DENSE_SHARE).then_some(share)
+}
+
+/// The local variation of `material` over the specimen's (`own`), when
+/// it exceeds [`POROUS`]: porous like foam, where the specimen's material
+/// shows only the scanner's noise.
+fn porous(material: &Material, own: &Material) -> Option<f64> {
+    let ratio = material.variation? / own.variation?.max(f64::MIN_POSITIVE);
+    (ratio > POROUS).then_some(ratio)
+}
+
+/// Why the material of `region` is mounting material rather than the
+/// specimen's (whose material is `own`), if it is: much lighter than the
+/// specimen's, porous next to it, or textured or uneven for its own
+/// contrast.
+fn mounting_material(
     values: &[f32],
     dims: [usize; 3],
-    added: &[bool],
+    region: &[bool],
+    own: Option<&Material>,
     background: f64,
 ) -> Option<String> {
-    textured(values, dims, added, background)
-        .map(|r| format!("local variation {r:.2} of its contrast, over {TEXTURED}"))
+    let compared = own.zip(material_of(values, dims, region));
+    compared
+        .as_ref()
+        .and_then(|(own, m)| too_light(m, own, background))
+        .map(|r| {
+            format!(
+                "lighter than the specimen's material: {r:.2} of its contrast, under {DENSE_SHARE}"
+            )
+        })
         .or_else(|| {
-            uneven(values, dims, added, background)
-                .map(|r| format!("spread {r:.2} of its contrast, over {UNEVEN}"))
+            compared
+                .as_ref()
+                .and_then(|(own, m)| porous(m, own))
+                .map(|r| {
+                    format!(
+                    "porous: local variation {r:.2} times the specimen's material's, over {POROUS}"
+                )
+                })
+        })
+        .or_else(|| {
+            textured(values, dims, region, background).map(|r| {
+                format!("textured: local variation {r:.2} of its contrast, over {TEXTURED}")
+            })
+        })
+        .or_else(|| {
+            uneven(values, dims, region, background)
+                .map(|r| format!("uneven: spread {r:.2} of its contrast, over {UNEVEN}"))
         })
 }
 
@@ -548,7 +633,8 @@ fn final_level(values: &[f32], dims: [usize; 3], levels: &[f64], growth: &Growth
 }
 
 /// The specimens at the final level: the seed's object `spec_label` and
-/// every other object that is large, not mounting material, and at least
+/// every other object that is large, not mounting material (nor much
+/// lighter than the seed's material), and at least
 /// [`SPECIMEN_SHARE`] of the largest of them (batch scans); smaller ones
 /// are fragments. Also why each large object is mounting material, if it
 /// is.
@@ -561,12 +647,23 @@ fn classify_objects(
 ) -> (Vec<u32>, Vec<Option<String>>) {
     let mut candidates: Vec<u32> = vec![spec_label];
     let mut mount: Vec<Option<String>> = vec![None; view.stats.len()];
+    let own = material_of(values, dims, &select(&view.labels, spec_label));
     for (l, s) in view.stats.iter().enumerate() {
         if l as u32 == spec_label || s.voxels < MIN_SPECIMEN_VOXELS {
             continue;
         }
         let region = select(&view.labels, l as u32);
-        mount[l] = mount_like(values, dims, &region, view, l as u32, background);
+        // Another specimen is of the same dense material; a lump of
+        // mounting material that reaches this level is much lighter.
+        mount[l] = mount_like(values, dims, &region, view, l as u32, background).or_else(|| {
+            let m = material_of(values, dims, &region)?;
+            too_light(&m, own.as_ref()?, background).map(|r| {
+                format!(
+                    "lighter than the specimen's material ({r:.2} of its contrast, under \
+                     {DENSE_SHARE}): mounting material"
+                )
+            })
+        });
         if mount[l].is_none() {
             candidates.push(l as u32);
         }
@@ -1147,6 +1244,56 @@ mod tests {
             s.report.objects
         );
         assert!(s.level > 0.3 && s.level < 0.5, "{}", s.level);
+    }
+
+    /// A ball of dentine with an enamel cap standing in a block of smooth
+    /// foam (scanner noise only, no texture) that reaches neither end of
+    /// the grid along any axis, as a short mount in a taller stack.
+    fn in_a_short_foam_block(n: usize, seed: u64) -> (Vec<f32>, [usize; 3], Vec<bool>) {
+        let dims = [n, n, n];
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let c = n as f64 / 2.0;
+        let mut values = vec![0.05f32; n * n * n];
+        let mut truth = vec![false; n * n * n];
+        for z in 0..n {
+            for y in 0..n {
+                for x in 0..n {
+                    let i = x + n * (y + n * z);
+                    let r = ((x as f64 - c).powi(2) + (y as f64 - c).powi(2)).sqrt();
+                    if r < 0.4 * n as f64 && (n / 8..n * 3 / 5).contains(&z) {
+                        values[i] = 0.22;
+                    }
+                    let d = (r * r + (z as f64 - c).powi(2)).sqrt();
+                    if d < 0.22 * n as f64 {
+                        truth[i] = true;
+                        values[i] = if d > 0.15 * n as f64 && z as f64 > c {
+                            0.85
+                        } else {
+                            0.5
+                        };
+                    }
+                }
+            }
+        }
+        for v in &mut values {
+            *v += rng.gen_range(-0.03..0.03);
+        }
+        (values, dims, truth)
+    }
+
+    #[test]
+    fn a_tooth_in_foam_that_spans_nothing_is_found_without_the_foam() {
+        let (values, dims, truth) = in_a_short_foam_block(48, 3);
+        let s = find_specimen(&values, dims).unwrap();
+        assert_eq!(s.masks.len(), 1);
+        let wrong = s.masks[0]
+            .iter()
+            .zip(&truth)
+            .filter(|(a, b)| a != b)
+            .count();
+        let size = truth.iter().filter(|&&b| b).count();
+        assert!(wrong * 10 < size, "{wrong} of {size} wrong: {:?}", s.report);
+        assert!(s.level > 0.25 && s.level < 0.5, "{}", s.level);
     }
 
     #[test]
