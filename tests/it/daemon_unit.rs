@@ -24,6 +24,9 @@ fn the_systemd_unit_verifies_cleanly() {
         "ProtectSystem=strict",
         "NoNewPrivileges=yes",
         "ExecReload=",
+        // The console on loopback, nothing else on the network.
+        "IPAddressDeny=any",
+        "IPAddressAllow=localhost",
     ] {
         assert!(unit.contains(key), "{key} missing");
     }
@@ -44,6 +47,17 @@ fn the_systemd_unit_verifies_cleanly() {
     assert!(out.status.success(), "{text}");
     // Unknown or misspelt keys are only warnings: none allowed.
     assert!(text.trim().is_empty(), "{text}");
+}
+
+#[test]
+fn the_packaged_configuration_serves_the_console_on_loopback() {
+    let packaged = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("packaging/morphoid.toml"),
+    )
+    .unwrap();
+    let (ok, text) = check(&packaged, &["--print"]);
+    assert!(ok && text.starts_with("ok\n"), "{text}");
+    assert!(text.contains("listen = \"127.0.0.1:8472\""), "{text}");
 }
 
 fn check(config: &str, extra: &[&str]) -> (bool, String) {
