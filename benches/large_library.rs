@@ -14,8 +14,8 @@
 //! motion: not in any library.
 //!
 //! Each library is prepared with `morphoid library build` into a cache of
-//! its own (`[library] calibrate = false`: the calibration compares every
-//! pair of references), then each scan is identified with one `morphoid
+//! its own (`[library] calibrate = false`, unless `MORPHOID_BENCH_CALIBRATE=1`:
+//! then the build time includes the calibration), then each scan is identified with one `morphoid
 //! classify` process into a database of the library's own. Every command
 //! runs under GNU time (`/usr/bin/time`, Debian package `time`), which
 //! reports the wall time, CPU time (user + system) and peak RSS of
@@ -34,6 +34,8 @@
 //!   `116,1000`; 5,000 and 10,000 take long to prepare);
 //! - `MORPHOID_BENCH_SEED`: the seed of everything made (default 33);
 //! - `MORPHOID_BENCH_CSV`: also write the rows as CSV to this file;
+//! - `MORPHOID_BENCH_CALIBRATE=1`: calibrate each library in its build, so
+//!   that answers carry their confidence;
 //! - `MORPHOID_TEETH`: the real teeth (`labels.csv` and `meshes/`), else
 //!   `../shared/data/pnas-teeth` beside the repository;
 //! - `TMPDIR`: where the temporary folder is made (removed at the end).
@@ -650,7 +652,7 @@ fn link_library(
 }
 
 /// The configuration of one library's runs: the library, its own cache
-/// and database, the calibration off.
+/// and database, the calibration off unless `MORPHOID_BENCH_CALIBRATE=1`.
 fn write_config(path: &Path, lib: &Path, cache: &Path, db: &Path) -> Result<()> {
     let text_of = |p: &Path| -> Result<toml::Value> {
         let s = p
@@ -661,7 +663,8 @@ fn write_config(path: &Path, lib: &Path, cache: &Path, db: &Path) -> Result<()> 
     let mut library = toml::Table::new();
     library.insert("dir".into(), text_of(lib)?);
     library.insert("cache".into(), text_of(cache)?);
-    library.insert("calibrate".into(), toml::Value::Boolean(false));
+    let calibrate = std::env::var("MORPHOID_BENCH_CALIBRATE").is_ok_and(|v| v == "1");
+    library.insert("calibrate".into(), toml::Value::Boolean(calibrate));
     let mut database = toml::Table::new();
     database.insert("path".into(), text_of(db)?);
     let mut config = toml::Table::new();
