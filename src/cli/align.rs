@@ -6,8 +6,9 @@
 use super::common::{progress_bar, ConfigFile};
 use anyhow::{bail, Context, Result};
 use morphoid_data::library::{self, Preparation};
-use morphoid_data::table::{DistanceMatrix, Labels};
+use morphoid_data::table::DistanceMatrix;
 use morphoid_research::collection::{self, AlignParams, Consistency, OutputContext, SyncParams};
+use morphoid_research::eval;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -146,27 +147,7 @@ pub(super) fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
         n,
         alignment.gpa.iterations
     );
-    let labels_path = args.library.join("labels.csv");
-    let groups = if labels_path.is_file() {
-        let labels = Labels::read(&labels_path, None)?;
-        let rank = match &args.rank {
-            Some(r) => r.clone(),
-            None => labels.ranks().first().cloned().unwrap_or_default(),
-        };
-        match labels.column(&alignment.names, &rank) {
-            Some(col) => Some((rank, col)),
-            None if args.rank.is_some() => bail!(
-                "{}: no rank column `{rank}` (ranks: {})",
-                labels_path.display(),
-                labels.ranks().join(", ")
-            ),
-            None => None,
-        }
-    } else if let Some(r) = &args.rank {
-        bail!("--rank {r}: {} does not exist", labels_path.display());
-    } else {
-        None
-    };
+    let groups = eval::folder_groups(&args.library, &alignment.names, args.rank.as_deref())?;
     let context = OutputContext {
         distances: Some(&distances),
         groups: groups.as_ref().map(|(r, g)| (r.as_str(), g.clone())),

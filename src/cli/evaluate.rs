@@ -2,7 +2,7 @@
 //! the Mantel test against a second matrix, the Figure 1 heatmap.
 
 use super::common::{write_output, ConfigFile};
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use morphoid_data::table::{DistanceMatrix, Labels};
 use morphoid_research::eval::{self, Mantel, DEFAULT_PERMUTATIONS, DEFAULT_SEED};
 use serde::Serialize;
@@ -78,10 +78,20 @@ pub(super) fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
         (None, None) => None,
     };
     let matrix = DistanceMatrix::read_csv(&args.matrix)?;
-    let rows = match &args.labels {
-        Some(path) => Some(leave_one_out(&matrix, path, &args, ranks.as_deref())?),
+    let labels = match &args.labels {
+        Some(path) => Some(
+            eval::evaluation_labels(
+                path,
+                matrix.names(),
+                ranks.as_deref(),
+                args.group_rank.as_deref(),
+            )
+            .with_context(|| format!("labels for {}", args.matrix.display()))?,
+        ),
         None => None,
     };
+    let rows = labels.as_ref().map(|l| leave_one_out(&matrix, &l.labels));
+    let groups = labels.and_then(|l| l.groups);
     let compare = match &args.compare {
         Some(path) => Some(DistanceMatrix::read_csv(path)?),
         None => None,
@@ -102,16 +112,8 @@ pub(super) fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
         let lower = compare.as_ref().unwrap_or(&matrix);
         let mut order = eval::average_linkage_order(&matrix);
         let mut boundaries = Vec::new();
-        if let (Some(rank), Some(path)) = (&args.group_rank, &args.labels) {
-            let labels = Labels::read(path, None)?;
-            let Some(group) = labels.column(matrix.names(), rank) else {
-                bail!(
-                    "{}: no rank column `{rank}` (ranks: {})",
-                    path.display(),
-                    labels.ranks().join(", ")
-                );
-            };
-            (order, boundaries) = eval::grouped_order(&order, &group);
+        if let Some((_, group)) = &groups {
+            (order, boundaries) = eval::grouped_order(&order, group);
         }
         let image = eval::heatmap(
             &matrix,
@@ -129,16 +131,6 @@ pub(super) fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
             image.height
         );
     }
-    let groups = match (&args.group_rank, &args.labels) {
-        (Some(rank), Some(path)) => {
-            let labels = Labels::read(path, None)?;
-            match labels.column(matrix.names(), rank) {
-                Some(g) => Some((rank.clone(), g)),
-                None => bail!("{}: no rank column `{rank}`", path.display()),
-            }
-        }
-        _ => None,
-    };
     if let Some(out) = &args.mds {
         write_mds(&matrix, out, groups.as_ref())?;
     }
@@ -190,26 +182,9 @@ pub(super) fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// Leave-one-out classification of `matrix` with the labels in `path`.
-fn leave_one_out(
-    matrix: &DistanceMatrix,
-    path: &Path,
-    args: &Args,
-    ranks: Option<&[String]>,
-) -> Result<Vec<RankJson>> {
-    let labels = Labels::read(path, ranks)?;
-    let missing = labels.unlabelled(matrix.names());
-    if !missing.is_empty() {
-        bail!(
-            "{}: no label row for {} specimen(s) of {}: {}",
-            path.display(),
-            missing.len(),
-            args.matrix.display(),
-            missing.join(", ")
-        );
-    }
-    let scores = eval::leave_one_out(matrix, &labels, labels.ranks());
-    Ok(scores
+/// Leave-one-out classification of `matrix` at every rank of `labels`.
+fn leave_one_out(matrix: &DistanceMatrix, labels: &Labels) -> Vec<RankJson> {
+    eval::leave_one_out(matrix, labels, labels.ranks())
         .into_iter()
         .map(|s| RankJson {
             percent: s.percent(),
@@ -217,7 +192,7 @@ fn leave_one_out(
             correct: s.correct,
             total: s.total,
         })
-        .collect())
+        .collect()
 }
 
 /// Classical MDS of `matrix`: coordinates CSV at `out`, the plot of the

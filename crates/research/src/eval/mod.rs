@@ -2,6 +2,7 @@
 //! MDS, the average-linkage tree (Newick, dendrogram) and scatter plots.
 
 mod heatmap;
+mod labels;
 mod loo;
 mod mantel;
 mod mds;
@@ -11,6 +12,7 @@ mod tree;
 
 pub(crate) use heatmap::RgbImage;
 pub use heatmap::{average_linkage_order, default_cell_size, grouped_order, heatmap};
+pub use labels::{evaluation_labels, folder_groups, EvaluationLabels, Groups, LabelsError};
 pub use loo::{leave_one_out, RankScore};
 pub use mantel::{mantel_test, Mantel, DEFAULT_PERMUTATIONS, DEFAULT_SEED};
 pub use mds::classical_mds;
