@@ -110,26 +110,7 @@ pub(super) fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
     };
     if let Some(out) = &args.heatmap {
         let lower = compare.as_ref().unwrap_or(&matrix);
-        let mut order = eval::average_linkage_order(&matrix);
-        let mut boundaries = Vec::new();
-        if let Some((_, group)) = &groups {
-            (order, boundaries) = eval::grouped_order(&order, group);
-        }
-        let image = eval::heatmap(
-            &matrix,
-            lower,
-            &order,
-            &boundaries,
-            eval::default_cell_size(matrix.names().len()),
-        )?;
-        let bytes = image.to_png()?;
-        write_output(out, bytes)?;
-        eprintln!(
-            "wrote {} ({} × {} pixels)",
-            out.display(),
-            image.width,
-            image.height
-        );
+        write_heatmap(&matrix, lower, groups.as_ref(), out)?;
     }
     if let Some(out) = &args.mds {
         write_mds(&matrix, out, groups.as_ref())?;
@@ -142,12 +123,54 @@ pub(super) fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
         write_output(&svg, eval::dendrogram_svg(&tree, matrix.names(), g))?;
         eprintln!("wrote {} and {}", out.display(), svg.display());
     }
+    print_results(&args, &matrix, rows.as_deref(), mantel.as_ref())?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The heatmap of `matrix` (upper triangle) and `lower` (lower triangle)
+/// as PNG at `out`, in average-linkage order, kept together by `groups`.
+fn write_heatmap(
+    matrix: &DistanceMatrix,
+    lower: &DistanceMatrix,
+    groups: Option<&eval::Groups>,
+    out: &Path,
+) -> Result<()> {
+    let mut order = eval::average_linkage_order(matrix);
+    let mut boundaries = Vec::new();
+    if let Some((_, group)) = groups {
+        (order, boundaries) = eval::grouped_order(&order, group);
+    }
+    let image = eval::heatmap(
+        matrix,
+        lower,
+        &order,
+        &boundaries,
+        eval::default_cell_size(matrix.names().len()),
+    )?;
+    write_output(out, image.to_png()?)?;
+    eprintln!(
+        "wrote {} ({} × {} pixels)",
+        out.display(),
+        image.width,
+        image.height
+    );
+    Ok(())
+}
+
+/// Print the leave-one-out rows and the Mantel test, as JSON with
+/// `--json`.
+fn print_results(
+    args: &Args,
+    matrix: &DistanceMatrix,
+    rows: Option<&[RankJson]>,
+    mantel: Option<&Mantel>,
+) -> Result<()> {
     if args.json {
         let mut obj = serde_json::json!({ "specimens": matrix.names().len() });
-        if let Some(rows) = &rows {
+        if let Some(rows) = rows {
             obj["ranks"] = serde_json::to_value(rows)?;
         }
-        if let Some(m) = &mantel {
+        if let Some(m) = mantel {
             obj["mantel"] = serde_json::to_value(m)?;
             obj["mantel"]["seed"] = args.seed.into();
         }
@@ -156,7 +179,7 @@ pub(super) fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
         }
         println!("{}", serde_json::to_string_pretty(&obj)?);
     } else {
-        if let Some(rows) = &rows {
+        if let Some(rows) = rows {
             println!(
                 "leave-one-out nearest neighbour, {} specimens",
                 matrix.names().len()
@@ -168,7 +191,7 @@ pub(super) fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
                 );
             }
         }
-        if let Some(m) = &mantel {
+        if let Some(m) = mantel {
             println!(
                 "Mantel test, {} specimens: r = {:.4}, p = {:.4} ({} permutations, seed {})",
                 matrix.names().len(),
@@ -179,7 +202,7 @@ pub(super) fn run(args: Args, file: ConfigFile) -> Result<ExitCode> {
             );
         }
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(())
 }
 
 /// Leave-one-out classification of `matrix` at every rank of `labels`.
