@@ -18,7 +18,7 @@ use morphoid_synth::mesh::{
 use morphoid_synth::volume::{
     batch_in_foam, phantom, write_volume, PhantomParams, StackSpec, SynthFormat,
 };
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -45,6 +45,87 @@ pub(super) fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
     let export = root.join("export");
     std::fs::create_dir_all(&export)?;
 
+    write_demo_library(&lib_dir)?;
+    let scans = write_demo_scans(&export)?;
+    let DemoScans {
+        expected,
+        batch,
+        batch_expected,
+        broken,
+    } = scans;
+
+    // The daemon's path: prepared library, jobs in SQLite, one transaction per scan.
+    let library = Library::open(&lib_dir, None)?;
+    let cache = Cache::open(&root.join("cache"))?;
+    let bar = progress_bar(library.members().len() as u64, "library");
+    let (classifier, built) = Classifier::build(&library, &cache, &settings, |_| bar.inc(1))?;
+    bar.finish_and_clear();
+    let mut store = Store::open(&root.join("morphoid.sqlite"))?;
+    classifier.register(&mut store, &built)?;
+    let mut files: Vec<_> = expected.iter().map(|(p, _)| p.clone()).collect();
+    files.push(batch.clone());
+    files.push(broken.clone());
+
+    println!();
+    let mut correct = 0;
+    for f in &files {
+        let record = classify::identify_file(&mut store, &classifier, f)?;
+        let truth = expected.iter().find(|(p, _)| p == f).map(|(_, g)| *g);
+        let called = record
+            .ranks
+            .iter()
+            .find(|r| r.rank == "genus")
+            .map(|r| r.taxon.as_str());
+        if truth.is_some() && truth == called {
+            correct += 1;
+        }
+        let name = f
+            .file_name()
+            .map(|n| n.to_string_lossy())
+            .unwrap_or_default();
+        let line = summary(&record).replace(&record.path, &name);
+        if *f == batch {
+            for (s, t) in record.specimens.iter().zip(&batch_expected) {
+                let called = s.ranks.iter().find(|r| r.rank == "genus");
+                if called.is_some_and(|r| r.taxon == *t) {
+                    correct += 1;
+                }
+            }
+            println!(
+                "{line}\n    (generated as {}, left to right)",
+                batch_expected.join(", ")
+            );
+            continue;
+        }
+        match truth {
+            Some(t) => println!("{line}\n    (generated as {t})"),
+            None => println!("{line}\n    (cut short on purpose: recorded as an error)"),
+        }
+    }
+    let total = expected.len() + batch_expected.len();
+    println!(
+        "\n{correct} of {total} specimens identified to the right genus in {:.1} s; database {}",
+        started.elapsed().as_secs_f64(),
+        if args.keep {
+            root.join("morphoid.sqlite").display().to_string()
+        } else {
+            "removed with the temporary folder (use --keep to look at it)".into()
+        }
+    );
+    if args.keep {
+        let kept = tmp.keep();
+        println!("kept {}", Path::new(&kept).display());
+    }
+    Ok(if correct == total {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    })
+}
+
+/// The demo's library: 4 synthetic crowns of each of 5 "genera", in
+/// random poses, with their labels, in `lib_dir`.
+fn write_demo_library(lib_dir: &Path) -> Result<()> {
     // A library of 4 synthetic crowns of each of 5 "genera", in random poses.
     let spec = LibrarySpec {
         per_genus: 4,
@@ -59,7 +140,25 @@ pub(super) fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
         CROWN_GENERA.len(),
         lib_dir.display()
     );
+    Ok(())
+}
 
+/// The demo's scans, as a scanner's exports would come.
+struct DemoScans {
+    /// Each single-specimen scan and the genus it was generated as.
+    expected: Vec<(PathBuf, &'static str)>,
+    /// The slice stack of three teeth in foam.
+    batch: PathBuf,
+    /// Its teeth's genera, in the documented order (left to right).
+    batch_expected: Vec<&'static str>,
+    /// A file cut short on purpose.
+    broken: PathBuf,
+}
+
+/// Write the demo's scans into `export`: each genus once in a new pose,
+/// unit and format; a closed whole tooth; a slice stack; a two-rooted
+/// isosurface; three teeth in foam in one stack; a file cut short.
+fn write_demo_scans(export: &Path) -> Result<DemoScans> {
     // New individuals as scanner exports: each genus once, in a new pose and
     // unit, in a different format; plus one file cut short.
     let formats = ["ply", "stl", "obj", "off", "ply"];
@@ -146,72 +245,10 @@ pub(super) fn run(args: Args, config: ConfigFile) -> Result<ExitCode> {
         expected.len() + 2,
         export.display()
     );
-
-    // The daemon's path: prepared library, jobs in SQLite, one transaction per scan.
-    let library = Library::open(&lib_dir, None)?;
-    let cache = Cache::open(&root.join("cache"))?;
-    let bar = progress_bar(library.members().len() as u64, "library");
-    let (classifier, built) = Classifier::build(&library, &cache, &settings, |_| bar.inc(1))?;
-    bar.finish_and_clear();
-    let mut store = Store::open(&root.join("morphoid.sqlite"))?;
-    classifier.register(&mut store, &built)?;
-    let mut files: Vec<_> = expected.iter().map(|(p, _)| p.clone()).collect();
-    files.push(batch.clone());
-    files.push(broken.clone());
-
-    println!();
-    let mut correct = 0;
-    for f in &files {
-        let record = classify::identify_file(&mut store, &classifier, f)?;
-        let truth = expected.iter().find(|(p, _)| p == f).map(|(_, g)| *g);
-        let called = record
-            .ranks
-            .iter()
-            .find(|r| r.rank == "genus")
-            .map(|r| r.taxon.as_str());
-        if truth.is_some() && truth == called {
-            correct += 1;
-        }
-        let name = f
-            .file_name()
-            .map(|n| n.to_string_lossy())
-            .unwrap_or_default();
-        let line = summary(&record).replace(&record.path, &name);
-        if *f == batch {
-            for (s, t) in record.specimens.iter().zip(&batch_expected) {
-                let called = s.ranks.iter().find(|r| r.rank == "genus");
-                if called.is_some_and(|r| r.taxon == *t) {
-                    correct += 1;
-                }
-            }
-            println!(
-                "{line}\n    (generated as {}, left to right)",
-                batch_expected.join(", ")
-            );
-            continue;
-        }
-        match truth {
-            Some(t) => println!("{line}\n    (generated as {t})"),
-            None => println!("{line}\n    (cut short on purpose: recorded as an error)"),
-        }
-    }
-    let total = expected.len() + batch_expected.len();
-    println!(
-        "\n{correct} of {total} specimens identified to the right genus in {:.1} s; database {}",
-        started.elapsed().as_secs_f64(),
-        if args.keep {
-            root.join("morphoid.sqlite").display().to_string()
-        } else {
-            "removed with the temporary folder (use --keep to look at it)".into()
-        }
-    );
-    if args.keep {
-        let kept = tmp.keep();
-        println!("kept {}", Path::new(&kept).display());
-    }
-    Ok(if correct == total {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::FAILURE
+    Ok(DemoScans {
+        expected,
+        batch,
+        batch_expected,
+        broken,
     })
 }
