@@ -133,7 +133,7 @@ fn write_demo_library(lib_dir: &Path) -> Result<()> {
         seed: 1,
         random_pose: true,
     };
-    synth::write_synthetic_library(&lib_dir, &spec)?;
+    synth::write_synthetic_library(lib_dir, &spec)?;
     println!(
         "library: {} synthetic crowns of {} genera in {}",
         spec.per_genus * CROWN_GENERA.len(),
