@@ -57,14 +57,8 @@ pub fn shape_signature(p: &Prepared) -> Signature {
 /// teeth. Zero for equal signatures and symmetric; a screen, not a
 /// distance an answer is read from.
 pub fn signature_distance(a: &Signature, b: &Signature) -> f64 {
-    let l1 = |x: &[f32], y: &[f32]| -> f64 {
-        x.iter()
-            .zip(y)
-            .map(|(&u, &v)| f64::from((u - v).abs()))
-            .sum::<f64>()
-    };
-    let radial = l1(&a.radial, &b.radial) * RADIAL_RANGE / BINS as f64;
-    radial / RADIAL_SCALE + l1(&a.spread, &b.spread) / SPREAD_SCALE
+    let [radial, spread] = signature_terms(a, b);
+    radial / RADIAL_SCALE + spread / SPREAD_SCALE
 }
 
 /// The two terms of [`signature_distance`] before scaling: the

@@ -51,18 +51,33 @@ struct Known {
 }
 
 impl Known {
-    /// The distance between `a` and `b` (name and content hash) if the
-    /// earlier file has it.
-    fn get(&self, a: (&str, &str), b: (&str, &str)) -> Option<f64> {
-        let d = self.distances.as_ref()?;
-        let i = *self.index.get(&(a.0.to_string(), a.1.to_string()))?;
-        let j = *self.index.get(&(b.0.to_string(), b.1.to_string()))?;
+    /// Each of `references`' index in the earlier file, if it is there
+    /// with the same content (looked up once, not once per pair).
+    fn indices(&self, references: &[CachedReference]) -> Vec<Option<usize>> {
+        references
+            .iter()
+            .map(|r| {
+                let key = (r.name().to_string(), r.content_hash().to_string());
+                self.index.get(&key).copied()
+            })
+            .collect()
+    }
+
+    /// The distance between the earlier file's references `i` and `j`, if
+    /// it has it.
+    fn get(&self, i: Option<usize>, j: Option<usize>) -> Option<f64> {
+        let (d, i, j) = (self.distances.as_ref()?, i?, j?);
         let row = |i: usize, j: usize| d.row(i).and_then(|r| r.get(j)).copied();
         [row(i, j), row(j, i)]
             .into_iter()
             .flatten()
             .find(|v| v.is_finite())
     }
+}
+
+/// Whether `name` is a calibration file's name.
+fn is_calibration_file(name: &str) -> bool {
+    name.starts_with(PREFIX) && name.ends_with(&format!(".{EXTENSION}"))
 }
 
 /// The key of the settings the distances depend on.
@@ -80,10 +95,7 @@ fn known_distances(cache: &Cache, settings: &Settings) -> Known {
     };
     let newest = entries
         .flatten()
-        .filter(|e| {
-            let name = e.file_name().to_string_lossy().into_owned();
-            name.starts_with(PREFIX) && name.ends_with(&format!(".{EXTENSION}"))
-        })
+        .filter(|e| is_calibration_file(&e.file_name().to_string_lossy()))
         .filter_map(|e| Some((e.metadata().ok()?.modified().ok()?, e.path())))
         .max();
     let Some(entry) = newest
@@ -196,10 +208,10 @@ fn compute(
     let n = references.len();
     let held = held_out(references);
     let pairs = calibration_pairs_of(references, &held, settings);
-    let id = |i: usize| (references[i].name(), references[i].content_hash());
+    let old = known.indices(references);
     let reused: Vec<Option<f64>> = pairs
         .iter()
-        .map(|&(i, j)| known.get(id(i), id(j)))
+        .map(|&(i, j)| known.get(old[i], old[j]))
         .collect();
     let to_compute = reused.iter().filter(|v| v.is_none()).count();
     if to_compute < pairs.len() {
@@ -325,8 +337,7 @@ fn remove_others(cache: &Cache, keep: &std::path::Path) {
     for entry in entries.flatten() {
         let path = entry.path();
         let name = entry.file_name().to_string_lossy().into_owned();
-        let ours = name.starts_with(PREFIX) && name.ends_with(&format!(".{EXTENSION}"));
-        if ours && path != keep {
+        if is_calibration_file(&name) && path != keep {
             if let Err(e) = std::fs::remove_file(&path) {
                 tracing::warn!(file = %path.display(), "old calibration file not removed: {e}");
             }
