@@ -38,7 +38,10 @@
 //!   that answers carry their confidence;
 //! - `MORPHOID_TEETH`: the real teeth (`labels.csv` and `meshes/`), else
 //!   `../shared/data/pnas-teeth` beside the repository;
-//! - `TMPDIR`: where the temporary folder is made (removed at the end).
+//! - `TMPDIR`: where the temporary folder is made (removed at the end);
+//! - `MORPHOID_BENCH_WORK`: a folder to work in instead, kept at the end,
+//!   so that a second run finds the libraries' caches prepared and measures
+//!   the identifications only.
 
 use anyhow::{bail, ensure, Context, Result};
 use morphoid_core::mesh::bbox_diagonal;
@@ -96,10 +99,7 @@ fn main() -> Result<()> {
         "{GNU_TIME} not found: it measures each morphoid process (Debian package `time`)"
     );
     let teeth = read_real_teeth(&teeth_folder()?)?;
-    let work = tempfile::Builder::new()
-        .prefix("morphoid-large-library-")
-        .tempdir()
-        .context("making the temporary folder (TMPDIR)")?;
+    let work = WorkFolder::new()?;
     let work = work.path();
     println!(
         "library sizes {sizes:?}, seed {seed}, {} real teeth, work folder {}",
@@ -147,6 +147,39 @@ fn main() -> Result<()> {
     Ok(())
 }
 
+/// Where the libraries, caches and databases are made: a temporary folder
+/// (removed when dropped), or `MORPHOID_BENCH_WORK` (kept).
+enum WorkFolder {
+    Temporary(tempfile::TempDir),
+    Kept(PathBuf),
+}
+
+impl WorkFolder {
+    fn new() -> Result<Self> {
+        match std::env::var_os("MORPHOID_BENCH_WORK") {
+            Some(dir) => {
+                let dir = PathBuf::from(dir);
+                std::fs::create_dir_all(&dir)
+                    .with_context(|| format!("creating MORPHOID_BENCH_WORK={}", dir.display()))?;
+                Ok(WorkFolder::Kept(dir))
+            }
+            None => Ok(WorkFolder::Temporary(
+                tempfile::Builder::new()
+                    .prefix("morphoid-large-library-")
+                    .tempdir()
+                    .context("making the temporary folder (TMPDIR)")?,
+            )),
+        }
+    }
+
+    fn path(&self) -> &Path {
+        match self {
+            WorkFolder::Temporary(t) => t.path(),
+            WorkFolder::Kept(p) => p,
+        }
+    }
+}
+
 /// What one library's measurement needs.
 struct LibraryRun<'a> {
     /// The `morphoid` binary.
@@ -171,6 +204,18 @@ fn measure_library(run: &LibraryRun, scans: &[Scan]) -> Result<Vec<Row>> {
     let config = run.work.join(format!("morphoid-{size}.toml"));
     let cache = run.work.join(format!("cache-{size}"));
     let db = run.work.join(format!("ids-{size}.sqlite"));
+    // A kept work folder's database knows the scans already: identifying
+    // them again would only look them up.
+    for stale in [
+        db.clone(),
+        db.with_extension("sqlite-wal"),
+        db.with_extension("sqlite-shm"),
+    ] {
+        if stale.exists() {
+            std::fs::remove_file(&stale)
+                .with_context(|| format!("removing {}", stale.display()))?;
+        }
+    }
     write_config(&config, &lib, &cache, &db)?;
     let build = prepare_library(run.bin, &config, run.work)?;
     let cache_bytes = folder_bytes(&cache)?;
@@ -635,6 +680,11 @@ fn link_library(
     std::fs::create_dir_all(&meshes).with_context(|| format!("creating {}", meshes.display()))?;
     for r in references {
         let (from, to) = (pool.join(&r.file), meshes.join(&r.file));
+        // A kept work folder has the link already: copying onto it would
+        // truncate the pool's file through the link.
+        if to.exists() {
+            std::fs::remove_file(&to).with_context(|| format!("removing {}", to.display()))?;
+        }
         if std::fs::hard_link(&from, &to).is_err() {
             std::fs::copy(&from, &to)
                 .with_context(|| format!("copying {} to {}", from.display(), to.display()))?;

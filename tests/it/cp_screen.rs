@@ -25,7 +25,14 @@ fn screen_recall_on_the_116_teeth() {
     let labels = real.library.labels();
     let n = refs.len();
     assert_eq!(n, 116);
-    let signatures: Vec<_> = refs.iter().map(|r| shape_signature(r.prepared())).collect();
+    // The signature each reference carries is the one of its prepared form.
+    let signatures: Vec<_> = refs.iter().map(|r| r.signature().clone()).collect();
+    for r in refs.iter().take(3) {
+        assert_eq!(
+            &shape_signature(&r.prepared().expect("in the cache")),
+            r.signature()
+        );
+    }
     let d = |i: usize, j: usize| real.table.distance(i, j).expect("a complete table");
     let nearest_of = |i: usize, among: &[usize]| -> usize {
         *among

@@ -236,7 +236,7 @@ fn held_out_slice_stacks_are_flagged_as_rarely_as_crops() {
             .map(|&j| {
                 let c = morphoid_core::cp::compare(
                     &stack.prepared,
-                    references[j].prepared(),
+                    &references[j].prepared().expect("in the cache"),
                     &settings.cp.compare,
                 );
                 DistanceRow {

@@ -241,7 +241,7 @@ fn fit_calibration(
 fn signatures_of(references: &[CachedReference]) -> Vec<cp::Signature> {
     references
         .par_iter()
-        .map(|r| cp::shape_signature(r.prepared()))
+        .map(|r| r.signature().clone())
         .collect()
 }
 
@@ -600,17 +600,27 @@ impl Classifier {
         landmarks: Option<&ScanLandmarks>,
     ) -> Scene {
         let _span = tracing::info_span!("scene", scan = %scan.prepared.name()).entered();
-        let references: Vec<SceneReference<'_>> = nearest
+        let drawn: Vec<(&CachedReference, f64, Arc<cp::Prepared>)> = nearest
             .iter()
             .filter_map(|(name, distance)| {
                 let r = self.references.iter().find(|r| r.name() == name)?;
-                Some(SceneReference {
-                    name: r.name(),
-                    distance: *distance,
-                    prepared: r.prepared(),
-                })
+                match r.prepared() {
+                    Ok(p) => Some((r, *distance, p)),
+                    Err(e) => {
+                        tracing::warn!(reference = %name, "not drawn: {e}");
+                        None
+                    }
+                }
             })
             .take(REPORT_NEAREST)
+            .collect();
+        let references: Vec<SceneReference<'_>> = drawn
+            .iter()
+            .map(|(r, distance, prepared)| SceneReference {
+                name: r.name(),
+                distance: *distance,
+                prepared,
+            })
             .collect();
         let points: Vec<(Option<String>, [f64; 3])> = landmarks
             .map(|lm| {
@@ -687,16 +697,26 @@ impl Classifier {
             .entered();
             compared
                 .par_iter()
-                .map(|&i| {
+                .filter_map(|&i| {
                     let r = &self.references[i];
-                    let c = cp::compare(&surface.prepared, r.prepared(), &self.settings.cp.compare);
-                    DistanceRow {
+                    // A cache entry removed or damaged since the library
+                    // was opened leaves its reference out of this answer
+                    // (the next library build prepares it again).
+                    let prepared = match r.prepared() {
+                        Ok(p) => p,
+                        Err(e) => {
+                            tracing::warn!(reference = %r.name(), "left out of the comparison: {e}");
+                            return None;
+                        }
+                    };
+                    let c = cp::compare(&surface.prepared, &prepared, &self.settings.cp.compare);
+                    Some(DistanceRow {
                         reference: r.name().to_string(),
                         forward: c.forward.distance,
                         backward: c.backward.distance,
                         distance: c.distance,
                         reflected: c.reflected,
-                    }
+                    })
                 })
                 .collect()
         };
@@ -785,7 +805,14 @@ impl Classifier {
             .references
             .iter()
             .find(|r| r.name() == nearest.reference)?;
-        match self.carry(reference, lm, scan) {
+        let prepared = match reference.prepared() {
+            Ok(p) => p,
+            Err(e) => {
+                tracing::warn!(reference = %reference.name(), "landmarks not carried over: {e}");
+                return None;
+            }
+        };
+        match self.carry(&prepared, lm, scan) {
             Ok(points) => Some(ScanLandmarks {
                 reference: reference.name().to_string(),
                 points,
@@ -802,16 +829,12 @@ impl Classifier {
     /// on the cleaned scan surface, in the scan file's coordinates.
     fn carry(
         &self,
-        reference: &CachedReference,
+        reference: &cp::Prepared,
         lm: &Landmarks,
         scan: &PreparedSurface,
     ) -> Result<Vec<LandmarkPoint>, PropagateError> {
-        let map = cp::compare_directed(
-            reference.prepared(),
-            &scan.prepared,
-            &self.settings.cp.compare,
-        );
-        let source = Surface::from_normalized(reference.prepared())?;
+        let map = cp::compare_directed(reference, &scan.prepared, &self.settings.cp.compare);
+        let source = Surface::from_normalized(reference)?;
         let target = Surface::from_prepared(scan)?;
         let out = landmarks::propagate(lm, &source, &target, &map.correspondence)?;
         Ok(out
@@ -1239,6 +1262,37 @@ mod tests {
         // Under "auto", a library of 10 is compared whole.
         let auto = with(cp::Screening::Auto);
         assert_eq!(auto.distances.len(), 10);
+    }
+
+    /// References are held in the cache, not in memory; one whose entry
+    /// is deleted while the classifier runs is left out of the answers,
+    /// and the others are compared as before.
+    #[test]
+    fn a_reference_gone_from_the_cache_is_left_out_of_the_answer() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (classifier, cache) = small_classifier(tmp.path());
+        assert!(classifier.references().iter().all(|r| !r.is_resident()));
+        let scan = tmp.path().join("scan.ply");
+        let crown = synth::crown(&synth::CROWN_GENERA[1], 98, 600);
+        morphoid_data::mesh_io::save(&scan, &crown).unwrap();
+        let whole = classifier.classify_file(&scan).unwrap();
+        assert_eq!(whole.distances.len(), 10);
+        let gone = classifier.references()[0].name().to_string();
+        for entry in std::fs::read_dir(cache.dir()).unwrap() {
+            let path = entry.unwrap().path();
+            if path
+                .file_name()
+                .is_some_and(|f| f.to_string_lossy().starts_with(&format!("{gone}.")))
+            {
+                std::fs::remove_file(path).unwrap();
+            }
+        }
+        let without = classifier.classify_file(&scan).unwrap();
+        assert_eq!(without.distances.len(), 9);
+        assert!(without.distances.iter().all(|d| d.reference != gone));
+        for row in &without.distances {
+            assert!(whole.distances.contains(row), "{row:?}");
+        }
     }
 
     #[test]

@@ -13,11 +13,12 @@ use crate::atomic_write::{write_atomic, AtomicWriteError};
 use crate::hash::hex;
 use crate::pipeline::Settings;
 use morphoid_core::clean::CleanReport;
-use morphoid_core::cp::Prepared;
+use morphoid_core::cp::{shape_signature, Prepared, Signature};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Bumped whenever the cached layout or the meaning of `Prepared` changes,
 /// so old entries are ignored instead of misread, and whenever cleaning
@@ -61,6 +62,17 @@ pub enum CacheError {
         /// The I/O error.
         source: std::io::Error,
     },
+    /// An entry cannot be read back.
+    #[error("{path}: the prepared form of `{name}` cannot be read from the cache: {problem}")]
+    Entry {
+        /// The entry.
+        path: PathBuf,
+        /// The reference.
+        name: String,
+        /// What is wrong with it.
+        #[source]
+        problem: EntryProblem,
+    },
     /// An entry cannot be encoded.
     #[error("cannot encode the prepared form of `{name}`: {message}")]
     Encode {
@@ -71,22 +83,38 @@ pub enum CacheError {
     },
 }
 
-/// A prepared reference as kept in the cache.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+/// A prepared reference: its identity, what cleaning changed, its
+/// screening signature, and its prepared form, held in memory or left in
+/// its cache entry and read back each time it is compared (see
+/// [`CachedReference::prepared`]). Cloning it never copies a prepared form.
+#[derive(Debug, Clone)]
 pub struct CachedReference {
     /// Reference name.
     name: String,
     /// Content hash of the surface file it was prepared from.
     content_hash: String,
-    /// The prepared form.
-    prepared: Prepared,
     /// What cleaning changed.
     cleaning: CleanReport,
+    /// Its screening signature (computed once, when it was prepared or
+    /// first read from the cache).
+    signature: Signature,
+    /// The prepared form.
+    held: Held,
+}
+
+/// Where a reference's prepared form is.
+#[derive(Debug, Clone)]
+enum Held {
+    /// In memory.
+    Resident(Arc<Prepared>),
+    /// In the cache entry at `entry`, stored under `key`: a library of
+    /// thousands is held at the size of its names and signatures.
+    Stored { entry: PathBuf, key: String },
 }
 
 impl CachedReference {
     /// The reference `name`, prepared from the surface file with content
-    /// hash `content_hash`.
+    /// hash `content_hash`, held in memory.
     pub fn new(
         name: String,
         content_hash: String,
@@ -94,10 +122,11 @@ impl CachedReference {
         cleaning: CleanReport,
     ) -> Self {
         Self {
+            signature: shape_signature(&prepared),
             name,
             content_hash,
-            prepared,
             cleaning,
+            held: Held::Resident(Arc::new(prepared)),
         }
     }
 
@@ -111,9 +140,28 @@ impl CachedReference {
         &self.content_hash
     }
 
-    /// The prepared form.
-    pub fn prepared(&self) -> &Prepared {
-        &self.prepared
+    /// The prepared form: shared when held in memory, else read from its
+    /// cache entry now (about a millisecond; the entry is checked as
+    /// [`Cache`] checks every entry). An error when the entry is gone or
+    /// damaged since the library was opened.
+    pub fn prepared(&self) -> Result<Arc<Prepared>, CacheError> {
+        match &self.held {
+            Held::Resident(p) => Ok(Arc::clone(p)),
+            Held::Stored { entry, key } => {
+                read_entry(entry, &self.name, key).map(|stored| Arc::new(stored.prepared))
+            }
+        }
+    }
+
+    /// Whether the prepared form is held in memory (not read from the
+    /// cache at each use).
+    pub fn is_resident(&self) -> bool {
+        matches!(self.held, Held::Resident(_))
+    }
+
+    /// The screening signature of the prepared form.
+    pub fn signature(&self) -> &Signature {
+        &self.signature
     }
 
     /// What cleaning changed.
@@ -121,17 +169,112 @@ impl CachedReference {
         &self.cleaning
     }
 
-    /// The prepared form and the content hash, dropping the rest.
-    pub fn into_prepared_and_hash(self) -> (Prepared, String) {
-        (self.prepared, self.content_hash)
+    /// The same reference, its prepared form left in `cache`'s entry under
+    /// `key` (which must hold it: stored by [`Cache::put`] or read from
+    /// there).
+    pub(super) fn stored_in(self, cache: &Cache, key: &str) -> Self {
+        Self {
+            held: Held::Stored {
+                entry: cache.path_of(&self.name, key),
+                key: key.to_string(),
+            },
+            ..self
+        }
+    }
+
+    /// A reference whose prepared form is in `cache` under `key`, known
+    /// from the library's index (nothing is read).
+    pub(super) fn indexed(
+        cache: &Cache,
+        key: &str,
+        name: String,
+        content_hash: String,
+        cleaning: CleanReport,
+        signature: Signature,
+    ) -> Self {
+        Self {
+            held: Held::Stored {
+                entry: cache.path_of(&name, key),
+                key: key.to_string(),
+            },
+            name,
+            content_hash,
+            cleaning,
+            signature,
+        }
     }
 }
 
-#[derive(Serialize, Deserialize)]
+/// A cache entry as written. Its layout (field order) is [`Entry`]'s.
+#[derive(Serialize)]
+struct EntryOut<'a> {
+    format: u32,
+    key: &'a str,
+    reference: StoredOut<'a>,
+}
+
+#[derive(Serialize)]
+struct StoredOut<'a> {
+    name: &'a str,
+    content_hash: &'a str,
+    prepared: &'a Prepared,
+    cleaning: &'a CleanReport,
+}
+
+/// A cache entry as read.
+#[derive(Deserialize)]
 struct Entry {
     format: u32,
     key: String,
-    reference: CachedReference,
+    reference: Stored,
+}
+
+#[derive(Deserialize)]
+struct Stored {
+    name: String,
+    content_hash: String,
+    prepared: Prepared,
+    cleaning: CleanReport,
+}
+
+/// Why a cache entry cannot be read back.
+#[derive(Debug, thiserror::Error)]
+pub enum EntryProblem {
+    /// The file cannot be read (removed since the library was opened?).
+    #[error(transparent)]
+    Read(#[from] std::io::Error),
+    /// The bytes do not decode.
+    #[error("it does not decode: {0}")]
+    Decode(#[from] postcard::Error),
+    /// It holds another reference, format or preparation.
+    #[error("it holds another reference, format or preparation")]
+    Other,
+    /// It decodes but its arrays do not fit together.
+    #[error(transparent)]
+    Inconsistent(#[from] morphoid_core::cp::CpError),
+}
+
+/// The entry at `path`, checked to be `name`'s under `key` in this
+/// format and to hold a consistent prepared form.
+fn read_entry(path: &Path, name: &str, key: &str) -> Result<Stored, CacheError> {
+    let fail = |problem: EntryProblem| CacheError::Entry {
+        path: path.to_path_buf(),
+        name: name.to_string(),
+        problem,
+    };
+    let bytes = std::fs::read(path).map_err(|e| fail(e.into()))?;
+    let entry: Entry = postcard::from_bytes(&bytes).map_err(|e| fail(e.into()))?;
+    if !(entry.format == CACHE_FORMAT && entry.key == key && entry.reference.name == name) {
+        return Err(fail(EntryProblem::Other));
+    }
+    // A damaged entry can still decode; the engine indexes by what it
+    // holds, so check it before use.
+    entry
+        .reference
+        .prepared
+        .validate()
+        .map_err(|e| fail(e.into()))?;
+    Ok(entry.reference)
 }
 
 /// A cache folder.
@@ -216,43 +359,50 @@ impl Cache {
         hex(&h.finalize()[..16])
     }
 
-    fn path_of(&self, name: &str, key: &str) -> PathBuf {
+    pub(super) fn path_of(&self, name: &str, key: &str) -> PathBuf {
         self.dir.join(format!("{name}.{key}.{EXTENSION}"))
     }
 
-    /// The cached entry of `name` under `key`, if present and readable. An
-    /// unreadable entry counts as absent (it will be prepared again).
+    /// The cached entry of `name` under `key`, if present and readable,
+    /// held in memory. An unreadable entry counts as absent (it will be
+    /// prepared again).
     pub(super) fn get(&self, name: &str, key: &str) -> Option<CachedReference> {
-        let bytes = std::fs::read(self.path_of(name, key)).ok()?;
-        let entry: Entry = match postcard::from_bytes(&bytes) {
-            Ok(e) => e,
+        let path = self.path_of(name, key);
+        if !path.exists() {
+            return None;
+        }
+        match read_entry(&path, name, key) {
+            Ok(stored) => Some(CachedReference::new(
+                stored.name,
+                stored.content_hash,
+                stored.prepared,
+                stored.cleaning,
+            )),
             Err(e) => {
-                tracing::warn!(reference = name, "ignoring an unreadable cache entry: {e}");
-                return None;
+                tracing::warn!(reference = name, "ignoring a cache entry: {e}");
+                None
             }
-        };
-        if !(entry.format == CACHE_FORMAT && entry.key == key && entry.reference.name == name) {
-            return None;
         }
-        // A damaged entry can still decode; the engine indexes by what it
-        // holds, so check it before use.
-        if let Err(e) = entry.reference.prepared.validate() {
-            tracing::warn!(
-                reference = name,
-                "ignoring an inconsistent cache entry: {e}"
-            );
-            return None;
-        }
-        Some(entry.reference)
+    }
+
+    /// Whether an entry of `name` under `key` is there (not read).
+    pub(super) fn has(&self, name: &str, key: &str) -> bool {
+        self.path_of(name, key).is_file()
     }
 
     /// Store an entry under `key`, atomically: processes sharing the cache
     /// may write the same entry at once.
     pub(super) fn put(&self, key: &str, reference: &CachedReference) -> Result<(), CacheError> {
-        let entry = Entry {
+        let prepared = reference.prepared()?;
+        let entry = EntryOut {
             format: CACHE_FORMAT,
-            key: key.to_string(),
-            reference: reference.clone(),
+            key,
+            reference: StoredOut {
+                name: &reference.name,
+                content_hash: &reference.content_hash,
+                prepared: &prepared,
+                cleaning: &reference.cleaning,
+            },
         };
         let bytes = postcard::to_stdvec(&entry).map_err(|e| CacheError::Encode {
             name: reference.name.clone(),

@@ -13,20 +13,23 @@
 
 mod add;
 mod cache;
+mod index;
 
 pub use add::{add_reference, reference_name_for, AddError, NewReference};
-pub use cache::{Cache, CacheError, CachedReference};
+pub use cache::{Cache, CacheError, CachedReference, EntryProblem};
 
 use crate::hash::content_hash;
 use crate::landmarks::{Landmarks, LibraryLandmarks};
 use crate::mesh_io::{self, Format, LoadError};
 use crate::pipeline::{self, MeshError, Settings};
 use crate::table::{Labels, TableError};
+use index::{Index, IndexEntry, Stamp};
 use morphoid_core::cp::Prepared;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
 
 /// Why a library folder cannot be used; each message names the folder or file.
 #[derive(Debug, thiserror::Error)]
@@ -177,6 +180,9 @@ pub enum PrepareError {
         #[source]
         source: MeshError,
     },
+    /// Its prepared form cannot be read back from the cache.
+    #[error(transparent)]
+    Cache(#[from] CacheError),
 }
 
 /// One reference that [`build`] left out, and why.
@@ -214,11 +220,14 @@ enum Origin {
     Prepared,
 }
 
-/// A prepared surface, the cache key it belongs under, where it came from.
+/// A prepared surface, the cache key it belongs under, where it came
+/// from, and the stamp of its file when that is to be trusted (see
+/// [`index`]).
 struct Loaded {
     reference: CachedReference,
     key: String,
     origin: Origin,
+    stamp: Option<Stamp>,
 }
 
 /// The prepared form of `member`'s surface: the entry of `cache` for its
@@ -231,10 +240,14 @@ fn load_or_prepare(
 ) -> Result<Loaded, PrepareError> {
     let _span = tracing::info_span!("reference", name = %member.name).entered();
     let path = &member.path;
-    let bytes = std::fs::read(path).map_err(|source| PrepareError::Read {
+    let read_error = |source| PrepareError::Read {
         path: path.clone(),
         source,
-    })?;
+    };
+    let before = std::fs::metadata(path).map_err(read_error)?;
+    let bytes = std::fs::read(path).map_err(read_error)?;
+    // Trusted only if the file had settled and did not change meanwhile.
+    let stamp = Stamp::settled(&before).filter(|&s| Stamp::now(path) == Some(s));
     let hash = content_hash(&bytes);
     let key = Cache::key(&hash, settings);
     if let Some(hit) = cache.and_then(|c| c.get(&member.name, &key)) {
@@ -242,6 +255,7 @@ fn load_or_prepare(
             reference: hit,
             key,
             origin: Origin::Cache,
+            stamp,
         });
     }
     let format =
@@ -263,6 +277,7 @@ fn load_or_prepare(
         ),
         key,
         origin: Origin::Prepared,
+        stamp,
     })
 }
 
@@ -319,7 +334,9 @@ impl<'a> Preparation<'a> {
                 }
             }
         }
-        Ok(loaded.reference.into_prepared_and_hash())
+        let prepared = loaded.reference.prepared()?;
+        let prepared = Arc::try_unwrap(prepared).unwrap_or_else(|shared| (*shared).clone());
+        Ok((prepared, loaded.reference.content_hash().to_string()))
     }
 
     /// The prepared forms of all `members`, in their order, in parallel;
@@ -445,39 +462,40 @@ impl BuildOutcome {
 /// cannot be prepared is reported in `failures`; the others still build.
 /// The landmark files are read too; one that cannot be used leaves its
 /// reference without landmarks and is reported in `landmarks.problems`.
+///
+/// The references come back with their prepared forms left in the cache
+/// (read back at each comparison), except those the cache could not take;
+/// a reference whose file is unchanged since the last build is known from
+/// the library's index without reading the file or its entry.
 pub fn build(
     library: &Library,
     cache: &Cache,
     settings: &Settings,
     progress: impl Fn(&str) + Sync,
 ) -> Result<BuildOutcome, CacheError> {
-    let results: Vec<Result<Loaded, PrepareError>> = library
+    let index = Index::read(cache);
+    let results: Vec<Result<Built, PrepareError>> = library
         .members
         .par_iter()
         .map(|m| {
-            let r = load_or_prepare(m, Some(cache), settings);
+            let r = build_member(m, &index, cache, settings);
             progress(&m.name);
             r
         })
         .collect();
     let mut out = BuildOutcome::default();
     let mut keep = HashSet::new();
+    let mut entries = Vec::new();
     for (m, r) in library.members.iter().zip(results) {
         match r {
-            Ok(loaded) => {
-                match loaded.origin {
+            Ok(built) => {
+                match built.origin {
                     Origin::Cache => out.reused += 1,
-                    Origin::Prepared => {
-                        // The cache only saves time: a full or failing
-                        // disk must not stop the library from loading.
-                        if let Err(e) = cache.put(&loaded.key, &loaded.reference) {
-                            tracing::warn!(reference = %m.name, "not stored in the cache: {e}");
-                        }
-                        out.prepared += 1;
-                    }
+                    Origin::Prepared => out.prepared += 1,
                 }
-                keep.insert((m.name.clone(), loaded.key));
-                out.references.push(loaded.reference);
+                keep.insert((m.name.clone(), built.key));
+                entries.extend(built.index);
+                out.references.push(built.reference);
             }
             Err(error) => out.failures.push(Failure {
                 name: m.name.clone(),
@@ -489,9 +507,74 @@ pub fn build(
         tracing::warn!("stale cache entries not removed: {e}");
         0
     });
+    if !index.holds(&entries) {
+        // The index only saves time at the next opening.
+        if let Err(e) = Index::write(cache, entries) {
+            tracing::warn!("the library index not written: {e}");
+        }
+    }
     let names: Vec<String> = library.members.iter().map(|m| m.name.clone()).collect();
     out.landmarks = crate::landmarks::load_library(&library.dir, &names);
     Ok(out)
+}
+
+/// One member as [`build`] made it: the reference, its cache key, where
+/// it came from, and its index entry (none when its file's stamp is not
+/// to be trusted or its entry is not in the cache).
+struct Built {
+    reference: CachedReference,
+    key: String,
+    origin: Origin,
+    index: Option<IndexEntry>,
+}
+
+/// `member` known from `index` when its file is unchanged, else read (and
+/// prepared unless the cache has it); held in the cache when it is there.
+fn build_member(
+    member: &Member,
+    index: &Index,
+    cache: &Cache,
+    settings: &Settings,
+) -> Result<Built, PrepareError> {
+    let known = std::fs::metadata(&member.path)
+        .ok()
+        .and_then(|m| Stamp::settled(&m))
+        .and_then(|stamp| index.lookup(&member.name, stamp, cache, settings));
+    if let Some((reference, entry)) = known {
+        return Ok(Built {
+            key: Cache::key(reference.content_hash(), settings),
+            reference,
+            origin: Origin::Cache,
+            index: Some(entry),
+        });
+    }
+    let loaded = load_or_prepare(member, Some(cache), settings)?;
+    let in_cache = match loaded.origin {
+        Origin::Cache => true,
+        // The cache only saves time: a full or failing disk must not stop
+        // the library from loading (the reference stays in memory).
+        Origin::Prepared => match cache.put(&loaded.key, &loaded.reference) {
+            Ok(()) => true,
+            Err(e) => {
+                tracing::warn!(reference = %member.name, "not stored in the cache: {e}");
+                false
+            }
+        },
+    };
+    let (reference, index) = if in_cache {
+        let entry = loaded
+            .stamp
+            .map(|stamp| IndexEntry::of(&loaded.reference, stamp, &loaded.key));
+        (loaded.reference.stored_in(cache, &loaded.key), entry)
+    } else {
+        (loaded.reference, None)
+    };
+    Ok(Built {
+        reference,
+        key: loaded.key,
+        origin: loaded.origin,
+        index,
+    })
 }
 
 /// Whether each member of `library` has an entry in `cache` for its
@@ -608,6 +691,116 @@ mod tests {
         let d = folder("", &["notes.txt"]);
         let e = members(d.path()).unwrap_err().to_string();
         assert!(e.contains("no surface files"), "{e}");
+    }
+
+    /// The library index spares reading files that have not changed and
+    /// never hides a change: a file rewritten in place with the same size
+    /// is read, hashed and prepared again.
+    #[test]
+    fn the_index_knows_unchanged_files_and_never_hides_a_change() {
+        let lib = tempfile::tempdir().unwrap();
+        let spec = morphoid_synth::mesh::LibrarySpec {
+            per_genus: 1,
+            target_vertices: 600,
+            seed: 11,
+            random_pose: false,
+        };
+        morphoid_synth::mesh::write_synthetic_library(lib.path(), &spec).unwrap();
+        let cache_dir = tempfile::tempdir().unwrap();
+        let cache = Cache::open(cache_dir.path()).unwrap();
+        let settings = Settings::default();
+        let library = Library::open(lib.path(), None).unwrap();
+        let n = library.members.len();
+        let settle = || std::thread::sleep(std::time::Duration::from_millis(2100));
+        settle();
+
+        let first = build(&library, &cache, &settings, |_| {}).unwrap();
+        assert_eq!((first.prepared, first.reused), (n, 0));
+        assert!(first.references.iter().all(|r| !r.is_resident()));
+        let index = Index::read(&cache);
+        for m in &library.members {
+            let stamp = Stamp::now(&m.path).unwrap();
+            assert!(index.lookup(&m.name, stamp, &cache, &settings).is_some());
+        }
+        // The second opening: the same references, signatures and
+        // prepared forms, known from the index.
+        let second = build(&library, &cache, &settings, |_| {}).unwrap();
+        assert_eq!((second.prepared, second.reused), (0, n));
+        for (a, b) in first.references.iter().zip(&second.references) {
+            assert_eq!((a.name(), a.content_hash()), (b.name(), b.content_hash()));
+            assert_eq!(a.signature(), b.signature());
+            let (pa, pb) = (a.prepared().unwrap(), b.prepared().unwrap());
+            assert_eq!(pa.vertices(), pb.vertices());
+            assert_eq!(pa.samples(), pb.samples());
+        }
+
+        // One coordinate's lowest bit flipped in place: same size, same
+        // inode, new bytes.
+        let path = library.members[0].path.clone();
+        let before = Stamp::now(&path).unwrap();
+        let mut bytes = std::fs::read(&path).unwrap();
+        let header = b"end_header\n";
+        let body = bytes
+            .windows(header.len())
+            .position(|w| w == header)
+            .unwrap()
+            + header.len();
+        bytes[body] ^= 1;
+        std::fs::OpenOptions::new()
+            .write(true)
+            .open(&path)
+            .and_then(|mut f| std::io::Write::write_all(&mut f, &bytes))
+            .unwrap();
+        assert_ne!(Stamp::now(&path).unwrap(), before);
+        let third = build(&library, &cache, &settings, |_| {}).unwrap();
+        assert_eq!((third.prepared, third.reused), (1, n - 1));
+        assert_eq!(third.references[0].content_hash(), content_hash(&bytes));
+        // Settled, it is indexed under its new stamp and hash.
+        settle();
+        let fourth = build(&library, &cache, &settings, |_| {}).unwrap();
+        assert_eq!((fourth.prepared, fourth.reused), (0, n));
+        assert_eq!(fourth.references[0].content_hash(), content_hash(&bytes));
+        let stamp = Stamp::now(&path).unwrap();
+        let (known, _) = Index::read(&cache)
+            .lookup(&library.members[0].name, stamp, &cache, &settings)
+            .unwrap();
+        assert_eq!(known.content_hash(), content_hash(&bytes));
+    }
+
+    /// A reference whose cache entry disappears after the build says so,
+    /// naming the entry, instead of answering with anything else.
+    #[test]
+    fn a_stored_reference_whose_entry_is_gone_names_it() {
+        let lib = tempfile::tempdir().unwrap();
+        let spec = morphoid_synth::mesh::LibrarySpec {
+            per_genus: 1,
+            target_vertices: 600,
+            seed: 12,
+            random_pose: false,
+        };
+        morphoid_synth::mesh::write_synthetic_library(lib.path(), &spec).unwrap();
+        let cache_dir = tempfile::tempdir().unwrap();
+        let cache = Cache::open(cache_dir.path()).unwrap();
+        let library = Library::open(lib.path(), None).unwrap();
+        let built = build(&library, &cache, &Settings::default(), |_| {}).unwrap();
+        let r = &built.references[0];
+        assert!(r.prepared().is_ok());
+        let entry = std::fs::read_dir(cache.dir())
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .find(|p| {
+                p.file_name()
+                    .is_some_and(|f| f.to_string_lossy().starts_with(&format!("{}.", r.name())))
+            })
+            .unwrap();
+        std::fs::write(&entry, b"not an entry").unwrap();
+        let e = r.prepared().unwrap_err().to_string();
+        assert!(
+            e.contains(&entry.display().to_string()) && e.contains("does not decode"),
+            "{e}"
+        );
+        std::fs::remove_file(&entry).unwrap();
+        assert!(r.prepared().is_err());
     }
 
     /// The bug this guards against: the library build and `matrix

@@ -6,7 +6,7 @@
 
 use super::{median_sample, ReferenceDistances};
 use crate::identify::screened_references;
-use morphoid_core::cp::{compare, shape_signature, ScreenParams, Signature};
+use morphoid_core::cp::{compare, ScreenParams, Signature};
 use morphoid_data::atomic_write::write_atomic;
 use morphoid_data::hash::hex;
 use morphoid_data::library::{Cache, CachedReference};
@@ -170,10 +170,7 @@ fn calibration_pairs_of(
             .filter(|&(i, j)| is_held[i] || is_held[j])
             .collect();
     }
-    let signatures: Vec<Signature> = references
-        .par_iter()
-        .map(|r| shape_signature(r.prepared()))
-        .collect();
+    let signatures: Vec<Signature> = references.iter().map(|r| r.signature().clone()).collect();
     let always = median_sample(n);
     let mut pairs: Vec<(usize, usize)> = held
         .iter()
@@ -222,6 +219,7 @@ fn compute(
         );
     }
     let done = std::sync::atomic::AtomicUsize::new(0);
+    let warned = std::sync::atomic::AtomicBool::new(false);
     let values: Vec<f64> = pairs
         .par_iter()
         .zip(&reused)
@@ -229,16 +227,22 @@ fn compute(
             if let Some(v) = *known {
                 return v;
             }
-            let c = compare(
-                references[i].prepared(),
-                references[j].prepared(),
-                &settings.cp.compare,
-            );
+            let distance = match (references[i].prepared(), references[j].prepared()) {
+                (Ok(a), Ok(b)) => compare(&a, &b, &settings.cp.compare).distance,
+                // An entry gone from the cache since the library was
+                // opened: the pair counts as not compared (one log line).
+                (Err(e), _) | (_, Err(e)) => {
+                    if !warned.swap(true, std::sync::atomic::Ordering::Relaxed) {
+                        tracing::warn!("the calibration leaves pairs out: {e}");
+                    }
+                    f64::NAN
+                }
+            };
             progress(
                 done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1,
                 to_compute,
             );
-            c.distance
+            distance
         })
         .collect();
     let slot: Vec<Option<usize>> = {
