@@ -61,6 +61,7 @@ mod io_roundtrip;
 mod io_synth;
 mod library_confidence;
 mod library_heldout;
+mod library_shards;
 mod lm_classify;
 mod lm_daemon;
 mod lm_propagate;

@@ -23,5 +23,6 @@ pub mod library;
 pub mod mesh_io;
 pub mod pipeline;
 pub mod present;
+pub mod shard;
 pub mod table;
 pub mod volume;

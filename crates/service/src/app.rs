@@ -8,6 +8,7 @@ use crate::config::{Config, ConfigError};
 use crate::daemon::{LoadError, LoadedLibrary, Loader};
 use crate::identify::{self, Calibration};
 use morphoid_data::library::{self, BuildOutcome, Cache, CacheError, Library, LibraryError};
+use morphoid_data::shard::Shard;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -120,6 +121,118 @@ pub enum BuildError {
     /// The cache cannot be used.
     #[error(transparent)]
     Cache(#[from] CacheError),
+    /// A calibration shard cannot be written, read or merged.
+    #[error(transparent)]
+    Shard(#[from] identify::CalibrationShardError),
+    /// The configuration does not calibrate this library.
+    #[error("{references} references and `[library] calibrate = {calibrate}`: this library is not calibrated (it needs calibrate = true and at least {min} references)")]
+    NotCalibrated {
+        /// References prepared.
+        references: usize,
+        /// The configuration's `[library] calibrate`.
+        calibrate: bool,
+        /// The fewest references a calibration holds out.
+        min: usize,
+    },
+}
+
+/// `morphoid library build --shard K/N`: only the references of part `K`
+/// of `N` of the library prepared into its cache, for one task of a
+/// cluster job array (see [`library::build_shard`]); no calibration.
+pub fn build_library_shard(
+    config: &Config,
+    shard: Shard,
+    progress: impl Fn(Progress) + Sync,
+) -> Result<LibraryBuild, BuildError> {
+    let lib = config.open_library()?;
+    let cache = config.open_cache()?;
+    let total = shard.range(lib.members().len()).len();
+    let done = AtomicUsize::new(0);
+    let outcome = library::build_shard(&lib, &cache, &config.settings(), shard, |_| {
+        let done = done.fetch_add(1, Ordering::Relaxed) + 1;
+        progress(Progress::Preparing { done, total });
+    });
+    Ok(LibraryBuild {
+        library: lib,
+        cache,
+        outcome,
+        calibration: None,
+    })
+}
+
+/// `morphoid library calibrate --shard K/N`: the library opened (and any
+/// reference not yet prepared, prepared), then part `K` of `N` of its
+/// calibration's comparisons made, for one task of a cluster job array.
+/// An error when the configuration does not calibrate this library.
+pub fn calibration_shard(
+    config: &Config,
+    shard: Shard,
+    progress: impl Fn(Progress) + Sync,
+) -> Result<identify::CalibrationShard, BuildError> {
+    let (_, cache, outcome) = open_prepared(config, &progress)?;
+    let settings = config.settings();
+    Ok(identify::calibration_shard(
+        outcome.references(),
+        &settings,
+        Some(&cache),
+        shard,
+        |done, total| progress(Progress::Calibrating { done, total }),
+    ))
+}
+
+/// `morphoid library calibrate merge FILE…`: the calibration of the
+/// library assembled from the shard files of one job array, stored in its
+/// cache exactly as `library build` stores a calibration computed on one
+/// machine, and fitted.
+pub fn merge_calibration(
+    config: &Config,
+    files: &[PathBuf],
+    progress: impl Fn(Progress) + Sync,
+) -> Result<LibraryBuild, BuildError> {
+    let shards = files
+        .iter()
+        .map(|f| Ok((f.clone(), identify::CalibrationShard::read(f)?)))
+        .collect::<Result<Vec<_>, identify::CalibrationShardError>>()?;
+    let (lib, cache, outcome) = open_prepared(config, &progress)?;
+    let distances = identify::merge_calibration_shards(
+        outcome.references(),
+        &config.settings(),
+        &cache,
+        &shards,
+    )?;
+    let calibration = Some(Calibration::fit(distances, lib.labels()));
+    Ok(LibraryBuild {
+        library: lib,
+        cache,
+        outcome,
+        calibration,
+    })
+}
+
+/// The configured library, its cache and every reference prepared (or
+/// taken from the cache); an error when the configuration does not
+/// calibrate it.
+fn open_prepared(
+    config: &Config,
+    progress: &(impl Fn(Progress) + Sync),
+) -> Result<(Library, Cache, BuildOutcome), BuildError> {
+    let lib = config.open_library()?;
+    let cache = config.open_cache()?;
+    let total = lib.members().len();
+    let done = AtomicUsize::new(0);
+    let outcome = library::build(&lib, &cache, &config.settings(), |_| {
+        let done = done.fetch_add(1, Ordering::Relaxed) + 1;
+        progress(Progress::Preparing { done, total });
+    })?;
+    let n = outcome.references().len();
+    if !calibrates(config, n) {
+        return Err(BuildError::NotCalibrated {
+            references: n,
+            calibrate: config.library.calibrate,
+            min: identify::MIN_HELD,
+        });
+    }
+    Ok((lib, cache, outcome))
 }
 
 /// `morphoid library build`: every reference of the configured library

@@ -518,6 +518,44 @@ pub fn build(
     Ok(out)
 }
 
+/// Prepare only the references of `shard` (a contiguous part of the
+/// library's sorted members) into `cache`, for a cluster job array whose
+/// tasks share the cache: nothing else in the cache is touched (no stale
+/// entry removed, no index written), so tasks never undo each other's
+/// work. A `build` of the whole library afterwards finds every entry.
+pub fn build_shard(
+    library: &Library,
+    cache: &Cache,
+    settings: &Settings,
+    shard: crate::shard::Shard,
+    progress: impl Fn(&str) + Sync,
+) -> BuildOutcome {
+    let members = &library.members[shard.range(library.members.len())];
+    let no_index = Index::default();
+    let results: Vec<Result<Built, PrepareError>> = members
+        .par_iter()
+        .map(|m| {
+            let r = build_member(m, &no_index, cache, settings);
+            progress(&m.name);
+            r
+        })
+        .collect();
+    let mut out = BuildOutcome::default();
+    for (m, r) in members.iter().zip(results) {
+        match r {
+            Ok(built) => match built.origin {
+                Origin::Cache => out.reused += 1,
+                Origin::Prepared => out.prepared += 1,
+            },
+            Err(error) => out.failures.push(Failure {
+                name: m.name.clone(),
+                error,
+            }),
+        }
+    }
+    out
+}
+
 /// One member as [`build`] made it: the reference, its cache key, where
 /// it came from, and its index entry (none when its file's stamp is not
 /// to be trusted or its entry is not in the cache).

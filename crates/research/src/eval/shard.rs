@@ -23,6 +23,7 @@
 
 use morphoid_core::cp::{compare, CompareParams, Prepared};
 use morphoid_data::atomic_write::{write_atomic, AtomicWriteError};
+pub use morphoid_data::shard::Shard;
 use morphoid_data::table::csv_text::{rows, trimmed, CsvString, Row};
 use morphoid_data::table::DistanceMatrix;
 use rayon::prelude::*;
@@ -30,54 +31,14 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-/// Shard `index` of `count` (1-based), written `K/N`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Shard {
-    /// `K`, from 1 to `count`.
-    pub index: usize,
-    /// `N`, the number of shards.
-    pub count: usize,
-}
-
-impl std::fmt::Display for Shard {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}/{}", self.index, self.count)
-    }
-}
-
-impl std::str::FromStr for Shard {
-    type Err = String;
-
-    /// Parse `K/N` with `1 ≤ K ≤ N`.
-    fn from_str(s: &str) -> Result<Self, String> {
-        let bad = || format!("`{s}`: a shard is K/N with 1 ≤ K ≤ N, e.g. 2/8");
-        let (k, n) = s.split_once('/').ok_or_else(bad)?;
-        let index: usize = k.trim().parse().map_err(|_| bad())?;
-        let count: usize = n.trim().parse().map_err(|_| bad())?;
-        if index == 0 || index > count {
-            return Err(bad());
-        }
-        Ok(Shard { index, count })
-    }
-}
-
 /// Number of unordered pairs of `n` specimens.
 pub fn pair_count(n: usize) -> usize {
     n * n.saturating_sub(1) / 2
 }
 
-/// The positions `[start, end)` in the row-major pair list of `n`
-/// specimens that `shard` covers: `start = ⌊(K−1)·P/N⌋`, `end = ⌊K·P/N⌋`.
-fn shard_range(n: usize, shard: Shard) -> std::ops::Range<usize> {
-    let p = pair_count(n) as u128;
-    let count = shard.count.max(1) as u128;
-    let at = |k: usize| (k as u128 * p / count) as usize;
-    at(shard.index.saturating_sub(1))..at(shard.index.min(shard.count))
-}
-
 /// The pairs `(i, j)`, `i < j`, of `shard`, in row-major order.
 pub fn shard_pairs(n: usize, shard: Shard) -> Vec<(usize, usize)> {
-    let range = shard_range(n, shard);
+    let range = shard.range(pair_count(n));
     if range.is_empty() {
         return Vec::new();
     }
@@ -219,7 +180,7 @@ impl ShardFile {
             .ok_or_else(|| err(1, "not a morphoid matrix shard".into()))?
             .trim()
             .parse()
-            .map_err(|m| err(1, m))?;
+            .map_err(|e: morphoid_data::shard::ShardSyntax| err(1, e.to_string()))?;
         let (second, rest) = rest.split_once('\n').unwrap_or((rest, ""));
         let content: Vec<Option<String>> = second
             .trim_end_matches('\r')
@@ -461,7 +422,7 @@ pub fn merge_shards(shards: &[(PathBuf, ShardFile)]) -> Result<DistanceMatrix, S
     let mut seen = vec![false; pair_count(n)];
     let row_start = |i: usize| i * n - i * (i + 1) / 2;
     for (path, s) in shards {
-        let range = shard_range(n, s.shard);
+        let range = s.shard.range(pair_count(n));
         for p in &s.pairs {
             if p.a >= p.b || p.b >= n {
                 return Err(ShardError::Mismatch(format!(
@@ -598,7 +559,7 @@ mod tests {
                     .collect();
                 assert_eq!(all, expected, "n {n}, {count} shards");
                 let sizes: Vec<usize> = (1..=count)
-                    .map(|index| shard_range(n, Shard { index, count }).len())
+                    .map(|index| Shard { index, count }.range(pair_count(n)).len())
                     .collect();
                 let (lo, hi) = (sizes.iter().min().unwrap(), sizes.iter().max().unwrap());
                 assert!(hi - lo <= 1, "{sizes:?}");

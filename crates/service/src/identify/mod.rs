@@ -8,10 +8,11 @@ mod calibration;
 mod nearest;
 mod screen;
 
-pub(crate) use calibration::{calibratable, median_sample};
+pub(crate) use calibration::{calibratable, median_sample, MIN_HELD};
 pub use calibration::{
-    expected_calibration_error, reference_distances, reliability, roc_auc, share_caught_at,
-    Calibration, ReferenceDistances,
+    calibration_shard, expected_calibration_error, merge_calibration_shards, reference_distances,
+    reliability, roc_auc, share_caught_at, Calibration, CalibrationShard, CalibrationShardError,
+    ReferenceDistances,
 };
 pub use nearest::{
     identify, Confidence, DistanceRow, Identification, LandmarkPoint, RankResult, ScanLandmarks,

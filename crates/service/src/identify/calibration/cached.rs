@@ -4,6 +4,7 @@
 //! distances), so a changed, added or removed reference or changed
 //! settings compute them again.
 
+use super::shard::CalibrationShardError;
 use super::{median_sample, ReferenceDistances};
 use crate::identify::screened_references;
 use morphoid_core::cp::{compare, ScreenParams, Signature};
@@ -14,6 +15,7 @@ use morphoid_data::pipeline::Settings;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
+use std::path::PathBuf;
 
 /// Most references held out in the calibration: a larger library holds
 /// out this many (those whose content hash sorts first, a fixed sample),
@@ -30,7 +32,17 @@ const FORMAT: u32 = 2;
 const PREFIX: &str = "calibration-";
 const EXTENSION: &str = "dist";
 
-#[derive(Serialize, Deserialize)]
+/// [`Entry`] as written (the same layout, borrowed).
+#[derive(Serialize)]
+struct EntryOut<'a> {
+    format: u32,
+    key: &'a str,
+    settings: &'a str,
+    hashes: Vec<&'a str>,
+    distances: &'a ReferenceDistances,
+}
+
+#[derive(Deserialize)]
 struct Entry {
     format: u32,
     key: String,
@@ -45,7 +57,7 @@ struct Entry {
 /// content of both references: what a library that has changed since
 /// (a reference added, removed or replaced) need not compute again.
 #[derive(Default)]
-struct Known {
+pub(super) struct Known {
     index: std::collections::HashMap<(String, String), usize>,
     distances: Option<ReferenceDistances>,
 }
@@ -88,7 +100,7 @@ fn settings_key(settings: &Settings) -> String {
 
 /// The distances of the calibration files in `cache` made with the same
 /// settings (the newest, when several are there).
-fn known_distances(cache: &Cache, settings: &Settings) -> Known {
+pub(super) fn known_distances(cache: &Cache, settings: &Settings) -> Known {
     let want = settings_key(settings);
     let Ok(entries) = std::fs::read_dir(cache.dir()) else {
         return Known::default();
@@ -123,7 +135,7 @@ fn known_distances(cache: &Cache, settings: &Settings) -> Known {
 
 /// The key of a library's distances: its references (name and content, in
 /// order) and every setting the distances depend on.
-fn key(references: &[CachedReference], settings: &Settings) -> String {
+pub(super) fn key(references: &[CachedReference], settings: &Settings) -> String {
     let mut h = Sha256::new();
     h.update(FORMAT.to_le_bytes());
     for r in references {
@@ -192,19 +204,31 @@ fn calibration_pairs_of(
     pairs
 }
 
-/// The cP distances between the held-out references and the references
-/// [`calibration_pairs_of`] names (NaN for the others), pairs in parallel
-/// (each unordered pair once), those `known` holds taken from it;
-/// `progress` gets the number of pairs done and of pairs to compute.
-fn compute(
+/// What a calibration compares: the held-out references (ascending) and
+/// the pairs [`calibration_pairs_of`] names, in ascending order.
+pub(super) struct CalibrationPlan {
+    held: Vec<usize>,
+    pub(super) pairs: Vec<(usize, usize)>,
+}
+
+impl CalibrationPlan {
+    pub(super) fn of(references: &[CachedReference], settings: &Settings) -> Self {
+        let held = held_out(references);
+        let pairs = calibration_pairs_of(references, &held, settings);
+        CalibrationPlan { held, pairs }
+    }
+}
+
+/// The cP distances of `pairs`, in parallel (each unordered pair once),
+/// those `known` holds taken from it; `progress` gets the number of pairs
+/// done and of pairs to compute.
+pub(super) fn pair_distances(
     references: &[CachedReference],
+    pairs: &[(usize, usize)],
     settings: &Settings,
     known: &Known,
     progress: &(impl Fn(usize, usize) + Sync),
-) -> ReferenceDistances {
-    let n = references.len();
-    let held = held_out(references);
-    let pairs = calibration_pairs_of(references, &held, settings);
+) -> Vec<f64> {
     let old = known.indices(references);
     let reused: Vec<Option<f64>> = pairs
         .iter()
@@ -220,7 +244,7 @@ fn compute(
     }
     let done = std::sync::atomic::AtomicUsize::new(0);
     let warned = std::sync::atomic::AtomicBool::new(false);
-    let values: Vec<f64> = pairs
+    pairs
         .par_iter()
         .zip(&reused)
         .map(|(&(i, j), known)| {
@@ -244,7 +268,19 @@ fn compute(
             );
             distance
         })
-        .collect();
+        .collect()
+}
+
+/// The table of `plan`'s held-out references: row `k` holds the distances
+/// of `plan.held[k]` to every reference (0 to itself, NaN where no pair
+/// was compared), from `values`, one per pair of `plan.pairs`.
+pub(super) fn distance_table(
+    references: &[CachedReference],
+    plan: CalibrationPlan,
+    values: &[f64],
+) -> ReferenceDistances {
+    let n = references.len();
+    let CalibrationPlan { held, pairs } = plan;
     let slot: Vec<Option<usize>> = {
         let mut s = vec![None; n];
         for (k, &h) in held.iter().enumerate() {
@@ -256,7 +292,7 @@ fn compute(
     for (k, &h) in held.iter().enumerate() {
         rows[k][h] = 0.0;
     }
-    for (&(i, j), &v) in pairs.iter().zip(&values) {
+    for (&(i, j), &v) in pairs.iter().zip(values) {
         if let Some(k) = slot[i] {
             rows[k][j] = v;
         }
@@ -267,6 +303,19 @@ fn compute(
     let names = references.iter().map(|r| r.name().to_string()).collect();
     // The shape holds by construction; an error here would be a bug.
     ReferenceDistances { names, held, rows }
+}
+
+/// The calibration's distances among `references`, computed now (those
+/// `known` holds taken from it).
+fn compute(
+    references: &[CachedReference],
+    settings: &Settings,
+    known: &Known,
+    progress: &(impl Fn(usize, usize) + Sync),
+) -> ReferenceDistances {
+    let plan = CalibrationPlan::of(references, settings);
+    let values = pair_distances(references, &plan.pairs, settings, known, progress);
+    distance_table(references, plan, &values)
 }
 
 /// The distances among `references` (prepared with `settings`) from
@@ -285,7 +334,7 @@ pub fn reference_distances(
     progress: impl Fn(usize, usize) + Sync,
 ) -> ReferenceDistances {
     let key = key(references, settings);
-    let path = cache.map(|c| c.dir().join(format!("{PREFIX}{key}.{EXTENSION}")));
+    let path = cache.map(|c| calibration_path(c, references, settings));
     if let Some(path) = &path {
         if let Ok(bytes) = std::fs::read(path) {
             match postcard::from_bytes::<Entry>(&bytes) {
@@ -309,27 +358,41 @@ pub fn reference_distances(
         let known = cache.map_or_else(Known::default, |c| known_distances(c, settings));
         compute(references, settings, &known, &progress)
     };
-    if let (Some(cache), Some(path)) = (cache, &path) {
-        let entry = Entry {
-            format: FORMAT,
-            key,
-            settings: settings_key(settings),
-            hashes: references
-                .iter()
-                .map(|r| r.content_hash().to_string())
-                .collect(),
-            distances,
-        };
-        let stored = postcard::to_stdvec(&entry)
-            .map_err(|e| e.to_string())
-            .and_then(|bytes| write_atomic(path, &bytes).map_err(|e| e.to_string()));
-        match stored {
-            Ok(()) => remove_others(cache, path),
-            Err(e) => tracing::warn!("calibration not stored in the cache: {e}"),
+    if let Some(cache) = cache {
+        if let Err(e) = store(cache, references, settings, &distances) {
+            tracing::warn!("calibration not stored in the cache: {e}");
         }
-        return entry.distances;
     }
     distances
+}
+
+/// The file in `cache` that holds the distances of `references` under
+/// `settings`.
+fn calibration_path(cache: &Cache, references: &[CachedReference], settings: &Settings) -> PathBuf {
+    let key = key(references, settings);
+    cache.dir().join(format!("{PREFIX}{key}.{EXTENSION}"))
+}
+
+/// Store `distances` (of `references` under `settings`) in `cache`,
+/// replacing the library's older calibration files.
+pub(super) fn store(
+    cache: &Cache,
+    references: &[CachedReference],
+    settings: &Settings,
+    distances: &ReferenceDistances,
+) -> Result<(), CalibrationShardError> {
+    let path = calibration_path(cache, references, settings);
+    let entry = EntryOut {
+        format: FORMAT,
+        key: &key(references, settings),
+        settings: &settings_key(settings),
+        hashes: references.iter().map(|r| r.content_hash()).collect(),
+        distances,
+    };
+    let bytes = postcard::to_stdvec(&entry).map_err(CalibrationShardError::Encode)?;
+    write_atomic(&path, &bytes)?;
+    remove_others(cache, &path);
+    Ok(())
 }
 
 /// Delete the calibration files of `cache` other than `keep` (older

@@ -22,10 +22,14 @@
 //! among the references are computed and cached by [`cached`].
 
 mod cached;
+mod shard;
 mod statistic;
 
 pub use cached::reference_distances;
 use cached::CALIBRATION_SAMPLE;
+pub use shard::{
+    calibration_shard, merge_calibration_shards, CalibrationShard, CalibrationShardError,
+};
 use statistic::{
     conformal_quantile, fit_rank_weight, mean_within_taxon_rank, rank_term, relative_distance,
 };
