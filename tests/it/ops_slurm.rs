@@ -175,7 +175,20 @@ fn wait_for(limit: Duration, what: &str, mut done: impl FnMut() -> bool) {
 /// `bash docs/slurm-matrix.sh ARGS` in `dir` with only `env` set (and
 /// PATH, HOME, SLURM_CONF): as from a fresh login shell.
 fn script(cluster: &Cluster, dir: &Path, args: &[&str], env: &[(&str, &str)]) -> String {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/slurm-matrix.sh");
+    run_script("slurm-matrix.sh", cluster, dir, args, env)
+}
+
+/// `bash docs/NAME ARGS`, as [`script`] runs slurm-matrix.sh.
+fn run_script(
+    name: &str,
+    cluster: &Cluster,
+    dir: &Path,
+    args: &[&str],
+    env: &[(&str, &str)],
+) -> String {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("docs")
+        .join(name);
     let out = Command::new("bash")
         .arg(script)
         .args(args)
@@ -192,8 +205,8 @@ fn script(cluster: &Cluster, dir: &Path, args: &[&str], env: &[(&str, &str)]) ->
         String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr)
     );
-    assert!(out.status.success(), "slurm-matrix.sh {args:?}: {text}");
-    println!("slurm-matrix.sh {args:?}: {}", text.trim());
+    assert!(out.status.success(), "{name} {args:?}: {text}");
+    println!("{name} {args:?}: {}", text.trim());
     text
 }
 
@@ -208,7 +221,13 @@ fn array_id(message: &str) -> String {
 }
 
 fn wait_for_matrix(cluster: &Cluster, path: &Path, outdir: &Path) {
-    wait_for(Duration::from_secs(3600), "the merged matrix", || {
+    wait_for_file(cluster, path, outdir, "the merged matrix")
+}
+
+/// Wait until `path` exists; a queue that empties without it shows the
+/// logs in `outdir`.
+fn wait_for_file(cluster: &Cluster, path: &Path, outdir: &Path, what: &str) {
+    wait_for(Duration::from_secs(3600), what, || {
         if path.is_file() {
             return true;
         }
@@ -227,7 +246,7 @@ fn wait_for_matrix(cluster: &Cluster, path: &Path, outdir: &Path) {
                     })
                     .collect();
                 panic!(
-                    "the queue is empty and there is no matrix:\n{}",
+                    "the queue is empty and there is no {what}:\n{}",
                     logs.join("\n")
                 );
             }
@@ -236,9 +255,9 @@ fn wait_for_matrix(cluster: &Cluster, path: &Path, outdir: &Path) {
     });
 }
 
-#[test]
-#[ignore = "starts a Slurm cluster (root, slurm-wlm, munge); minutes"]
-fn the_job_array_script_merges_to_the_single_machine_matrix_also_after_a_killed_task() {
+/// Root and the Slurm and munge programs, or a failure that says what
+/// to install.
+fn require_slurm() {
     assert!(
         crate::support::faults::have_root("ops_slurm"),
         "needs root (munged, slurmctld, slurmd)"
@@ -253,6 +272,12 @@ fn the_job_array_script_merges_to_the_single_machine_matrix_also_after_a_killed_
             "{tool} missing: apt-get install slurm-wlm munge"
         );
     }
+}
+
+#[test]
+#[ignore = "starts a Slurm cluster (root, slurm-wlm, munge); minutes"]
+fn the_job_array_script_merges_to_the_single_machine_matrix_also_after_a_killed_task() {
+    require_slurm();
     let Some(teeth) = tooth_paths() else { return };
     let work = tempfile::tempdir().unwrap();
     // Slurm and munge insist on a traversable, non-world-writable folder.
@@ -343,4 +368,141 @@ fn the_job_array_script_merges_to_the_single_machine_matrix_also_after_a_killed_
     std::fs::remove_file(second.join("matrix.csv")).unwrap();
     script(&cluster, work.path(), &["merge", "runs/second"], &[]);
     assert_eq!(std::fs::read(second.join("matrix.csv")).unwrap(), expected);
+}
+
+/// The library's calibration file in the cache folder `root` (its one
+/// library subfolder) and its bytes.
+fn calibration_file(root: &Path) -> (String, Vec<u8>) {
+    let sub = std::fs::read_dir(root)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| p.is_dir())
+        .expect("a library cache folder");
+    let file = std::fs::read_dir(&sub)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| {
+            p.file_name()
+                .is_some_and(|n| n.to_string_lossy().starts_with("calibration-"))
+        })
+        .expect("a calibration file");
+    let name = file.file_name().unwrap().to_string_lossy().into_owned();
+    (name, std::fs::read(&file).unwrap())
+}
+
+/// `docs/slurm-library.sh` on 12 real teeth in 3 tasks per array: the
+/// calibration the merge job stores is the single machine's, byte for
+/// byte, and so is every prepared reference.
+#[test]
+#[ignore = "starts a Slurm cluster (root, slurm-wlm, munge); minutes"]
+fn the_library_job_arrays_store_the_single_machine_calibration() {
+    require_slurm();
+    let Some(teeth) = tooth_paths() else { return };
+    let work = tempfile::tempdir().unwrap();
+    set_mode(work.path(), 0o755);
+    let lib = work.path().join("library");
+    std::fs::create_dir(&lib).unwrap();
+    let names: Vec<String> = teeth
+        .iter()
+        .take(12)
+        .map(|t| {
+            std::os::unix::fs::symlink(t, lib.join(t.file_name().unwrap())).unwrap();
+            t.file_stem().unwrap().to_string_lossy().into_owned()
+        })
+        .collect();
+    let labels_of = crate::support::data::teeth_dir()
+        .unwrap()
+        .join("labels.csv");
+    let text = std::fs::read_to_string(labels_of).unwrap();
+    let mut lines = text.lines();
+    let mut labels = format!("{}\n", lines.next().unwrap());
+    for line in lines {
+        if names
+            .iter()
+            .any(|n| line.split(',').next() == Some(n.as_str()))
+        {
+            labels += &format!("{line}\n");
+        }
+    }
+    std::fs::write(lib.join("labels.csv"), labels).unwrap();
+    let config = |name: &str| -> PathBuf {
+        let path = work.path().join(format!("{name}.toml"));
+        let text = format!(
+            "[library]\ndir = {:?}\ncache = {:?}\ncalibrate = true\n[database]\npath = {:?}\n",
+            lib,
+            work.path().join(format!("cache-{name}")),
+            work.path().join(format!("{name}.sqlite"))
+        );
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let single = config("single");
+    let status = Command::new(BIN)
+        .arg("--config")
+        .arg(&single)
+        .args(["library", "build"])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let expected = calibration_file(&work.path().join("cache-single"));
+
+    let cluster_dir = work.path().join("cluster");
+    std::fs::create_dir(&cluster_dir).unwrap();
+    set_mode(&cluster_dir, 0o755);
+    let cluster = Cluster::start(&cluster_dir);
+    config("cluster");
+    let env = [
+        ("CONFIG", "cluster.toml"),
+        ("OUTDIR", "runs/library"),
+        ("SHARDS", "3"),
+        ("MORPHOID", BIN),
+    ];
+    let started = Instant::now();
+    let message = run_script("slurm-library.sh", &cluster, work.path(), &[], &env);
+    assert!(message.contains("calibration array"), "{message}");
+    let outdir = work.path().join("runs/library");
+    // The merge job's log ends with the calibration it stored.
+    let merged = || -> Option<String> {
+        std::fs::read_dir(&outdir)
+            .ok()?
+            .flatten()
+            .find(|e| e.file_name().to_string_lossy().starts_with("merge-"))
+            .and_then(|e| std::fs::read_to_string(e.path()).ok())
+            .filter(|log| log.contains("calibration genus"))
+    };
+    wait_for(
+        Duration::from_secs(3600),
+        "the merge job's calibration",
+        || {
+            if merged().is_some() {
+                return true;
+            }
+            let queue = cluster.output("squeue", &["-h"]);
+            if queue.trim().is_empty() {
+                std::thread::sleep(Duration::from_secs(2));
+                wait_for_file(
+                    &cluster,
+                    &outdir.join("no such file"),
+                    &outdir,
+                    "calibration",
+                );
+            }
+            false
+        },
+    );
+    println!("library arrays: {:.0} s", started.elapsed().as_secs_f64());
+    let got = calibration_file(&work.path().join("cache-cluster"));
+    assert_eq!(
+        got.0, expected.0,
+        "the calibration of another library or settings"
+    );
+    assert!(
+        got.1 == expected.1,
+        "the merged calibration differs from the single machine's"
+    );
+    for k in 1..=3 {
+        assert!(outdir.join(format!("calibration-{k}-of-3.bin")).is_file());
+    }
 }

@@ -445,24 +445,25 @@ impl Classifier {
     /// and mark the others removed: what a new or replaced database needs
     /// before results can point at them. Registering again changes nothing.
     pub fn register_references(&self, store: &mut Store) -> Result<(), StoreError> {
-        for r in self.references.iter() {
-            let labels: store::Labels = self
-                .labels
-                .ranks()
-                .iter()
-                .map(|rank| {
-                    (
-                        rank.clone(),
-                        self.labels.get(r.name(), rank).map(str::to_string),
-                    )
-                })
-                .collect();
-            store.register_reference(r.name(), r.content_hash(), &labels)?;
-            store.mark_reference_prepared(r.name())?;
-        }
-        let names: Vec<&str> = self.references.iter().map(|r| r.name()).collect();
-        store.remove_references_except(&names)?;
-        Ok(())
+        let records: Vec<(&str, &str, store::Labels)> = self
+            .references
+            .iter()
+            .map(|r| {
+                let labels: store::Labels = self
+                    .labels
+                    .ranks()
+                    .iter()
+                    .map(|rank| {
+                        (
+                            rank.clone(),
+                            self.labels.get(r.name(), rank).map(str::to_string),
+                        )
+                    })
+                    .collect();
+                (r.name(), r.content_hash(), labels)
+            })
+            .collect();
+        store.record_prepared_library(&records)
     }
 
     /// Identify the surface in the file `path`, or the volume (slice
@@ -766,18 +767,19 @@ impl Classifier {
     /// The indices of the references a scan prepared as `scan` is compared
     /// with: those the screen keeps (all, in a library too small to
     /// screen), and, when the answer will carry a confidence, those its
-    /// novelty score reads ([`identify::median_sample`]).
+    /// novelty score reads (the calibration's median sample).
     fn screened(&self, scan: &cp::Prepared) -> Vec<usize> {
         let params = &self.settings.cp.screen;
         let n = self.references.len();
         if !params.screens(n) {
             return (0..n).collect();
         }
-        let always = if self.calibration.get().is_some() {
-            identify::median_sample(n)
-        } else {
-            Vec::new()
-        };
+        // The calibration's sample, in the same library order.
+        let always = self
+            .calibration
+            .get()
+            .map(|c| c.median_sample().to_vec())
+            .unwrap_or_default();
         identify::screened_references(
             &cp::shape_signature(scan),
             &self.signatures,

@@ -365,6 +365,10 @@ const LIBRARY_EXTENSIONS: [&str; 5] = ["csv", "fcsv", "mrk.json", "pp", "tps"];
 /// exists). More than one is ambiguous; the caller reports it.
 pub fn library_files(dir: &Path, name: &str) -> Vec<PathBuf> {
     let folder = dir.join("landmarks");
+    // Most libraries have no landmarks: one look, not one per format.
+    if !folder.is_dir() {
+        return Vec::new();
+    }
     LIBRARY_EXTENSIONS
         .iter()
         .map(|ext| folder.join(format!("{name}.{ext}")))

@@ -8,7 +8,7 @@ mod calibration;
 mod nearest;
 mod screen;
 
-pub(crate) use calibration::{calibratable, median_sample, MIN_HELD};
+pub(crate) use calibration::{calibratable, MIN_HELD};
 pub use calibration::{
     calibration_shard, expected_calibration_error, merge_calibration_shards, reference_distances,
     reliability, roc_auc, share_caught_at, Calibration, CalibrationShard, CalibrationShardError,

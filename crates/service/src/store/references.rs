@@ -27,44 +27,38 @@ impl Store {
         let tx = self
             .conn
             .transaction_with_behavior(TransactionBehavior::Immediate)?;
-        tx.execute(
-            &format!(
-                "UPDATE reference SET state = 'superseded'
-                 WHERE name = ?1 AND content_hash <> ?2 AND {CURRENT}"
-            ),
-            params![name, content_hash],
-        )?;
-        let existing: Option<(i64, String)> = tx
-            .query_row(
-                "SELECT id, state FROM reference WHERE name = ?1 AND content_hash = ?2",
-                params![name, content_hash],
-                |r| Ok((r.get("id")?, r.get("state")?)),
-            )
-            .optional()?;
-        let id = match existing {
-            Some((id, state)) => {
-                let revived = if state == "superseded" || state == "removed" {
-                    "pending"
-                } else {
-                    state.as_str()
-                };
-                tx.execute(
-                    "UPDATE reference SET labels = ?2, state = ?3 WHERE id = ?1",
-                    params![id, labels_json, revived],
-                )?;
-                id
-            }
-            None => {
-                tx.execute(
-                    "INSERT INTO reference (name, content_hash, labels, state, added_at)
-                     VALUES (?1, ?2, ?3, 'pending', ?4)",
-                    params![name, content_hash, labels_json, now_ms()],
-                )?;
-                tx.last_insert_rowid()
-            }
-        };
+        let id = register_in(&tx, name, content_hash, &labels_json)?;
         tx.commit()?;
         Ok(id)
+    }
+
+    /// Record a prepared library at once: each of `references` (name,
+    /// content hash, labels) registered as [`Store::register_reference`]
+    /// and marked prepared as [`Store::mark_reference_prepared`] do, and
+    /// every other current reference marked removed. One transaction, so
+    /// that a library of thousands is recorded in one write, and a reader
+    /// never sees half of it.
+    pub fn record_prepared_library(
+        &mut self,
+        references: &[(&str, &str, Labels)],
+    ) -> Result<(), StoreError> {
+        let tx = self
+            .conn
+            .transaction_with_behavior(TransactionBehavior::Immediate)?;
+        let now = now_ms();
+        for (name, content_hash, labels) in references {
+            let labels_json = to_json("reference.labels", labels)?;
+            let id = register_in(&tx, name, content_hash, &labels_json)?;
+            tx.execute(
+                "UPDATE reference SET state = 'prepared', error = NULL, prepared_at = ?2
+                 WHERE id = ?1",
+                params![id, now],
+            )?;
+        }
+        let keep: Vec<&str> = references.iter().map(|(name, _, _)| *name).collect();
+        remove_except_in(&tx, &keep)?;
+        tx.commit()?;
+        Ok(())
     }
 
     /// Mark the current version of `name` prepared (now).
@@ -96,23 +90,7 @@ impl Store {
         let tx = self
             .conn
             .transaction_with_behavior(TransactionBehavior::Immediate)?;
-        tx.execute_batch("CREATE TEMP TABLE IF NOT EXISTS keep_name (name TEXT PRIMARY KEY)")?;
-        tx.execute("DELETE FROM temp.keep_name", [])?;
-        {
-            let mut insert =
-                tx.prepare("INSERT OR IGNORE INTO temp.keep_name (name) VALUES (?1)")?;
-            for name in keep {
-                insert.execute([name])?;
-            }
-        }
-        let n = tx.execute(
-            &format!(
-                "UPDATE reference SET state = 'removed'
-                 WHERE {CURRENT} AND name NOT IN (SELECT name FROM temp.keep_name)"
-            ),
-            [],
-        )?;
-        tx.execute("DELETE FROM temp.keep_name", [])?;
+        let n = remove_except_in(&tx, keep)?;
         tx.commit()?;
         Ok(n)
     }
@@ -156,4 +134,70 @@ fn one_reference_updated(n: usize, name: &str) -> Result<(), StoreError> {
         return Err(StoreError::UnknownReference(name.to_string()));
     }
     Ok(())
+}
+
+/// [`Store::register_reference`] inside the transaction `tx`.
+fn register_in(
+    tx: &rusqlite::Transaction<'_>,
+    name: &str,
+    content_hash: &str,
+    labels_json: &str,
+) -> Result<i64, StoreError> {
+    tx.execute(
+        &format!(
+            "UPDATE reference SET state = 'superseded'
+             WHERE name = ?1 AND content_hash <> ?2 AND {CURRENT}"
+        ),
+        params![name, content_hash],
+    )?;
+    let existing: Option<(i64, String)> = tx
+        .query_row(
+            "SELECT id, state FROM reference WHERE name = ?1 AND content_hash = ?2",
+            params![name, content_hash],
+            |r| Ok((r.get("id")?, r.get("state")?)),
+        )
+        .optional()?;
+    Ok(match existing {
+        Some((id, state)) => {
+            let revived = if state == "superseded" || state == "removed" {
+                "pending"
+            } else {
+                state.as_str()
+            };
+            tx.execute(
+                "UPDATE reference SET labels = ?2, state = ?3 WHERE id = ?1",
+                params![id, labels_json, revived],
+            )?;
+            id
+        }
+        None => {
+            tx.execute(
+                "INSERT INTO reference (name, content_hash, labels, state, added_at)
+                 VALUES (?1, ?2, ?3, 'pending', ?4)",
+                params![name, content_hash, labels_json, now_ms()],
+            )?;
+            tx.last_insert_rowid()
+        }
+    })
+}
+
+/// [`Store::remove_references_except`] inside the transaction `tx`.
+fn remove_except_in(tx: &rusqlite::Transaction<'_>, keep: &[&str]) -> Result<usize, StoreError> {
+    tx.execute_batch("CREATE TEMP TABLE IF NOT EXISTS keep_name (name TEXT PRIMARY KEY)")?;
+    tx.execute("DELETE FROM temp.keep_name", [])?;
+    {
+        let mut insert = tx.prepare("INSERT OR IGNORE INTO temp.keep_name (name) VALUES (?1)")?;
+        for name in keep {
+            insert.execute([name])?;
+        }
+    }
+    let n = tx.execute(
+        &format!(
+            "UPDATE reference SET state = 'removed'
+             WHERE {CURRENT} AND name NOT IN (SELECT name FROM temp.keep_name)"
+        ),
+        [],
+    )?;
+    tx.execute("DELETE FROM temp.keep_name", [])?;
+    Ok(n)
 }

@@ -25,8 +25,13 @@ pub(crate) const CALIBRATION_SAMPLE: usize = 200;
 /// Bumped whenever the file's layout or the meaning of the distances
 /// changes (2: rows of a screened library leave NaN where no comparison
 /// was made; each file names its references' content and its settings,
-/// so that a changed library reuses what it can).
-const FORMAT: u32 = 2;
+/// so that a changed library reuses what it can; 3: a library of more
+/// than [`CALIBRATION_SAMPLE`] compares the median sample chosen by name).
+const FORMAT: u32 = 3;
+
+/// Formats whose distances a changed library may reuse: every cP distance
+/// they hold is one this version computes (NaN where none was).
+const REUSABLE_FORMATS: [u32; 2] = [2, FORMAT];
 
 /// File name prefix and extension of the cached distances.
 const PREFIX: &str = "calibration-";
@@ -113,7 +118,7 @@ pub(super) fn known_distances(cache: &Cache, settings: &Settings) -> Known {
     let Some(entry) = newest
         .and_then(|(_, path)| std::fs::read(path).ok())
         .and_then(|bytes| postcard::from_bytes::<Entry>(&bytes).ok())
-        .filter(|e| e.format == FORMAT && e.settings == want)
+        .filter(|e| REUSABLE_FORMATS.contains(&e.format) && e.settings == want)
         .filter(|e| e.hashes.len() == e.distances.names.len())
     else {
         return Known::default();
@@ -183,7 +188,8 @@ fn calibration_pairs_of(
             .collect();
     }
     let signatures: Vec<Signature> = references.iter().map(|r| r.signature().clone()).collect();
-    let always = median_sample(n);
+    let names: Vec<&str> = references.iter().map(|r| r.name()).collect();
+    let always = median_sample(&names);
     let mut pairs: Vec<(usize, usize)> = held
         .iter()
         .flat_map(|&h| {

@@ -40,6 +40,7 @@ use super::nearest::{Confidence, DistanceRow, RankResult};
 use morphoid_core::stats::upper_median;
 use morphoid_data::table::Labels;
 use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
 use std::collections::HashMap;
 
 /// The share of scans of a taxon the library holds that may be flagged
@@ -61,17 +62,28 @@ pub(crate) fn calibratable(references: usize) -> bool {
 /// [`median_sample`]).
 const MEDIAN_SAMPLE: usize = 48;
 
-/// The references (indices in library order) over which a scan's median
-/// distance to a library of `n` references is taken, in the novelty score:
-/// all of them up to [`CALIBRATION_SAMPLE`], else [`MEDIAN_SAMPLE`] spread
-/// evenly over the library. A fixed sample, so that a screened
-/// identification, which compares the scan with these and with the
-/// references the screen keeps, scores it as the exhaustive one does.
-pub(crate) fn median_sample(n: usize) -> Vec<usize> {
-    if n <= CALIBRATION_SAMPLE {
-        return (0..n).collect();
+/// The references (ascending indices into `names`, the library's order)
+/// over which a scan's median distance to the library is taken, in the
+/// novelty score: all of them up to [`CALIBRATION_SAMPLE`], else the
+/// [`MEDIAN_SAMPLE`] whose names' SHA-256 sorts first. A fixed sample, so
+/// that a screened identification, which compares the scan with these and
+/// with the references the screen keeps, scores it as the exhaustive one
+/// does; chosen by name, so that a reference added to the library changes
+/// the sample by at most that reference (the calibration then compares
+/// only what involves it).
+pub(crate) fn median_sample<S: AsRef<str>>(names: &[S]) -> Vec<usize> {
+    if names.len() <= CALIBRATION_SAMPLE {
+        return (0..names.len()).collect();
     }
-    (0..MEDIAN_SAMPLE).map(|k| k * n / MEDIAN_SAMPLE).collect()
+    let mut order: Vec<([u8; 32], usize)> = names
+        .iter()
+        .enumerate()
+        .map(|(i, n)| (Sha256::digest(n.as_ref().as_bytes()).into(), i))
+        .collect();
+    order.sort_unstable();
+    let mut sample: Vec<usize> = order.iter().take(MEDIAN_SAMPLE).map(|&(_, i)| i).collect();
+    sample.sort_unstable();
+    sample
 }
 
 /// Fewest held-out references whose taxon the rest of the library holds,
@@ -213,6 +225,8 @@ pub struct RankCalibration {
 pub struct Calibration {
     index: HashMap<String, usize>,
     distances: ReferenceDistances,
+    /// [`median_sample`] of the references.
+    sample: Vec<usize>,
     /// Per calibrated rank (same order as `ranks`), the taxon of each
     /// reference.
     taxa: Vec<Vec<Option<String>>>,
@@ -268,6 +282,7 @@ impl Calibration {
             .collect();
         let mut out = Calibration {
             index,
+            sample: median_sample(&distances.names),
             distances,
             taxa: Vec::new(),
             ranks: Vec::new(),
@@ -286,6 +301,13 @@ impl Calibration {
             }
         }
         out
+    }
+
+    /// The references (ascending indices, library order) a scan's median
+    /// distance is taken over ([`median_sample`]): a screened
+    /// identification compares them too.
+    pub(crate) fn median_sample(&self) -> &[usize] {
+        &self.sample
     }
 
     /// The calibration at `rank` (`taxa`: each reference's taxon there),
@@ -387,9 +409,10 @@ impl Calibration {
         nearest: usize,
         distance: f64,
     ) -> Option<Evidence> {
-        let sampled: Vec<f64> = median_sample(scan.len())
-            .into_iter()
-            .filter_map(|j| scan.get(j).copied().flatten())
+        let sampled: Vec<f64> = self
+            .sample
+            .iter()
+            .filter_map(|&j| scan.get(j).copied().flatten())
             .collect();
         let median = upper_median(&sampled)?;
         let rank = if self.distances.is_complete() {
@@ -473,6 +496,42 @@ impl Calibration {
 mod tests {
     use super::*;
     use std::path::Path;
+
+    /// The median sample of a large library is chosen by name: a reference
+    /// added anywhere in the library's order changes it by at most itself.
+    #[test]
+    fn adding_a_reference_changes_the_median_sample_by_at_most_itself() {
+        let names: Vec<String> = (0..1000).map(|i| format!("ref{i:04}")).collect();
+        let sample = |names: &[String]| -> Vec<String> {
+            median_sample(names)
+                .into_iter()
+                .map(|i| names[i].clone())
+                .collect()
+        };
+        let before = sample(&names);
+        assert_eq!(before.len(), MEDIAN_SAMPLE);
+        let mut entered = 0;
+        for new in ["aaa", "ref0500x", "zzz", "ref0001a", "m", "q17", "x", "b2"] {
+            let mut grown = names.clone();
+            grown.push(new.to_string());
+            grown.sort();
+            let after = sample(&grown);
+            assert_eq!(after.len(), MEDIAN_SAMPLE);
+            let left: Vec<&String> = before.iter().filter(|n| !after.contains(n)).collect();
+            let came: Vec<&String> = after.iter().filter(|n| !before.contains(n)).collect();
+            assert!(
+                left.len() <= 1 && came.len() == left.len(),
+                "{left:?} {came:?}"
+            );
+            if let Some(c) = came.first() {
+                assert_eq!(c.as_str(), new);
+                entered += 1;
+            }
+        }
+        assert!(entered < 8, "a new name rarely enters the sample");
+        // A small library is its own sample.
+        assert_eq!(median_sample(&names[..150]), (0..150).collect::<Vec<_>>());
+    }
 
     /// Points on a line as specimens: genus `G<k>` sits around 10·k, its
     /// members 0.3 apart; distances are |x − y| (plus a floor, as cP
