@@ -338,6 +338,14 @@ impl WorkerState {
                     // never a second result; a file the database does not
                     // know is queued again by the next listing.
                     tracing::warn!("{}: identification not recorded: {e}", held.job.path);
+                    // Its file may be queued under another id in a
+                    // replaced database, and claimed there by a claim
+                    // reported failed: this thread now holds nothing, so
+                    // any row left running is pending again.
+                    let requeued = store.requeue_running_but(None)?;
+                    if requeued > 0 {
+                        tracing::info!("{requeued} scan(s) left running are pending again");
+                    }
                 }
                 Err(e) => {
                     self.held = Some(held);

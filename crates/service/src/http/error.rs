@@ -127,7 +127,9 @@ impl From<super::grow::GrowError> for ApiError {
             G::Add(A::Exists(_) | A::NotASurface(_) | A::Changed(_) | A::Read { .. }) => {
                 ApiError::Conflict(text)
             }
-            G::Add(A::Library(_) | A::Labels { .. } | A::Write(_)) => ApiError::Internal(text),
+            G::Add(A::Library(_) | A::Labels { .. } | A::Write(_) | A::Lock { .. }) => {
+                ApiError::Internal(text)
+            }
             G::Store(s) => s.into(),
         }
     }
