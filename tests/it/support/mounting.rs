@@ -279,7 +279,7 @@ fn squared_distance_to_outside(inside: &[bool], dims: [usize; 3]) -> Vec<f32> {
     for axis in 0..3 {
         let n = dims[axis];
         let lines: Vec<usize> = (0..d.len())
-            .filter(|&i| (i / strides[axis]) % n == 0)
+            .filter(|&i| (i / strides[axis]).is_multiple_of(n))
             .collect();
         for chunk in lines.chunks(4096) {
             let out: Vec<(usize, Vec<f64>)> = chunk

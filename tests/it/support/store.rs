@@ -46,7 +46,7 @@ pub(crate) fn outcome(seed: u64, n_refs: usize) -> ScanOutcome {
                 forward,
                 backward,
                 distance: forward.min(backward),
-                reflected: (i + seed as usize) % 2 == 0,
+                reflected: (i + seed as usize).is_multiple_of(2),
             }
         })
         .collect();

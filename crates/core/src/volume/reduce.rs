@@ -51,7 +51,7 @@ impl BlockAverage {
             }
         }
         self.next_slice += 1;
-        if self.next_slice % self.factor == 0 || self.next_slice == self.in_dims[2] {
+        if self.next_slice.is_multiple_of(self.factor) || self.next_slice == self.in_dims[2] {
             self.flush();
         }
     }

@@ -199,7 +199,7 @@ fn check(h: &Header, at: usize, total: usize, offset: usize) -> Result<(), Strin
         VR::FD | VR::OD | VR::SV | VR::UV | VR::OV => 8,
         _ => 1,
     };
-    if h.len != UNDEFINED && h.len % size != 0 {
+    if h.len != UNDEFINED && !h.len.is_multiple_of(size) {
         return Err(format!(
             "element ({:04X},{:04X}) at byte {} of VR {} holds {} bytes, not a whole number \
              of {size}-byte values (corrupt file)",
