@@ -50,6 +50,7 @@ mod http_browser;
 mod http_config;
 mod http_daemon;
 mod http_library;
+mod http_loop;
 mod http_pages;
 mod http_refusals;
 mod http_reviews;

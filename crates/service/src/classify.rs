@@ -154,6 +154,19 @@ pub struct PendingCalibration {
     settings: Settings,
     cache: Option<Cache>,
     slot: Arc<OnceLock<Option<Calibration>>>,
+    /// Its place among the daemon's calibrations, if it has one.
+    turn: Option<identify::CalibrationTurn>,
+}
+
+/// What a [`PendingCalibration`] came to.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Fitted {
+    /// Fitted: what it says per rank, for one log line ("genus 110/116
+    /// right, …").
+    Ranks(String),
+    /// Stopped because a newer library's calibration started (its
+    /// distances are left to that one); the classifier goes without.
+    Superseded,
 }
 
 impl PendingCalibration {
@@ -162,35 +175,47 @@ impl PendingCalibration {
         self.references.len()
     }
 
+    /// The same calibration as one of the daemon's background
+    /// calibrations (`turn` of their [`identify::CalibrationShare`]): it
+    /// stops once a later one starts, and the pair distances they compute
+    /// are shared.
+    pub fn in_turn(mut self, turn: identify::CalibrationTurn) -> Self {
+        self.turn = Some(turn);
+        self
+    }
+
     /// Fit the calibration (the distances among the references from the
     /// cache, or computed on the current rayon pool and stored there) and
     /// hand it to the classifier. A panic while fitting is caught and
     /// returned: the classifier then goes on without confidence.
-    /// Returns what the calibration says per rank, for one log line
-    /// ("genus 110/116 right, …").
-    pub fn run(self) -> Result<String, CalibrationFailed> {
+    pub fn run(self) -> Result<Fitted, CalibrationFailed> {
         let fitted = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            fit_calibration(
+            let distances = identify::reference_distances_in_turn(
                 &self.references,
-                &self.labels,
                 &self.settings,
                 self.cache.as_ref(),
-                false,
-            )
+                self.turn.as_ref(),
+                |_, _| {},
+            )?;
+            Some(Calibration::fit(distances, &self.labels))
         }));
         match fitted {
-            Ok(calibration) => {
+            Ok(None) => {
+                let _ = self.slot.set(None);
+                Ok(Fitted::Superseded)
+            }
+            Ok(Some(calibration)) => {
                 let ranks: Vec<String> = calibration
                     .ranks()
                     .iter()
                     .map(|r| format!("{} {}/{} right", r.rank, r.right, r.held))
                     .collect();
                 let _ = self.slot.set(Some(calibration));
-                Ok(if ranks.is_empty() {
+                Ok(Fitted::Ranks(if ranks.is_empty() {
                     "no rank has enough references to calibrate".into()
                 } else {
                     format!("held out: {}", ranks.join(", "))
-                })
+                }))
             }
             Err(panic) => {
                 let _ = self.slot.set(None);
@@ -366,6 +391,7 @@ impl Classifier {
             settings: self.settings.clone(),
             cache,
             slot,
+            turn: None,
         };
         (self, Some(pending))
     }

@@ -31,9 +31,10 @@ pub use health::BACKOFF_MAX as STORAGE_RETRY_MAX;
 pub use serial::BACKOFF_MAX;
 
 use crate::classify::{
-    CalibrationProbe, CalibrationState, Classifier, PendingCalibration, ResultFiles,
+    CalibrationProbe, CalibrationState, Classifier, Fitted, PendingCalibration, ResultFiles,
 };
 use crate::config::Config;
+use crate::identify::CalibrationShare;
 use crate::store::{now_ms, utc_day_start_ms, Enqueued, Store, StoreError};
 use db::{Db, SharedDb};
 use health::{Backoff, Health};
@@ -280,6 +281,9 @@ struct Daemon<'a> {
     references: usize,
     /// Where the current library's calibration stands (status line).
     calibration: CalibrationProbe,
+    /// What the library's successive calibrations share (a reload stops
+    /// the one before and goes on from its distances).
+    calibrations: CalibrationShare,
     /// Half of systemd's watchdog period, when it has one.
     watchdog: Option<Duration>,
     last_ping: Instant,
@@ -308,6 +312,7 @@ impl<'a> Daemon<'a> {
             &config.http,
             crate::http::Sources::of(&config, live.clone()),
         )?;
+        let calibrations = CalibrationShare::default();
         let (classifier, files) = {
             let (store, _) = db.store()?;
             let requeued = store.requeue_running()?;
@@ -316,7 +321,7 @@ impl<'a> Daemon<'a> {
                     "{requeued} scan(s) left running by an earlier run are pending again"
                 );
             }
-            load_library(loader, &config, store)?
+            load_library(loader, &config, store, &calibrations)?
         };
         db.set_result_files(files.is_some());
         let references = classifier.references().len();
@@ -356,6 +361,7 @@ impl<'a> Daemon<'a> {
             serial_rx,
             references,
             calibration,
+            calibrations,
             watchdog: sd_notify::watchdog_enabled().map(|d| d / 2),
             last_ping: Instant::now(),
             hang_logged: false,
@@ -516,7 +522,7 @@ impl<'a> Daemon<'a> {
         let reloaded = with_watchdog_pings(self.watchdog, || {
             let mut db = db::lock(&db);
             let out = match db.store() {
-                Ok((store, _)) => reload(self.loader, store),
+                Ok((store, _)) => reload(self.loader, store, &self.calibrations),
                 Err(e) => Err(e.into()),
             };
             if let Ok((_, _, files, _)) = &out {
@@ -726,6 +732,7 @@ fn load_library(
     loader: &dyn Loader,
     config: &Config,
     store: &mut Store,
+    calibrations: &CalibrationShare,
 ) -> Result<(Classifier, Option<ResultFiles>), DaemonError> {
     let LoadedLibrary {
         classifier,
@@ -734,7 +741,7 @@ fn load_library(
     } = loader.library(config)?;
     classifier.register(store, &outcome)?;
     if let Some(pending) = calibration {
-        calibrate_in_background(pending);
+        calibrate_in_background(pending, calibrations);
     }
     let results = config
         .results
@@ -756,8 +763,9 @@ fn calibration_threads() -> usize {
 /// Fit `pending` on a thread of its own (with its own, smaller rayon pool),
 /// logging its start and its end with the time it took. A failure is one
 /// error line: the daemon goes on without confidence.
-fn calibrate_in_background(pending: PendingCalibration) {
+fn calibrate_in_background(pending: PendingCalibration, share: &CalibrationShare) {
     let n = pending.references();
+    let pending = pending.in_turn(share.next_turn());
     let spawned = std::thread::Builder::new()
         .name("morphoid-calibration".into())
         .spawn(move || {
@@ -781,9 +789,13 @@ fn calibrate_in_background(pending: PendingCalibration) {
             };
             let secs = started.elapsed().as_secs_f64();
             match fitted {
-                Ok(summary) => tracing::info!(
+                Ok(Fitted::Ranks(summary)) => tracing::info!(
                     "calibration done in {secs:.1} s ({summary}): scans identified from now on \
                      carry their confidence"
+                ),
+                Ok(Fitted::Superseded) => tracing::info!(
+                    "calibration of {n} references stopped after {secs:.1} s: a newer library's \
+                     calibration goes on from its distances"
                 ),
                 Err(e) => tracing::error!(
                     "{} after {secs:.1} s; going on without confidence",
@@ -811,10 +823,14 @@ fn calibration_status(state: CalibrationState) -> Option<&'static str> {
 type Reloaded = (Config, Classifier, Option<ResultFiles>, Option<Regex>);
 
 /// Re-read the configuration and load its library (SIGHUP).
-fn reload(loader: &dyn Loader, store: &mut Store) -> Result<Reloaded, DaemonError> {
+fn reload(
+    loader: &dyn Loader,
+    store: &mut Store,
+    calibrations: &CalibrationShare,
+) -> Result<Reloaded, DaemonError> {
     let config = loader.config()?;
     let trigger = compile_trigger(&config)?;
-    let (classifier, files) = load_library(loader, &config, store)?;
+    let (classifier, files) = load_library(loader, &config, store, calibrations)?;
     Ok((config, classifier, files, trigger))
 }
 

@@ -5,6 +5,7 @@
 //! settings compute them again.
 
 use super::shard::CalibrationShardError;
+use super::share::CalibrationTurn;
 use super::{median_sample, ReferenceDistances};
 use crate::identify::screened_references;
 use morphoid_core::cp::{compare, ScreenParams, Signature};
@@ -233,6 +234,7 @@ pub(super) fn pair_distances(
     pairs: &[(usize, usize)],
     settings: &Settings,
     known: &Known,
+    turn: Option<&CalibrationTurn>,
     progress: &(impl Fn(usize, usize) + Sync),
 ) -> Vec<f64> {
     let old = known.indices(references);
@@ -257,8 +259,24 @@ pub(super) fn pair_distances(
             if let Some(v) = *known {
                 return v;
             }
-            let distance = match (references[i].prepared(), references[j].prepared()) {
-                (Ok(a), Ok(b)) => compare(&a, &b, &settings.cp.compare).distance,
+            let (a, b) = (&references[i], &references[j]);
+            if let Some(turn) = turn {
+                // Superseded: the rest is left to the newer calibration.
+                if turn.superseded() {
+                    return f64::NAN;
+                }
+                if let Some(v) = turn.get(a, b) {
+                    return v;
+                }
+            }
+            let distance = match (a.prepared(), b.prepared()) {
+                (Ok(pa), Ok(pb)) => {
+                    let d = compare(&pa, &pb, &settings.cp.compare).distance;
+                    if let Some(turn) = turn {
+                        turn.put(a, b, d);
+                    }
+                    d
+                }
                 // An entry gone from the cache since the library was
                 // opened: the pair counts as not compared (one log line).
                 (Err(e), _) | (_, Err(e)) => {
@@ -312,16 +330,21 @@ pub(super) fn distance_table(
 }
 
 /// The calibration's distances among `references`, computed now (those
-/// `known` holds taken from it).
+/// `known` or `turn`'s share holds taken from there); `None` when `turn`
+/// was superseded meanwhile.
 fn compute(
     references: &[CachedReference],
     settings: &Settings,
     known: &Known,
+    turn: Option<&CalibrationTurn>,
     progress: &(impl Fn(usize, usize) + Sync),
-) -> ReferenceDistances {
+) -> Option<ReferenceDistances> {
     let plan = CalibrationPlan::of(references, settings);
-    let values = pair_distances(references, &plan.pairs, settings, known, progress);
-    distance_table(references, plan, &values)
+    let values = pair_distances(references, &plan.pairs, settings, known, turn, progress);
+    if turn.is_some_and(CalibrationTurn::superseded) {
+        return None;
+    }
+    Some(distance_table(references, plan, &values))
 }
 
 /// The distances among `references` (prepared with `settings`) from
@@ -339,13 +362,31 @@ pub fn reference_distances(
     cache: Option<&Cache>,
     progress: impl Fn(usize, usize) + Sync,
 ) -> ReferenceDistances {
+    match reference_distances_in_turn(references, settings, cache, None, progress) {
+        Some(d) => d,
+        // Without a turn nothing supersedes the calibration.
+        None => distance_table(references, CalibrationPlan::of(references, settings), &[]),
+    }
+}
+
+/// [`reference_distances`] as one of a daemon's background calibrations:
+/// the pair distances `turn`'s share holds are taken from it and those
+/// computed are added to it; `None` (nothing stored) once a later turn has
+/// started.
+pub(crate) fn reference_distances_in_turn(
+    references: &[CachedReference],
+    settings: &Settings,
+    cache: Option<&Cache>,
+    turn: Option<&CalibrationTurn>,
+    progress: impl Fn(usize, usize) + Sync,
+) -> Option<ReferenceDistances> {
     let key = key(references, settings);
     let path = cache.map(|c| calibration_path(c, references, settings));
     if let Some(path) = &path {
         if let Ok(bytes) = std::fs::read(path) {
             match postcard::from_bytes::<Entry>(&bytes) {
                 Ok(e) if e.format == FORMAT && e.key == key && e.distances.fits(references) => {
-                    return e.distances;
+                    return Some(e.distances);
                 }
                 Ok(_) => {
                     tracing::warn!(file = %path.display(), "ignoring a stale calibration file")
@@ -362,14 +403,14 @@ pub fn reference_distances(
             "comparing the references with each other for the calibration (once per library)"
         );
         let known = cache.map_or_else(Known::default, |c| known_distances(c, settings));
-        compute(references, settings, &known, &progress)
+        compute(references, settings, &known, turn, &progress)?
     };
     if let Some(cache) = cache {
         if let Err(e) = store(cache, references, settings, &distances) {
             tracing::warn!("calibration not stored in the cache: {e}");
         }
     }
-    distances
+    Some(distances)
 }
 
 /// The file in `cache` that holds the distances of `references` under
@@ -436,9 +477,55 @@ impl ReferenceDistances {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::identify::calibration::share::{CalibrationShare, CalibrationTurn};
     use morphoid_data::library::{self, Library};
     use morphoid_synth::mesh::{self as synth, LibrarySpec};
     use std::sync::atomic::{AtomicUsize, Ordering};
+
+    /// Calibrations of one share: a later one takes what an earlier one
+    /// computed, and an earlier one stops once a later one has started.
+    #[test]
+    fn a_later_calibration_takes_the_pairs_an_earlier_one_computed() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("library");
+        let spec = LibrarySpec {
+            per_genus: 2,
+            target_vertices: 500,
+            seed: 13,
+            random_pose: false,
+        };
+        synth::write_synthetic_library(&dir, &spec).unwrap();
+        let lib = Library::open(&dir, None).unwrap();
+        let cache = Cache::open(&tmp.path().join("cache")).unwrap();
+        let mut settings = Settings::default();
+        settings.clean.target_vertices = 500;
+        let mut built = library::build(&lib, &cache, &settings, |_| {}).unwrap();
+        let (all, _) = built.take_references();
+        let n = all.len();
+        let share = CalibrationShare::default();
+        let counted = |turn: &CalibrationTurn| {
+            let count = AtomicUsize::new(0);
+            let d = reference_distances_in_turn(&all, &settings, None, Some(turn), |_, _| {
+                count.fetch_add(1, Ordering::Relaxed);
+            });
+            (d, count.into_inner())
+        };
+        let first = share.next_turn();
+        let (d1, c1) = counted(&first);
+        assert_eq!(c1, n * (n - 1) / 2);
+        let second = share.next_turn();
+        assert!(first.superseded() && !second.superseded());
+        let (d2, c2) = counted(&second);
+        assert_eq!(c2, 0, "every pair from the share");
+        assert_eq!(d1, d2);
+        assert_eq!(
+            d2.unwrap(),
+            reference_distances(&all, &settings, None, |_, _| {})
+        );
+        // Superseded before it starts: nothing computed, nothing stored.
+        let (d3, c3) = counted(&first);
+        assert_eq!((d3, c3), (None, 0));
+    }
 
     #[test]
     fn a_library_with_one_reference_more_computes_only_that_references_pairs() {

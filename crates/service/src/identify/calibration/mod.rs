@@ -23,13 +23,16 @@
 
 mod cached;
 mod shard;
+mod share;
 mod statistic;
 
 pub use cached::reference_distances;
+pub(crate) use cached::reference_distances_in_turn;
 use cached::CALIBRATION_SAMPLE;
 pub use shard::{
     calibration_shard, merge_calibration_shards, CalibrationShard, CalibrationShardError,
 };
+pub use share::{CalibrationShare, CalibrationTurn};
 use statistic::{
     conformal_quantile, fit_rank_weight, mean_within_taxon_rank, rank_term, relative_distance,
 };

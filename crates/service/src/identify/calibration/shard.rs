@@ -149,7 +149,7 @@ pub fn calibration_shard(
     let plan = CalibrationPlan::of(references, settings);
     let part = &plan.pairs[shard.range(plan.pairs.len())];
     let known = cache.map_or_else(Default::default, |c| cached::known_distances(c, settings));
-    let distances = cached::pair_distances(references, part, settings, &known, &progress);
+    let distances = cached::pair_distances(references, part, settings, &known, None, &progress);
     CalibrationShard {
         magic: MAGIC.into(),
         format: SHARD_FORMAT,
