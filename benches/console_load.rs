@@ -36,23 +36,26 @@
 //!    crowns (3000 vertices, posed at random) moved into the watch folder
 //!    at once; the rate is their number over the time from the first one's
 //!    start to the last one's finish (the database's own timestamps).
-//! 2. Under load: `MORPHOID_BENCH_CONNECTIONS` connections (tokio tasks on
-//!    a 2-thread runtime, each with a reqwest client of its own that keeps
-//!    its one connection alive) each send requests back to back, alternately
-//!    `GET /` and `GET /api/v1/scans?genus=G` (G in turn over the 20
-//!    genera), each latency taken from sending to the last byte of the
-//!    body. After a warm-up of [`WARM_UP`] (not recorded), another batch of
-//!    crowns is dropped; the load goes on for `MORPHOID_BENCH_SECONDS` and
-//!    at least until that batch is identified (at most [`MAX_LOAD`]).
-//! 3. Identification without load again, a third batch: the machine's
-//!    drift shows as a difference between 1 and 3, and the loaded rate is
+//! 2. Each load of `MORPHOID_BENCH_THINK_MS` in turn:
+//!    `MORPHOID_BENCH_CONNECTIONS` connections (tokio tasks on a 2-thread
+//!    runtime, each with a reqwest client of its own that keeps its one
+//!    connection alive) each send requests, alternately `GET /` and `GET
+//!    /api/v1/scans?genus=G` (G in turn over the 20 genera), each latency
+//!    taken from sending to the last byte of the body. After a warm-up of
+//!    [`WARM_UP`] (not recorded), another batch of crowns is dropped; the
+//!    load goes on for `MORPHOID_BENCH_SECONDS` and at least until that
+//!    batch is identified (at most [`MAX_LOAD`]).
+//! 3. Identification without load again, one more batch: the machine's
+//!    drift shows as a difference between 1 and 3, and each loaded rate is
 //!    compared with their mean.
 //!
-//! The load is closed-loop: each connection sends its next request as soon
-//! as the last one is answered, so throughput and latency are tied
-//! (Little's law: mean latency = connections / throughput). With
-//! `MORPHOID_BENCH_THINK_MS` each connection pauses that long between its
-//! requests instead, as a browser does.
+//! The first load (think time 0) is closed-loop: each connection sends its
+//! next request as soon as the last one is answered, so throughput and
+//! latency are tied (Little's law: mean latency = connections /
+//! throughput): it measures the console saturated. The second pauses 1 s
+//! between a connection's requests (200 requests a second offered by 200
+//! connections), a heavier use than a browser's live overview makes (it
+//! asks `/api/v1/changes` every 2 s and the page only when that changes).
 //!
 //! The client runs on the same machine as the daemon and takes its share
 //! of the CPU; on a machine of few cores the figures are those of client,
@@ -68,8 +71,8 @@
 //! - `MORPHOID_BENCH_CONNECTIONS`: concurrent connections (default 200);
 //! - `MORPHOID_BENCH_SECONDS`: the load's least duration after the warm-up
 //!   (default 20);
-//! - `MORPHOID_BENCH_THINK_MS`: pause of each connection between requests
-//!   (default 0);
+//! - `MORPHOID_BENCH_THINK_MS`: the loads, each a pause (ms) of every
+//!   connection between its requests, comma-separated (default `0,1000`);
 //! - `MORPHOID_BENCH_IDENTIFY`: crowns in each identification batch
 //!   (default 8);
 //! - `MORPHOID_BENCH_SEED`: the seed of everything made (default 32);
@@ -117,6 +120,9 @@ const DEFAULT_SECONDS: f64 = 20.0;
 /// Crowns in each identification batch unless `MORPHOID_BENCH_IDENTIFY`
 /// says otherwise.
 const DEFAULT_IDENTIFY: usize = 8;
+/// The loads unless `MORPHOID_BENCH_THINK_MS` says otherwise: back to
+/// back, and a request a second on each connection.
+const DEFAULT_THINK_MS: &str = "0,1000";
 /// Seed unless `MORPHOID_BENCH_SEED` says otherwise.
 const DEFAULT_SEED: u64 = 32;
 /// Load before the latencies are recorded (connections opened, caches
@@ -167,7 +173,7 @@ struct Knobs {
     scans: usize,
     connections: usize,
     seconds: f64,
-    think: Duration,
+    think: Vec<Duration>,
     identify: usize,
     seed: u64,
     csv: Option<PathBuf>,
@@ -187,13 +193,31 @@ where
     }
 }
 
+/// `MORPHOID_BENCH_THINK_MS`: the pauses of the loads, one load each.
+fn think_times() -> Result<Vec<Duration>> {
+    let text = std::env::var("MORPHOID_BENCH_THINK_MS").unwrap_or_default();
+    let text = if text.trim().is_empty() {
+        DEFAULT_THINK_MS
+    } else {
+        text.as_str()
+    };
+    text.split(',')
+        .map(|ms| {
+            ms.trim()
+                .parse()
+                .map(Duration::from_millis)
+                .with_context(|| format!("MORPHOID_BENCH_THINK_MS: {ms:?} is not milliseconds"))
+        })
+        .collect()
+}
+
 impl Knobs {
     fn from_env() -> Result<Knobs> {
         let k = Knobs {
             scans: knob("MORPHOID_BENCH_SCANS", DEFAULT_SCANS)?,
             connections: knob("MORPHOID_BENCH_CONNECTIONS", DEFAULT_CONNECTIONS)?,
             seconds: knob("MORPHOID_BENCH_SECONDS", DEFAULT_SECONDS)?,
-            think: Duration::from_millis(knob("MORPHOID_BENCH_THINK_MS", 0u64)?),
+            think: think_times()?,
             identify: knob("MORPHOID_BENCH_IDENTIFY", DEFAULT_IDENTIFY)?,
             seed: knob("MORPHOID_BENCH_SEED", DEFAULT_SEED)?,
             csv: std::env::var_os("MORPHOID_BENCH_CSV").map(PathBuf::from),
@@ -275,34 +299,45 @@ fn main() -> Result<()> {
 
     let before = batch(1).run_without_load()?;
     println!("identification without load: {}", before.describe());
-
-    let (loaded, latencies, loaded_for) =
-        runtime.block_on(load_while_identifying(&base, &knobs, batch(2)))?;
-    println!("identification under load:   {}", loaded.describe());
-
-    let after = batch(3).run_without_load()?;
+    let mut loads = Vec::new();
+    for (k, &think) in knobs.think.iter().enumerate() {
+        let load = runtime.block_on(load_while_identifying(&base, &knobs, think, batch(2 + k)))?;
+        println!(
+            "identification under load:   {}",
+            load.identified.describe()
+        );
+        loads.push(load);
+    }
+    let after = batch(2 + knobs.think.len()).run_without_load()?;
     println!("identification without load: {}", after.describe());
 
-    let rows = latency_rows(&latencies, loaded_for);
-    print_latencies(&rows, &knobs);
     let unloaded = (before.per_minute() + after.per_minute()) / 2.0;
-    let ratio = loaded.per_minute() / unloaded;
     println!(
-        "identification: {:.1} scans/min without load (mean of {:.1} and {:.1}), {:.1} under load: {:.2} of it ({:+.1} %)",
+        "\n{} scans in the database, {} connections; identification without load: {:.1} scans/min (mean of {:.1} and {:.1})",
+        knobs.scans,
+        knobs.connections,
         unloaded,
         before.per_minute(),
-        after.per_minute(),
-        loaded.per_minute(),
-        ratio,
-        (ratio - 1.0) * 100.0
+        after.per_minute()
     );
-    if let Some(path) = &knobs.csv {
-        let text = csv_text(
-            &rows,
-            &[("without", &before), ("with", &loaded), ("without", &after)],
-            &knobs,
+    let mut csv = csv_header();
+    for load in &loads {
+        let rows = latency_rows(&load.samples, load.lasted);
+        print_latencies(&rows, load.think);
+        let ratio = load.identified.per_minute() / unloaded;
+        println!(
+            "identification under this load: {:.1} scans/min, {:.2} of the rate without ({:+.1} %)",
+            load.identified.per_minute(),
+            ratio,
+            (ratio - 1.0) * 100.0
         );
-        write_atomic(path, text.as_bytes())
+        csv_latencies(&mut csv, &rows, load.think, &knobs);
+        csv_identified(&mut csv, "with load", &load.identified, load.think, &knobs);
+    }
+    csv_identified(&mut csv, "without load", &before, Duration::ZERO, &knobs);
+    csv_identified(&mut csv, "without load", &after, Duration::ZERO, &knobs);
+    if let Some(path) = &knobs.csv {
+        write_atomic(path, csv.as_bytes())
             .with_context(|| format!("writing MORPHOID_BENCH_CSV={}", path.display()))?;
         println!("figures written to {}", path.display());
     }
@@ -806,17 +841,32 @@ impl Batch<'_> {
 /// One request's outcome: endpoint, latency, whether it succeeded.
 type Sample = (usize, Duration, bool);
 
+/// A load and what was measured under it.
+struct Load {
+    /// Each connection's pause between its requests.
+    think: Duration,
+    /// The requests recorded.
+    samples: Vec<Sample>,
+    /// How long they were recorded.
+    lasted: Duration,
+    /// The batch identified meanwhile.
+    identified: Identified,
+}
+
 /// The load: `knobs.connections` keep-alive connections sending requests
-/// until `stop`; after [`WARM_UP`] the batch is dropped in, and the load
-/// goes on for `knobs.seconds` and until the batch is identified.
+/// (each pausing `think` after each answer) until stopped; after
+/// [`WARM_UP`] the batch is dropped in, and the load goes on for
+/// `knobs.seconds` and until the batch is identified.
 async fn load_while_identifying(
     base: &str,
     knobs: &Knobs,
+    think: Duration,
     batch: Batch<'_>,
-) -> Result<(Identified, Vec<Sample>, Duration)> {
+) -> Result<Load> {
     let stop = Arc::new(AtomicBool::new(false));
     let record = Arc::new(AtomicBool::new(false));
     let mut tasks = Vec::with_capacity(knobs.connections);
+    let spread = knobs.connections as f64;
     for c in 0..knobs.connections {
         let client = reqwest::Client::builder()
             .pool_max_idle_per_host(1)
@@ -825,13 +875,13 @@ async fn load_while_identifying(
             .timeout(Duration::from_secs(60))
             .build()
             .context("HTTP client")?;
-        let (base, stop, record, think) = (
-            base.to_string(),
-            Arc::clone(&stop),
-            Arc::clone(&record),
-            knobs.think,
-        );
+        let (base, stop, record) = (base.to_string(), Arc::clone(&stop), Arc::clone(&record));
         tasks.push(tokio::spawn(async move {
+            // Paced connections start spread over one pause, as browsers
+            // opened one after another do.
+            if !think.is_zero() {
+                tokio::time::sleep(think.mul_f64(c as f64 / spread)).await;
+            }
             let mut samples = Vec::new();
             let mut n = c;
             while !stop.load(Ordering::Relaxed) {
@@ -863,7 +913,7 @@ async fn load_while_identifying(
             samples
         }));
     }
-    tokio::time::sleep(WARM_UP).await;
+    tokio::time::sleep(WARM_UP.max(think * 2)).await;
     record.store(true, Ordering::Relaxed);
     let started = Instant::now();
     let before = tokio::task::block_in_place(|| batch.drop_in())?;
@@ -879,16 +929,17 @@ async fn load_while_identifying(
         tokio::time::sleep(Duration::from_millis(250)).await;
     }
     stop.store(true, Ordering::Relaxed);
-    let elapsed = started.elapsed();
+    let lasted = started.elapsed();
     let mut samples = Vec::new();
     for task in tasks {
         samples.extend(task.await.context("a load task failed")?);
     }
     println!(
-        "load: {} requests recorded in {:.1} s on {} connections",
+        "load: {} requests recorded in {:.1} s on {} connections, {} ms between a connection's requests",
         samples.len(),
-        elapsed.as_secs_f64(),
-        knobs.connections
+        lasted.as_secs_f64(),
+        knobs.connections,
+        think.as_millis()
     );
     let identified = identified.with_context(|| {
         format!(
@@ -897,7 +948,12 @@ async fn load_while_identifying(
             MAX_LOAD.as_secs()
         )
     })?;
-    Ok((identified, samples, elapsed))
+    Ok(Load {
+        think,
+        samples,
+        lasted,
+        identified,
+    })
 }
 
 /// The figures of one endpoint.
@@ -947,20 +1003,16 @@ fn ms(d: Duration) -> f64 {
     d.as_secs_f64() * 1000.0
 }
 
-fn print_latencies(rows: &[LatencyRow], knobs: &Knobs) {
-    println!(
-        "\n{} connections, {} scans{}:",
-        knobs.connections,
-        knobs.scans,
-        if knobs.think.is_zero() {
-            String::new()
-        } else {
-            format!(
-                ", {} ms between a connection's requests",
-                knobs.think.as_millis()
-            )
-        }
-    );
+/// The table of one load.
+fn print_latencies(rows: &[LatencyRow], think: Duration) {
+    if think.is_zero() {
+        println!("\nload: requests back to back on each connection");
+    } else {
+        println!(
+            "\nload: {} ms between a connection's requests",
+            think.as_millis()
+        );
+    }
     println!(
         "{:<28} {:>9} {:>7} {:>9} {:>9} {:>9} {:>9} {:>9}",
         "endpoint", "requests", "errors", "p50 ms", "p95 ms", "p99 ms", "max ms", "req/s"
@@ -980,16 +1032,21 @@ fn print_latencies(rows: &[LatencyRow], knobs: &Knobs) {
     }
 }
 
-fn csv_text(rows: &[LatencyRow], batches: &[(&str, &Identified)], knobs: &Knobs) -> String {
-    let mut out = String::from(
-        "kind,name,scans_in_db,connections,count,errors,p50_ms,p95_ms,p99_ms,max_ms,rate,rate_unit\n",
-    );
+/// The CSV's first line.
+fn csv_header() -> String {
+    "kind,name,scans_in_db,connections,think_ms,count,errors,p50_ms,p95_ms,p99_ms,max_ms,rate,rate_unit\n"
+        .to_string()
+}
+
+/// One CSV line per endpoint of a load.
+fn csv_latencies(out: &mut String, rows: &[LatencyRow], think: Duration, knobs: &Knobs) {
     for r in rows {
         out.push_str(&format!(
-            "latency,{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.2},requests/s\n",
+            "latency,{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.2},requests/s\n",
             r.endpoint,
             knobs.scans,
             knobs.connections,
+            think.as_millis(),
             r.requests,
             r.errors,
             ms(r.p50),
@@ -999,18 +1056,21 @@ fn csv_text(rows: &[LatencyRow], batches: &[(&str, &Identified)], knobs: &Knobs)
             r.per_second
         ));
     }
-    for (load, b) in batches {
-        out.push_str(&format!(
-            "identification,{load} load,{},{},{},0,{:.3},{:.3},{:.3},{:.3},{:.3},scans/min\n",
-            knobs.scans,
-            knobs.connections,
-            b.scans,
-            ms(quantile(&b.each, 0.5)),
-            ms(quantile(&b.each, 0.95)),
-            ms(quantile(&b.each, 0.99)),
-            ms(b.each.last().copied().unwrap_or_default()),
-            b.per_minute()
-        ));
-    }
-    out
+}
+
+/// The CSV line of an identification batch (its quantiles are of each
+/// scan's identification time).
+fn csv_identified(out: &mut String, name: &str, b: &Identified, think: Duration, knobs: &Knobs) {
+    out.push_str(&format!(
+        "identification,{name},{},{},{},{},0,{:.3},{:.3},{:.3},{:.3},{:.3},scans/min\n",
+        knobs.scans,
+        knobs.connections,
+        think.as_millis(),
+        b.scans,
+        ms(quantile(&b.each, 0.5)),
+        ms(quantile(&b.each, 0.95)),
+        ms(quantile(&b.each, 0.99)),
+        ms(b.each.last().copied().unwrap_or_default()),
+        b.per_minute()
+    ));
 }
