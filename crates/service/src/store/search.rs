@@ -68,15 +68,19 @@ const ANSWER_ROW: &str = "coalesce(scan.duplicate_of, scan.id)";
 
 /// The condition that `cond` (on `result`) holds for a result row of the
 /// scan's answer: of the answer's row itself or of one of its specimens'
-/// rows. Two lookups by key (the answer's result rows, then its
-/// specimens' rows), not a search of `scan` for the owner of each result:
-/// the overview tries this on every scan, newest first, until its page is
-/// full.
+/// rows. Lookups by key (the answer's result rows, then its specimens'
+/// rows), not a search of `scan` for the owner of each result: the
+/// overview tries this on every scan, newest first, until its page is
+/// full. A scan's own row has specimens' rows only when its `specimens`
+/// is set (they are written and removed together), so the specimens are
+/// looked for only then, or for a duplicate (whose original may have
+/// them).
 fn answer_has(cond: &str) -> String {
     format!(
         "(EXISTS (SELECT 1 FROM result WHERE result.scan_id = {ANSWER_ROW} AND {cond})
-          OR EXISTS (SELECT 1 FROM scan AS part JOIN result ON result.scan_id = part.id
-                     WHERE part.parent_id = {ANSWER_ROW} AND {cond}))"
+          OR ((scan.specimens IS NOT NULL OR scan.duplicate_of IS NOT NULL)
+              AND EXISTS (SELECT 1 FROM scan AS part JOIN result ON result.scan_id = part.id
+                          WHERE part.parent_id = {ANSWER_ROW} AND {cond})))"
     )
 }
 
