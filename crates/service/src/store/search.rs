@@ -176,12 +176,17 @@ impl Store {
     /// finished or requeued, or a decision is recorded: the live overview
     /// reloads its rows when it does.
     pub fn changes_fingerprint(&self) -> Result<String, StoreError> {
+        // One statement (one snapshot) of separate aggregates, each read
+        // from an index (the largest and smallest key, the number of
+        // entries, a status's range), never from the table's rows.
         let (max_id, rows, finished, started, pending, running): (i64, i64, i64, i64, i64, i64) =
             self.conn.query_row(
-                "SELECT coalesce(max(id), 0), count(*), coalesce(max(finished_at), 0),
-                        coalesce(max(started_at), 0),
-                        coalesce(sum(status = 'pending'), 0), coalesce(sum(status = 'running'), 0)
-                 FROM scan",
+                "SELECT (SELECT coalesce(max(id), 0) FROM scan),
+                        (SELECT count(*) FROM scan),
+                        (SELECT coalesce(max(finished_at), 0) FROM scan),
+                        (SELECT coalesce(max(started_at), 0) FROM scan),
+                        (SELECT count(*) FROM scan WHERE status = 'pending'),
+                        (SELECT count(*) FROM scan WHERE status = 'running')",
                 [],
                 |r| {
                     Ok((
