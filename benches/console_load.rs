@@ -74,7 +74,7 @@
 //! - `MORPHOID_BENCH_THINK_MS`: the loads, each a pause (ms) of every
 //!   connection between its requests, comma-separated (default `0,1000`);
 //! - `MORPHOID_BENCH_IDENTIFY`: crowns in each identification batch
-//!   (default 8);
+//!   (default 16);
 //! - `MORPHOID_BENCH_SEED`: the seed of everything made (default 32);
 //! - `MORPHOID_BENCH_CSV`: also write the figures as CSV to this file;
 //! - `MORPHOID_BENCH_WORK`: a folder to work in, kept at the end, instead of
@@ -119,7 +119,7 @@ const DEFAULT_CONNECTIONS: usize = 200;
 const DEFAULT_SECONDS: f64 = 20.0;
 /// Crowns in each identification batch unless `MORPHOID_BENCH_IDENTIFY`
 /// says otherwise.
-const DEFAULT_IDENTIFY: usize = 8;
+const DEFAULT_IDENTIFY: usize = 16;
 /// The loads unless `MORPHOID_BENCH_THINK_MS` says otherwise: back to
 /// back, and a request a second on each connection.
 const DEFAULT_THINK_MS: &str = "0,1000";
@@ -241,6 +241,16 @@ fn main() -> Result<()> {
     let knobs = Knobs::from_env()?;
     let (tmp, root) = work_folder()?;
     println!(
+        "machine: {} cores, load average {}",
+        std::thread::available_parallelism().map_or(0, |n| n.get()),
+        std::fs::read_to_string("/proc/loadavg")
+            .unwrap_or_default()
+            .split_whitespace()
+            .take(3)
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
+    println!(
         "console load: {} scans, {} connections, {} s, {} crowns a batch, seed {}, folder {}",
         knobs.scans,
         knobs.connections,
@@ -297,11 +307,19 @@ fn main() -> Result<()> {
         seed: knobs.seed,
     };
 
+    let idle = runtime.block_on(idle_latencies(&base))?;
+    print_idle(&idle);
     let before = batch(1).run_without_load()?;
     println!("identification without load: {}", before.describe());
     let mut loads = Vec::new();
     for (k, &think) in knobs.think.iter().enumerate() {
-        let load = runtime.block_on(load_while_identifying(&base, &knobs, think, batch(2 + k)))?;
+        let load = runtime.block_on(load_while_identifying(
+            &base,
+            daemon.pid(),
+            &knobs,
+            think,
+            batch(2 + k),
+        ))?;
         println!(
             "identification under load:   {}",
             load.identified.describe()
@@ -324,6 +342,15 @@ fn main() -> Result<()> {
     for load in &loads {
         let rows = latency_rows(&load.samples, load.lasted);
         print_latencies(&rows, load.think);
+        let requests = load.samples.len().max(1) as f64;
+        println!(
+            "CPU meanwhile: console {:.1} s ({:.2} ms a request), identification and the rest of the daemon {:.1} s, load client {:.1} s ({:.2} ms a request)",
+            load.cpu.console,
+            load.cpu.console * 1000.0 / requests,
+            load.cpu.daemon_rest,
+            load.cpu.client,
+            load.cpu.client * 1000.0 / requests
+        );
         let ratio = load.identified.per_minute() / unloaded;
         println!(
             "identification under this load: {:.1} scans/min, {:.2} of the rate without ({:+.1} %)",
@@ -334,6 +361,7 @@ fn main() -> Result<()> {
         csv_latencies(&mut csv, &rows, load.think, &knobs);
         csv_identified(&mut csv, "with load", &load.identified, load.think, &knobs);
     }
+    csv_idle(&mut csv, &idle, &knobs);
     csv_identified(&mut csv, "without load", &before, Duration::ZERO, &knobs);
     csv_identified(&mut csv, "without load", &after, Duration::ZERO, &knobs);
     if let Some(path) = &knobs.csv {
@@ -838,6 +866,90 @@ impl Batch<'_> {
     }
 }
 
+/// Requests sent one after another on one connection, without load, per
+/// endpoint.
+const IDLE_REQUESTS: usize = 40;
+
+/// Endpoints timed without load: the two loaded, and the two every open
+/// console polls (the live overview asks `/api/v1/changes` every 2 s).
+const IDLE_ENDPOINTS: [&str; 4] = [
+    "GET /",
+    "GET /api/v1/scans?genus=",
+    "GET /api/v1/changes",
+    "GET /api/v1/status",
+];
+
+/// Each of [`IDLE_ENDPOINTS`]' latencies, sorted: [`IDLE_REQUESTS`]
+/// requests one after another (genera in turn), after one not counted.
+async fn idle_latencies(base: &str) -> Result<Vec<Vec<Duration>>> {
+    let client = reqwest::Client::builder()
+        .timeout(Duration::from_secs(60))
+        .build()
+        .context("HTTP client")?;
+    let mut out = Vec::new();
+    for endpoint in IDLE_ENDPOINTS {
+        let mut v = Vec::with_capacity(IDLE_REQUESTS);
+        for n in 0..=IDLE_REQUESTS {
+            let path = endpoint.trim_start_matches("GET ");
+            let url = if path.ends_with("genus=") {
+                format!("{base}{path}{}", GENERA[n % GENERA.len()].0)
+            } else {
+                format!("{base}{path}")
+            };
+            let t = Instant::now();
+            let response = client
+                .get(&url)
+                .send()
+                .await
+                .and_then(|r| r.error_for_status())
+                .with_context(|| format!("GET {url}"))?;
+            response
+                .bytes()
+                .await
+                .with_context(|| format!("GET {url}"))?;
+            if n > 0 {
+                v.push(t.elapsed());
+            }
+        }
+        v.sort();
+        out.push(v);
+    }
+    Ok(out)
+}
+
+/// The table of [`idle_latencies`].
+fn print_idle(idle: &[Vec<Duration>]) {
+    println!("without load, {IDLE_REQUESTS} requests one after another:");
+    println!(
+        "{:<28} {:>9} {:>9} {:>9}",
+        "endpoint", "p50 ms", "p95 ms", "max ms"
+    );
+    for (endpoint, v) in IDLE_ENDPOINTS.iter().zip(idle) {
+        println!(
+            "{:<28} {:>9.1} {:>9.1} {:>9.1}",
+            endpoint,
+            ms(quantile(v, 0.5)),
+            ms(quantile(v, 0.95)),
+            ms(v.last().copied().unwrap_or_default())
+        );
+    }
+}
+
+/// One CSV line per endpoint timed without load.
+fn csv_idle(out: &mut String, idle: &[Vec<Duration>], knobs: &Knobs) {
+    for (endpoint, v) in IDLE_ENDPOINTS.iter().zip(idle) {
+        out.push_str(&format!(
+            "idle latency,{endpoint},{},1,0,{},0,{:.3},{:.3},{:.3},{:.3},,\n",
+            knobs.scans,
+            v.len(),
+            ms(quantile(v, 0.5)),
+            ms(quantile(v, 0.95)),
+            ms(quantile(v, 0.99)),
+            ms(v.last().copied().unwrap_or_default()),
+        ));
+    }
+}
+
 /// One request's outcome: endpoint, latency, whether it succeeded.
 type Sample = (usize, Duration, bool);
 
@@ -851,6 +963,8 @@ struct Load {
     lasted: Duration,
     /// The batch identified meanwhile.
     identified: Identified,
+    /// CPU used while the requests were recorded.
+    cpu: CpuUse,
 }
 
 /// The load: `knobs.connections` keep-alive connections sending requests
@@ -859,6 +973,7 @@ struct Load {
 /// `knobs.seconds` and until the batch is identified.
 async fn load_while_identifying(
     base: &str,
+    daemon: i32,
     knobs: &Knobs,
     think: Duration,
     batch: Batch<'_>,
@@ -916,6 +1031,7 @@ async fn load_while_identifying(
     tokio::time::sleep(WARM_UP.max(think * 2)).await;
     record.store(true, Ordering::Relaxed);
     let started = Instant::now();
+    let cpu_before = CpuUse::now(daemon)?;
     let before = tokio::task::block_in_place(|| batch.drop_in())?;
     let least = Duration::from_secs_f64(knobs.seconds);
     let mut identified = None;
@@ -930,6 +1046,7 @@ async fn load_while_identifying(
     }
     stop.store(true, Ordering::Relaxed);
     let lasted = started.elapsed();
+    let cpu = CpuUse::now(daemon)?.minus(&cpu_before);
     let mut samples = Vec::new();
     for task in tasks {
         samples.extend(task.await.context("a load task failed")?);
@@ -953,7 +1070,72 @@ async fn load_while_identifying(
         samples,
         lasted,
         identified,
+        cpu,
     })
+}
+
+/// CPU time (s) used by the console, by the rest of the daemon, and by
+/// this process (the load client).
+#[derive(Debug, Clone, Copy)]
+struct CpuUse {
+    console: f64,
+    daemon_rest: f64,
+    client: f64,
+}
+
+/// Clock ticks a second in `/proc` (`USER_HZ`, 100 on Linux).
+const TICKS: f64 = 100.0;
+
+/// User and system CPU seconds in a `/proc/…/stat` file: the process's
+/// (its ended threads included) or one thread's.
+fn stat_cpu(path: &Path) -> Result<f64> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
+    // The name in parentheses may hold spaces: the fields follow its end.
+    let fields: Vec<&str> = text
+        .rsplit_once(')')
+        .map(|(_, rest)| rest.split_whitespace().collect())
+        .unwrap_or_default();
+    let tick = |i: usize| -> Result<f64> {
+        fields
+            .get(i)
+            .and_then(|f| f.parse::<f64>().ok())
+            .with_context(|| format!("{}: no CPU time", path.display()))
+    };
+    // utime and stime: fields 14 and 15, counted from the pid as 1.
+    Ok((tick(11)? + tick(12)?) / TICKS)
+}
+
+impl CpuUse {
+    /// The totals so far. The console's threads are named
+    /// `morphoid-http…`; they come and go (the blocking pool's), so the
+    /// console's time is the process's less that of the other threads,
+    /// which live as long as the daemon.
+    fn now(daemon: i32) -> Result<CpuUse> {
+        let proc = PathBuf::from(format!("/proc/{daemon}"));
+        let total = stat_cpu(&proc.join("stat"))?;
+        let mut rest = 0.0;
+        for task in std::fs::read_dir(proc.join("task")).context("the daemon's threads")? {
+            let task = task?.path();
+            let name = std::fs::read_to_string(task.join("comm")).unwrap_or_default();
+            if !name.starts_with("morphoid-http") {
+                // A thread that ended meanwhile counts as none.
+                rest += stat_cpu(&task.join("stat")).unwrap_or(0.0);
+            }
+        }
+        Ok(CpuUse {
+            console: total - rest,
+            daemon_rest: rest,
+            client: stat_cpu(Path::new("/proc/self/stat"))?,
+        })
+    }
+
+    fn minus(&self, earlier: &CpuUse) -> CpuUse {
+        CpuUse {
+            console: self.console - earlier.console,
+            daemon_rest: self.daemon_rest - earlier.daemon_rest,
+            client: self.client - earlier.client,
+        }
+    }
 }
 
 /// The figures of one endpoint.
