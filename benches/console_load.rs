@@ -9,7 +9,7 @@
 //!
 //! Everything is made in a temporary folder, never in the repository:
 //!
-//! - The database: 100 references (`bench-ref-000` …, 20 genera of 8
+//! - The database: 100 references (`bench-ref-000` …, 20 genera of 10
 //!   families, one order; 5 references a genus), then [`SEED_SCANS`] scans
 //!   queued, claimed and finished through the project's own `Store` API
 //!   (each with its 3 rank results with confidence, 10 distance rows,
@@ -21,8 +21,8 @@
 //!   their result and distance rows copied with the new ids, and every
 //!   scan's queue, start and finish times spread over the two years before
 //!   now in id order. The copies are then read back through the `Store`
-//!   API (a genus search deep among them, a scan by id, the counts) and
-//!   checked to be whole scans. No `ANALYZE` is run: the daemon's own
+//!   API (the scans finished, the newest, a genus search deep among the
+//!   copies, one copy by id) and checked to be whole scans. No `ANALYZE` is run: the daemon's own
 //!   databases never have statistics either.
 //! - The daemon: `morphoid run` on that database, with a synthetic library
 //!   (`morphoid_synth`, 4 crowns of each of 5 genera, 3000 vertices), a
@@ -135,8 +135,8 @@ const BATCH_TIMEOUT: Duration = Duration::from_secs(900);
 /// The span of time the scans' dates are spread over (two years).
 const SPAN_MS: i64 = 2 * 365 * 86_400_000;
 /// The daemon's synthetic crowns' vertex count (library and scans): a
-/// scan takes about a second, so that a batch's rate is measured over
-/// seconds, not a few timer ticks.
+/// scan takes about half a second, so that a batch's rate is measured
+/// over seconds, not a few timer ticks.
 const VERTICES: usize = 3000;
 /// The daemon's library: this many crowns of each synthetic genus.
 const LIBRARY_PER_GENUS: usize = 4;
@@ -607,18 +607,23 @@ fn replicate(db: &Path, total: usize) -> Result<()> {
     Ok(())
 }
 
-/// Read the copies back through the `Store` API: every scan counted, a
-/// genus search deep among the copies, one copy by id.
+/// Read the copies back through the `Store` API: every scan finished, the
+/// newest, a genus search deep among the copies, one copy by id.
 fn check_copies(db: &Path, total: usize) -> Result<()> {
     let mut store = Store::open(db).context("reopening the database")?;
     store
         .check_integrity()
         .context("integrity check of the filled database")?;
-    let counts = store.search_scans(&ScanQuery {
+    let finished = store.finished_since(0)?;
+    ensure!(
+        finished == total as u64,
+        "{finished} scans finished instead of {total}"
+    );
+    let newest = store.search_scans(&ScanQuery {
         limit: 1,
         ..ScanQuery::default()
     })?;
-    let newest = counts.scans.first().context("no scans read back")?;
+    let newest = newest.scans.first().context("no scans read back")?;
     ensure!(
         newest.id == total as i64,
         "newest scan {} instead of {total}",
