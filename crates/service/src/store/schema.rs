@@ -23,6 +23,7 @@ pub const MIGRATIONS: &[&str] = &[
     MIGRATION_6,
     MIGRATION_7,
     MIGRATION_8,
+    MIGRATION_9,
 ];
 
 /// The schema version this build writes and understands.
@@ -304,6 +305,15 @@ CREATE TRIGGER review_append_only_delete BEFORE DELETE ON review
 BEGIN
     SELECT RAISE(ABORT, 'review is an audit trail: a decision is never deleted');
 END;
+"#;
+
+/// Migration 9: the time each scan was claimed, indexed, so that the
+/// fingerprint of the scan table that every open console polls
+/// (`Store::changes_fingerprint`: its newest claim among others) is read
+/// from indexes instead of the whole table (tens of milliseconds with
+/// 100,000 scans, every 2 s per browser).
+const MIGRATION_9: &str = r#"
+CREATE INDEX scan_started_at ON scan (started_at);
 "#;
 
 /// Bring the database on `conn` to [`SCHEMA_VERSION`]: refuse a file of

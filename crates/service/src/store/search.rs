@@ -66,6 +66,24 @@ pub struct IdentificationTimes {
 /// Where a scan's answer is recorded: its original's row for a duplicate.
 const ANSWER_ROW: &str = "coalesce(scan.duplicate_of, scan.id)";
 
+/// The condition that `cond` (on `result`) holds for a result row of the
+/// scan's answer: of the answer's row itself or of one of its specimens'
+/// rows. Lookups by key (the answer's result rows, then its specimens'
+/// rows), not a search of `scan` for the owner of each result: the
+/// overview tries this on every scan, newest first, until its page is
+/// full. A scan's own row has specimens' rows only when its `specimens`
+/// is set (they are written and removed together), so the specimens are
+/// looked for only then, or for a duplicate (whose original may have
+/// them).
+fn answer_has(cond: &str) -> String {
+    format!(
+        "(EXISTS (SELECT 1 FROM result WHERE result.scan_id = {ANSWER_ROW} AND {cond})
+          OR ((scan.specimens IS NOT NULL OR scan.duplicate_of IS NOT NULL)
+              AND EXISTS (SELECT 1 FROM scan AS part JOIN result ON result.scan_id = part.id
+                          WHERE part.parent_id = {ANSWER_ROW} AND {cond})))"
+    )
+}
+
 impl Store {
     /// The scans `query` selects. Read in one transaction: a consistent
     /// snapshot.
@@ -83,25 +101,16 @@ impl Store {
         for (rank, taxon) in &query.taxa {
             let r = bind(&mut values, Value::Text(rank.clone()));
             let t = bind(&mut values, Value::Text(taxon.clone()));
-            conditions.push(format!(
-                "EXISTS (SELECT 1 FROM result JOIN scan AS owner ON owner.id = result.scan_id
-                         WHERE result.rank = {r} AND result.taxon = {t} COLLATE NOCASE
-                           AND (owner.id = {ANSWER_ROW} OR owner.parent_id = {ANSWER_ROW}))"
-            ));
+            conditions.push(answer_has(&format!(
+                "result.rank = {r} AND result.taxon = {t} COLLATE NOCASE"
+            )));
         }
-        let flagged = |flag: &str| {
-            format!(
-                "EXISTS (SELECT 1 FROM result JOIN scan AS owner ON owner.id = result.scan_id
-                         WHERE {flag}
-                           AND (owner.id = {ANSWER_ROW} OR owner.parent_id = {ANSWER_ROW}))"
-            )
-        };
         match query.no_close_match {
-            Some(true) => conditions.push(flagged("result.no_close_match = 1")),
+            Some(true) => conditions.push(answer_has("result.no_close_match = 1")),
             Some(false) => conditions.push(format!(
                 "{} AND NOT {}",
-                flagged("1"),
-                flagged("result.no_close_match = 1")
+                answer_has("1"),
+                answer_has("result.no_close_match = 1")
             )),
             None => {}
         }
@@ -167,12 +176,17 @@ impl Store {
     /// finished or requeued, or a decision is recorded: the live overview
     /// reloads its rows when it does.
     pub fn changes_fingerprint(&self) -> Result<String, StoreError> {
+        // One statement (one snapshot) of separate aggregates, each read
+        // from an index (the largest and smallest key, the number of
+        // entries, a status's range), never from the table's rows.
         let (max_id, rows, finished, started, pending, running): (i64, i64, i64, i64, i64, i64) =
             self.conn.query_row(
-                "SELECT coalesce(max(id), 0), count(*), coalesce(max(finished_at), 0),
-                        coalesce(max(started_at), 0),
-                        coalesce(sum(status = 'pending'), 0), coalesce(sum(status = 'running'), 0)
-                 FROM scan",
+                "SELECT (SELECT coalesce(max(id), 0) FROM scan),
+                        (SELECT count(*) FROM scan),
+                        (SELECT coalesce(max(finished_at), 0) FROM scan),
+                        (SELECT coalesce(max(started_at), 0) FROM scan),
+                        (SELECT count(*) FROM scan WHERE status = 'pending'),
+                        (SELECT count(*) FROM scan WHERE status = 'running')",
                 [],
                 |r| {
                     Ok((
@@ -229,5 +243,141 @@ impl Store {
             [scan_id],
             |r| r.get(0),
         )?)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::identify::{
+        Confidence, DistanceRow, RankResult, ScanOutcome, SpecimenOutcome, SpecimensOutcome,
+    };
+    use crate::store::Labels;
+    use morphoid_data::pipeline::Position;
+
+    /// An identification as `genus` of `family`, flagged "no close match"
+    /// or not.
+    fn answer(genus: &str, family: &str, flagged: bool) -> ScanOutcome {
+        let ranks = [("order", "Primates"), ("family", family), ("genus", genus)]
+            .iter()
+            .map(|&(rank, taxon)| RankResult {
+                rank: rank.into(),
+                taxon: taxon.into(),
+                reference: "r1".into(),
+                distance: 0.03,
+                runner_up: None,
+                margin: None,
+                confidence: Some(Confidence {
+                    probability: 0.8,
+                    novelty: if flagged { 3.0 } else { 0.5 },
+                    novelty_threshold: Some(1.5),
+                    no_close_match: Some(flagged),
+                }),
+            })
+            .collect();
+        ScanOutcome {
+            ranks,
+            distances: vec![DistanceRow {
+                reference: "r1".into(),
+                forward: 0.03,
+                backward: 0.031,
+                distance: 0.03,
+                reflected: false,
+            }],
+            ..ScanOutcome::default()
+        }
+    }
+
+    fn identified(store: &mut Store, path: &str, hash: &str, out: &ScanOutcome) -> i64 {
+        let id = store.enqueue(path, hash, 10).unwrap().scan_id();
+        store.claim(id).unwrap().unwrap();
+        store.complete(id, out).unwrap();
+        id
+    }
+
+    /// The taxon and "no close match" filters find a duplicate by its
+    /// original's answer and a scan of several specimens by its specimens'.
+    #[test]
+    fn duplicates_and_specimens_are_found_by_their_answers() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut store = Store::open(&dir.path().join("db.sqlite")).unwrap();
+        store
+            .register_reference("r1", "hash-r1", &Labels::new())
+            .unwrap();
+        store.mark_reference_prepared("r1").unwrap();
+        let ateles = identified(
+            &mut store,
+            "a.ply",
+            "h-a",
+            &answer("Ateles", "Atelidae", false),
+        );
+        let ateles_copy = store.enqueue("copy/a.ply", "h-a", 10).unwrap().scan_id();
+        let pair = store.enqueue("pair.nrrd", "h-pair", 10).unwrap().scan_id();
+        store.claim(pair).unwrap().unwrap();
+        let position = Position {
+            voxels: None,
+            bounds: [[0.0; 3], [1.0; 3]],
+        };
+        let specimens = SpecimensOutcome {
+            specimens: vec![
+                SpecimenOutcome {
+                    position: position.clone(),
+                    result: Ok(answer("Cebus", "Cebidae", true)),
+                },
+                SpecimenOutcome {
+                    position,
+                    result: Err("too small".into()),
+                },
+            ],
+            segmentation: serde_json::json!({}),
+            timings_ms: Default::default(),
+        };
+        store.complete_specimens(pair, &specimens).unwrap();
+        let pair_copy = store
+            .enqueue("copy/pair.nrrd", "h-pair", 10)
+            .unwrap()
+            .scan_id();
+        let alouatta = identified(
+            &mut store,
+            "b.ply",
+            "h-b",
+            &answer("Alouatta", "Atelidae", false),
+        );
+        let failed = store.enqueue("c.ply", "h-c", 10).unwrap().scan_id();
+        store.claim(failed).unwrap().unwrap();
+        store.fail(failed, "unreadable").unwrap();
+
+        let mut by = |taxa: &[(&str, &str)], no_close_match: Option<bool>| -> Vec<i64> {
+            let query = ScanQuery {
+                taxa: taxa
+                    .iter()
+                    .map(|(r, t)| (r.to_string(), t.to_string()))
+                    .collect(),
+                no_close_match,
+                limit: 50,
+                ..ScanQuery::default()
+            };
+            let page = store.search_scans(&query).unwrap();
+            page.scans.iter().map(|s| s.id).collect()
+        };
+        assert_eq!(by(&[("genus", "Ateles")], None), [ateles_copy, ateles]);
+        assert_eq!(by(&[("genus", "cebus")], None), [pair_copy, pair]);
+        assert_eq!(
+            by(&[("family", "Atelidae")], None),
+            [alouatta, ateles_copy, ateles]
+        );
+        assert_eq!(
+            by(&[("family", "ATELIDAE"), ("genus", "Alouatta")], None),
+            [alouatta]
+        );
+        assert_eq!(by(&[("genus", "Pan")], None), Vec::<i64>::new());
+        assert_eq!(by(&[("order", "Atelidae")], None), Vec::<i64>::new());
+        assert_eq!(by(&[], Some(true)), [pair_copy, pair]);
+        assert_eq!(by(&[], Some(false)), [alouatta, ateles_copy, ateles]);
+        assert_eq!(by(&[("genus", "Cebus")], Some(false)), Vec::<i64>::new());
+        assert_eq!(
+            by(&[], None),
+            [failed, alouatta, pair_copy, pair, ateles_copy, ateles]
+        );
     }
 }
