@@ -132,7 +132,8 @@ fn a_full_disk_under_the_database_loses_and_repeats_nothing() {
     drop(mnt);
 }
 
-/// Issue 30: a database on a 512 kB file system (400 kB until the console's index of claim times, migration 9). Its log stays small
+/// Issue 30: a database on a 512 kB file system (400 kB before schema 9,
+/// where a fresh database now fails its first write). Its log stays small
 /// (checkpointed after every scan or two and cut back), so six scans fit;
 /// filled up by another file meanwhile, the daemon retries (the log
 /// checkpointed and cut to nothing on SQLITE_FULL) and, once the space is
