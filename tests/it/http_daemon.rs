@@ -13,13 +13,7 @@ fn http_the_console_follows_the_running_daemon() {
         "[http]\nlisten = \"127.0.0.1:0\"\npublic_read = true\n",
     );
     let mut daemon = Daemon::start(&env);
-    let log = daemon.log_text();
-    let base = log
-        .split("web console listening on ")
-        .nth(1)
-        .and_then(|rest| rest.split_whitespace().next())
-        .unwrap_or_else(|| panic!("no listening line:\n{log}"))
-        .to_string();
+    let base = daemon.console_url();
     let client = reqwest::blocking::Client::builder()
         .timeout(Duration::from_secs(20))
         .build()

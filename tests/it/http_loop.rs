@@ -109,13 +109,7 @@ fn http_the_curators_loop_grows_the_library_from_its_own_scans() {
     let daemon = Daemon::start(&env);
     let start_refs = daemon.references();
     assert_eq!(start_refs as usize, library_names.len());
-    let log = daemon.log_text();
-    let base = log
-        .split("web console listening on ")
-        .nth(1)
-        .and_then(|rest| rest.split_whitespace().next())
-        .unwrap_or_else(|| panic!("no listening line:\n{log}"))
-        .to_string();
+    let base = daemon.console_url();
     let client = reqwest::blocking::Client::builder()
         .timeout(Duration::from_secs(60))
         .build()

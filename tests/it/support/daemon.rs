@@ -164,6 +164,16 @@ impl Daemon {
             .unwrap()
     }
 
+    /// The web console's base URL, from its "listening" log line.
+    pub(crate) fn console_url(&self) -> String {
+        let log = self.log_text();
+        log.split("web console listening on ")
+            .nth(1)
+            .and_then(|rest| rest.split_whitespace().next())
+            .unwrap_or_else(|| panic!("no listening line:\n{log}"))
+            .to_string()
+    }
+
     /// The log so far.
     pub(crate) fn log_text(&self) -> String {
         std::fs::read_to_string(&self.log).unwrap_or_default()

@@ -482,16 +482,18 @@ mod tests {
     use morphoid_synth::mesh::{self as synth, LibrarySpec};
     use std::sync::atomic::{AtomicUsize, Ordering};
 
-    /// Calibrations of one share: a later one takes what an earlier one
-    /// computed, and an earlier one stops once a later one has started.
-    #[test]
-    fn a_later_calibration_takes_the_pairs_an_earlier_one_computed() {
+    /// The references of a synthetic library (two crowns of each genus,
+    /// made with `seed`) prepared into a cache: the folder holding both,
+    /// the cache, the settings and the references.
+    fn synthetic_references(
+        seed: u64,
+    ) -> (tempfile::TempDir, Cache, Settings, Vec<CachedReference>) {
         let tmp = tempfile::tempdir().unwrap();
         let dir = tmp.path().join("library");
         let spec = LibrarySpec {
             per_genus: 2,
             target_vertices: 500,
-            seed: 13,
+            seed,
             random_pose: false,
         };
         synth::write_synthetic_library(&dir, &spec).unwrap();
@@ -501,6 +503,14 @@ mod tests {
         settings.clean.target_vertices = 500;
         let mut built = library::build(&lib, &cache, &settings, |_| {}).unwrap();
         let (all, _) = built.take_references();
+        (tmp, cache, settings, all)
+    }
+
+    /// Calibrations of one share: a later one takes what an earlier one
+    /// computed, and an earlier one stops once a later one has started.
+    #[test]
+    fn a_later_calibration_takes_the_pairs_an_earlier_one_computed() {
+        let (_tmp, _cache, settings, all) = synthetic_references(13);
         let n = all.len();
         let share = CalibrationShare::default();
         let counted = |turn: &CalibrationTurn| {
@@ -529,21 +539,7 @@ mod tests {
 
     #[test]
     fn a_library_with_one_reference_more_computes_only_that_references_pairs() {
-        let tmp = tempfile::tempdir().unwrap();
-        let dir = tmp.path().join("library");
-        let spec = LibrarySpec {
-            per_genus: 2,
-            target_vertices: 500,
-            seed: 11,
-            random_pose: false,
-        };
-        synth::write_synthetic_library(&dir, &spec).unwrap();
-        let lib = Library::open(&dir, None).unwrap();
-        let cache = Cache::open(&tmp.path().join("cache")).unwrap();
-        let mut settings = Settings::default();
-        settings.clean.target_vertices = 500;
-        let mut built = library::build(&lib, &cache, &settings, |_| {}).unwrap();
-        let (all, _) = built.take_references();
+        let (_tmp, cache, settings, all) = synthetic_references(11);
         let n = all.len();
         let computed = |refs: &[CachedReference], cache: Option<&Cache>| {
             let count = AtomicUsize::new(0);
