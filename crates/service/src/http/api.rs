@@ -6,10 +6,10 @@ use super::auth::{identify, may_read, writer, CSRF_HEADER};
 use super::error::ApiError;
 use super::query::scan_query;
 use super::state::AppState;
-use crate::store::{Decision, NewReview, ReviewRecord, ScanRecord, DEFAULT_NEAREST};
+use crate::store::{Decision, NewReview, ReviewRecord, ScanQuery, ScanRecord, DEFAULT_NEAREST};
 use axum::extract::rejection::JsonRejection;
 use axum::extract::{Path, RawQuery, State};
-use axum::http::{HeaderMap, StatusCode};
+use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 use serde::{Deserialize, Deserializer};
@@ -47,10 +47,25 @@ pub(super) async fn list_scans(
     State(state): State<Arc<AppState>>,
     headers: HeaderMap,
     RawQuery(raw): RawQuery,
-) -> Result<Json<Value>, ApiError> {
+) -> Result<Response, ApiError> {
     let identity = identify(&state, &headers).await?;
     may_read(&state, &identity)?;
     let query = scan_query(raw.as_deref(), &state.ranks, &[])?;
+    let key = format!("scans?{}", raw.as_deref().unwrap_or(""));
+    let body = state
+        .answers
+        .answer(key, || scans_page_json(&state, query))
+        .await?;
+    Ok((
+        [(header::CONTENT_TYPE, "application/json")],
+        body.to_string(),
+    )
+        .into_response())
+}
+
+/// The body of `GET /api/v1/scans` for `query`: the same for every
+/// reader, so it is kept until the database changes.
+async fn scans_page_json(state: &AppState, query: ScanQuery) -> Result<String, ApiError> {
     let (limit, offset) = (query.limit, query.offset);
     let (page, reviews) = state
         .pool
@@ -70,12 +85,13 @@ pub(super) async fn list_scans(
         .zip(&reviews)
         .map(|(s, r)| scan_json(s, r.as_ref()))
         .collect();
-    Ok(Json(json!({
+    Ok(json!({
         "scans": scans,
         "next_cursor": page.next_cursor,
         "limit": limit,
         "offset": offset,
-    })))
+    })
+    .to_string())
 }
 
 /// `GET /api/v1/scans/{id}`: one scan, with `reviews` (every decision,

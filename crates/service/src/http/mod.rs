@@ -22,11 +22,13 @@
 //! curator.
 //!
 //! Modules: `server` (listener, connections, limits), `state`, `pool`,
+//! `cache` (the busiest reads' answers, kept until the database changes),
 //! `auth`, `query` (the scan filters), `api`, `pages`, `metrics`,
 //! `openapi`, `status` (what the daemon tells the console), `error`.
 
 mod api;
 mod auth;
+mod cache;
 mod error;
 mod grow;
 mod metrics;

@@ -18,7 +18,7 @@ use super::query::scan_query;
 use super::server::PeerAddr;
 use super::state::AppState;
 use crate::report::{index_html, report_html, utc_time, IndexRow, PageLink};
-use crate::store::{ReviewRecord, ScanRecord, DEFAULT_NEAREST};
+use crate::store::{ReviewRecord, ScanQuery, ScanRecord, DEFAULT_NEAREST};
 use axum::extract::rejection::FormRejection;
 use axum::extract::{Path, RawQuery, State};
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode, Uri};
@@ -182,14 +182,33 @@ pub(super) async fn overview(
         Ok(q) => q,
         Err(e) => return e.into_page(),
     };
-    let page_of = state
-        .pool
-        .run(move |store| store.search_scans(&query))
+    let pairs = query_pairs(raw.as_deref());
+    let key = format!("overview?{}", raw.as_deref().unwrap_or(""));
+    let rows = state
+        .answers
+        .answer(key, || overview_rows(&state, query, &pairs))
         .await;
-    let scan_page = match page_of {
-        Ok(p) => p,
+    let html = match rows {
+        Ok(html) => html,
         Err(e) => return e.into_page(),
     };
+    let top = format!("{}{}", nav(&identity), filter_form(&state, &pairs));
+    html_response(StatusCode::OK, inject(&html, &top, &live_script()))
+}
+
+/// The overview's page without the navigation, filters and script: the
+/// scans of `query`, each followed by its specimens, and the link to older
+/// ones. The same for every reader, so it is kept until the database
+/// changes.
+async fn overview_rows(
+    state: &AppState,
+    query: ScanQuery,
+    pairs: &[(String, String)],
+) -> Result<String, ApiError> {
+    let scan_page = state
+        .pool
+        .run(move |store| store.search_scans(&query))
+        .await?;
     // A scan of several specimens: its specimens' rows follow it.
     let records: Vec<&ScanRecord> = scan_page
         .scans
@@ -206,7 +225,6 @@ pub(super) async fn overview(
             thumbnail: None,
         })
         .collect();
-    let pairs = query_pairs(raw.as_deref());
     let mut pages = Vec::new();
     if let Some(cursor) = scan_page.next_cursor {
         let mut next: Vec<(String, String)> = pairs
@@ -223,9 +241,7 @@ pub(super) async fn overview(
             label: format!("older scans (before scan {cursor})"),
         });
     }
-    let html = index_html("scans", &rows, &pages);
-    let top = format!("{}{}", nav(&identity), filter_form(&state, &pairs));
-    html_response(StatusCode::OK, inject(&html, &top, &live_script()))
+    Ok(index_html("scans", &rows, &pages))
 }
 
 /// The filter form, filled with the query's values.

@@ -1,6 +1,7 @@
 //! What every request handler shares.
 
 use super::auth::{LoginLimiter, Sessions};
+use super::cache::AnswerCache;
 use super::pool::ReadPool;
 use super::server::Sources;
 use super::status::LiveStatus;
@@ -23,6 +24,9 @@ pub(super) struct AppState {
     pub settings: Http,
     /// Connections to the daemon's database.
     pub pool: Arc<ReadPool>,
+    /// The overview's and the scan list's answers, until the database
+    /// changes.
+    pub answers: Arc<AnswerCache>,
     /// What the daemon says of itself.
     pub live: LiveStatus,
     /// Login sessions.
@@ -56,6 +60,7 @@ impl AppState {
         AppState {
             settings: settings.clone(),
             pool: Arc::new(ReadPool::new(&db, POOL_SIZE)),
+            answers: Arc::new(AnswerCache::new(&db)),
             live,
             sessions: Sessions::new(Duration::from_secs_f64(settings.session_hours * 3600.0)),
             limiter: LoginLimiter::new(settings.login_failures_per_minute),

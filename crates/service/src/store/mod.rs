@@ -182,6 +182,16 @@ impl Store {
         Ok(self.conn.busy_timeout(timeout)?)
     }
 
+    /// SQLite's `data_version` on this connection: it changes whenever
+    /// another connection (of this process or another) commits to the
+    /// file, and never for this connection's own commits. What the
+    /// console's answer cache is keyed on.
+    pub fn data_version(&self) -> Result<i64, StoreError> {
+        Ok(self
+            .conn
+            .query_row("PRAGMA data_version", [], |row| row.get(0))?)
+    }
+
     /// Write a consistent copy of the whole database to the new file
     /// `target` (`VACUUM INTO`): how the daemon puts back a database file
     /// deleted under its open connection.

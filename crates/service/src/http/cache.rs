@@ -1,0 +1,212 @@
+//! Answers of the console's busiest reads (the overview's rows, a page of
+//! `GET /api/v1/scans`), kept until the database changes. Querying and
+//! drawing a page of a 100,000-scan database costs about 3 ms of CPU; two
+//! hundred open overviews asking again would take the cores
+//! identification needs, although the answer changes only when a scan or
+//! a decision is recorded.
+//!
+//! An answer is tagged with the database's generation: the file's device
+//! and inode, and SQLite's `data_version` as seen by a connection of the
+//! cache's own that never writes, so that any commit by any other
+//! connection (the daemon, the console's writes, `morphoid review` in
+//! another process) changes it. A request under another generation
+//! computes the answer again; requests for the same key at the same moment
+//! share one computation.
+
+use super::error::ApiError;
+use crate::store::Store;
+use std::collections::HashMap;
+use std::future::Future;
+use std::os::unix::fs::MetadataExt as _;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use tokio::sync::OnceCell;
+
+/// Keys kept at most: beyond that, answers of older generations go first,
+/// then all.
+const MAX_ENTRIES: usize = 512;
+
+/// The database's state an answer was computed from: device, inode and
+/// `data_version`.
+type Generation = (u64, u64, i64);
+
+/// One key's answer, of one generation.
+#[derive(Debug)]
+struct Entry {
+    generation: Generation,
+    answer: Arc<OnceCell<Arc<str>>>,
+}
+
+/// Answers by key, each valid for one generation of the database.
+#[derive(Debug)]
+pub(super) struct AnswerCache {
+    path: PathBuf,
+    /// The connection that reads `data_version`, with the identity of the
+    /// file it has open.
+    watch: Mutex<Option<(Store, (u64, u64))>>,
+    entries: Mutex<HashMap<String, Entry>>,
+}
+
+/// Device and inode of the file at `path`.
+fn file_identity(path: &Path) -> Option<(u64, u64)> {
+    std::fs::metadata(path).ok().map(|m| (m.dev(), m.ino()))
+}
+
+impl AnswerCache {
+    /// A cache of answers read from the database at `path`.
+    pub(super) fn new(path: &Path) -> Self {
+        AnswerCache {
+            path: path.to_path_buf(),
+            watch: Mutex::new(None),
+            entries: Mutex::new(HashMap::new()),
+        }
+    }
+
+    /// The database's generation now, or `None` when it cannot be read
+    /// (then nothing is cached). Blocking, but short: a `stat` and a
+    /// pragma that reads the shared-memory index.
+    fn generation(&self) -> Option<Generation> {
+        let now = file_identity(&self.path)?;
+        let mut watch = self.watch.lock().unwrap_or_else(|p| p.into_inner());
+        if watch.as_ref().is_none_or(|(_, identity)| *identity != now) {
+            // A replaced file (the daemon put back a deleted database) is
+            // watched afresh.
+            *watch = Some((Store::open(&self.path).ok()?, now));
+        }
+        let (store, _) = watch.as_ref()?;
+        match store.data_version() {
+            Ok(version) => Some((now.0, now.1, version)),
+            Err(_) => {
+                *watch = None;
+                None
+            }
+        }
+    }
+
+    /// The answer for `key` under the database's present generation:
+    /// kept, being computed by another request (then awaited), or
+    /// computed now by `compute`. An error is returned, never kept.
+    pub(super) async fn answer<F, Fut>(
+        self: &Arc<Self>,
+        key: String,
+        compute: F,
+    ) -> Result<Arc<str>, ApiError>
+    where
+        F: FnOnce() -> Fut,
+        Fut: Future<Output = Result<String, ApiError>>,
+    {
+        let cache = Arc::clone(self);
+        let generation = tokio::task::spawn_blocking(move || cache.generation())
+            .await
+            .ok()
+            .flatten();
+        let Some(generation) = generation else {
+            return compute().await.map(Arc::from);
+        };
+        let cell = self.cell(key, generation);
+        cell.get_or_try_init(|| async { compute().await.map(Arc::from) })
+            .await
+            .cloned()
+    }
+
+    /// The cell holding `key`'s answer of `generation`, made empty when
+    /// the kept one is of another generation.
+    fn cell(&self, key: String, generation: Generation) -> Arc<OnceCell<Arc<str>>> {
+        let mut entries = self.entries.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(entry) = entries.get(&key) {
+            if entry.generation == generation {
+                return Arc::clone(&entry.answer);
+            }
+        }
+        if entries.len() >= MAX_ENTRIES {
+            entries.retain(|_, e| e.generation == generation);
+            if entries.len() >= MAX_ENTRIES {
+                entries.clear();
+            }
+        }
+        let answer = Arc::new(OnceCell::new());
+        entries.insert(
+            key,
+            Entry {
+                generation,
+                answer: Arc::clone(&answer),
+            },
+        );
+        answer
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    fn runtime() -> tokio::runtime::Runtime {
+        tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .enable_all()
+            .build()
+            .unwrap()
+    }
+
+    #[test]
+    fn an_answer_is_kept_until_another_connection_commits() {
+        let dir = tempfile::tempdir().unwrap();
+        let db = dir.path().join("ids.sqlite");
+        let mut writer = Store::open(&db).unwrap();
+        let cache = Arc::new(AnswerCache::new(&db));
+        let computed = Arc::new(AtomicUsize::new(0));
+        let ask = |cache: &Arc<AnswerCache>| {
+            let computed = Arc::clone(&computed);
+            runtime().block_on(cache.answer("k".into(), move || async move {
+                let n = computed.fetch_add(1, Ordering::SeqCst) + 1;
+                Ok(format!("answer {n}"))
+            }))
+        };
+        assert_eq!(&*ask(&cache).unwrap(), "answer 1");
+        assert_eq!(&*ask(&cache).unwrap(), "answer 1");
+        writer.enqueue("/scans/a.ply", "00aa", 1).unwrap();
+        assert_eq!(&*ask(&cache).unwrap(), "answer 2");
+        assert_eq!(&*ask(&cache).unwrap(), "answer 2");
+    }
+
+    #[test]
+    fn requests_at_the_same_moment_share_one_computation_and_errors_are_not_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let db = dir.path().join("ids.sqlite");
+        Store::open(&db).unwrap();
+        let cache = Arc::new(AnswerCache::new(&db));
+        let computed = Arc::new(AtomicUsize::new(0));
+        let rt = runtime();
+        let answers: Vec<_> = rt.block_on(async {
+            let tasks: Vec<_> = (0..20)
+                .map(|_| {
+                    let (cache, computed) = (Arc::clone(&cache), Arc::clone(&computed));
+                    tokio::spawn(async move {
+                        cache
+                            .answer("k".into(), move || async move {
+                                computed.fetch_add(1, Ordering::SeqCst);
+                                tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+                                Ok("shared".to_string())
+                            })
+                            .await
+                    })
+                })
+                .collect();
+            let mut out = Vec::new();
+            for t in tasks {
+                out.push(t.await.unwrap().unwrap());
+            }
+            out
+        });
+        assert!(answers.iter().all(|a| &**a == "shared"));
+        assert_eq!(computed.load(Ordering::SeqCst), 1);
+
+        let failed = rt.block_on(cache.answer("e".into(), || async {
+            Err(ApiError::BadRequest("no".into()))
+        }));
+        assert!(failed.is_err());
+        let again = rt.block_on(cache.answer("e".into(), || async { Ok("now".to_string()) }));
+        assert_eq!(&*again.unwrap(), "now");
+    }
+}
