@@ -5,6 +5,29 @@
 use crate::support::daemon::{env, genus, put, scan_bytes, wait_until, Daemon};
 use std::time::Duration;
 
+/// Each thread of process `pid`: its name and nice value (from
+/// `/proc/PID/task/TID/stat`).
+fn thread_niceness(pid: i32) -> Vec<(String, i64)> {
+    let mut out = Vec::new();
+    for task in std::fs::read_dir(format!("/proc/{pid}/task")).unwrap() {
+        let Ok(stat) = std::fs::read_to_string(task.unwrap().path().join("stat")) else {
+            continue;
+        };
+        let (Some(open), Some(close)) = (stat.find('('), stat.rfind(')')) else {
+            continue;
+        };
+        let name = stat[open + 1..close].to_string();
+        // After the name: state is field 3; nice is field 19.
+        let nice = stat[close + 2..]
+            .split_whitespace()
+            .nth(19 - 3)
+            .and_then(|f| f.parse().ok())
+            .unwrap();
+        out.push((name, nice));
+    }
+    out
+}
+
 #[test]
 fn http_the_console_follows_the_running_daemon() {
     let env = env(
@@ -30,6 +53,24 @@ fn http_the_console_follows_the_running_daemon() {
         wait_until(Duration::from_secs(30), || get("/api/v1/status")["running"]
             == true),
         "the daemon's state never reached the console"
+    );
+    // The console's threads run 10 nice steps below the daemon's, so that
+    // browsing never takes the CPU from identification.
+    let threads = thread_niceness(daemon.pid());
+    let daemon_nice = threads
+        .iter()
+        .find(|(name, _)| name == "morphoid")
+        .map(|t| t.1)
+        .expect("the daemon's main thread");
+    let console: Vec<i64> = threads
+        .iter()
+        .filter(|(name, _)| name == "morphoid-http")
+        .map(|t| t.1)
+        .collect();
+    assert!(!console.is_empty(), "no console thread in {threads:?}");
+    assert!(
+        console.iter().all(|&n| n == (daemon_nice + 10).min(19)),
+        "console threads' nice values {console:?}, the daemon's {daemon_nice}"
     );
     let status = get("/api/v1/status");
     assert_eq!(status["references"], daemon.references());

@@ -28,6 +28,7 @@ mod conformal_teeth;
 mod cp_accuracy;
 mod cp_invariance;
 mod cp_prepare_all;
+mod cp_precision;
 mod cp_screen;
 mod cp_synthetic;
 mod cw_teeth;
