@@ -37,7 +37,7 @@ fn the_log_stays_bounded_over_a_thousand_scans() {
         store.complete(job.scan_id, &outcome(i, 116)).unwrap();
         largest = largest.max(size());
         // As the daemon's worker does after recording each scan.
-        store.checkpoint().unwrap();
+        store.checkpoint_without_waiting().unwrap();
         store.files_written(job.scan_id).unwrap();
         largest = largest.max(size());
     }
@@ -51,4 +51,44 @@ fn the_log_stays_bounded_over_a_thousand_scans() {
     // A checkpoint leaves nothing in the log.
     assert!(store.checkpoint().unwrap());
     assert_eq!(size(), 0);
+}
+
+/// The daemon's checkpoints never wait for a reader (the web console reads
+/// all the time under load): beside a reader that holds an old snapshot,
+/// one returns "not complete" at once, although the connection's busy
+/// timeout is a minute; the log is cut once the reader is done.
+#[test]
+fn a_checkpoint_beside_a_reader_does_not_wait_for_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("db.sqlite");
+    let wal = dir.path().join("db.sqlite-wal");
+    let mut store = Store::open(&db).unwrap();
+    store
+        .set_busy_timeout(std::time::Duration::from_secs(60))
+        .unwrap();
+    store.enqueue("export/a.ply", &content_hash(b"a"), 1).unwrap();
+    let reader = rusqlite::Connection::open(&db).unwrap();
+    reader.execute_batch("BEGIN").unwrap();
+    let seen: i64 = reader
+        .query_row("SELECT count(*) FROM scan", [], |r| r.get(0))
+        .unwrap();
+    assert_eq!(seen, 1);
+    store.enqueue("export/b.ply", &content_hash(b"b"), 1).unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    let worker = std::thread::spawn(move || {
+        let done = store.checkpoint_without_waiting().unwrap();
+        tx.send(done).unwrap();
+        store
+    });
+    // Far less than the busy timeout: a checkpoint that waited for the
+    // reader would still be waiting.
+    let done = rx
+        .recv_timeout(std::time::Duration::from_secs(20))
+        .expect("the checkpoint waited for the reader");
+    assert!(!done, "the reader's snapshot cannot be checkpointed past");
+    let mut store = worker.join().unwrap();
+    reader.execute_batch("COMMIT").unwrap();
+    assert!(store.checkpoint_without_waiting().unwrap());
+    assert_eq!(std::fs::metadata(&wal).unwrap().len(), 0);
+    assert_eq!(store.counts().unwrap().pending, 2);
 }

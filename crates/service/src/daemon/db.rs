@@ -145,10 +145,12 @@ impl Db {
         // Never on a connection to a file replaced meanwhile: its log's
         // name is the new file's.
         self.follow_file();
-        let Some(store) = &self.store else {
+        let Some(store) = &mut self.store else {
             return;
         };
-        match store.checkpoint() {
+        // Never waiting on the console's readers: the control loop must
+        // not stall, and the next interval tries again.
+        match store.checkpoint_without_waiting() {
             Ok(done) => tracing::trace!("checkpoint (complete: {done})"),
             Err(e) => {
                 self.failed(&e);

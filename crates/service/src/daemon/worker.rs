@@ -326,8 +326,11 @@ impl WorkerState {
                 Ok(status) => {
                     // The log folded back and cut to nothing after every
                     // scan: a database on a small file system needs little
-                    // more than its own size.
-                    if let Err(e) = store.checkpoint() {
+                    // more than its own size. Without waiting for readers
+                    // (the console's): a wait would hold up the next scan
+                    // for up to the busy timeout, and the periodic
+                    // checkpoint takes what is left.
+                    if let Err(e) = store.checkpoint_without_waiting() {
                         tracing::debug!("checkpoint after scan {}: {e}", held.job.scan_id);
                     }
                     self.keep_specimen_scenes(store, &held);

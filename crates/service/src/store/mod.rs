@@ -108,6 +108,8 @@ pub struct Store {
     /// Whether finishing a scan marks its result files as due
     /// ([`Store::set_result_files`]).
     result_files: bool,
+    /// How long a write waits for another connection's lock.
+    busy_timeout: Duration,
 }
 
 impl std::fmt::Debug for Store {
@@ -163,6 +165,7 @@ impl Store {
             conn,
             path: path.to_path_buf(),
             result_files: false,
+            busy_timeout: BUSY_TIMEOUT,
         })
     }
 
@@ -179,7 +182,9 @@ impl Store {
     /// fails as busy (default 10 s). The daemon waits less, so that its
     /// control loop is never held up long; the job is retried instead.
     pub fn set_busy_timeout(&mut self, timeout: Duration) -> Result<(), StoreError> {
-        Ok(self.conn.busy_timeout(timeout)?)
+        self.conn.busy_timeout(timeout)?;
+        self.busy_timeout = timeout;
+        Ok(())
     }
 
     /// SQLite's `data_version` on this connection: it changes whenever
@@ -210,6 +215,18 @@ impl Store {
     /// was reading or writing, so part of the log stays until next time).
     pub fn checkpoint(&self) -> Result<bool, StoreError> {
         self.checkpoint_as("TRUNCATE")
+    }
+
+    /// [`Store::checkpoint`] without waiting for other connections: while
+    /// one is reading (the web console, always, under load) this folds
+    /// what it can and leaves the rest for a later checkpoint, where a
+    /// checkpoint that waits would hold the caller for up to its busy
+    /// timeout. Returns whether it completed.
+    pub fn checkpoint_without_waiting(&mut self) -> Result<bool, StoreError> {
+        self.conn.busy_timeout(Duration::ZERO)?;
+        let done = self.checkpoint_as("TRUNCATE");
+        self.conn.busy_timeout(self.busy_timeout)?;
+        done
     }
 
     /// Let a commit fold the write-ahead log back into the database once it
