@@ -66,14 +66,18 @@ fn a_checkpoint_beside_a_reader_does_not_wait_for_it() {
     store
         .set_busy_timeout(std::time::Duration::from_secs(60))
         .unwrap();
-    store.enqueue("export/a.ply", &content_hash(b"a"), 1).unwrap();
+    store
+        .enqueue("export/a.ply", &content_hash(b"a"), 1)
+        .unwrap();
     let reader = rusqlite::Connection::open(&db).unwrap();
     reader.execute_batch("BEGIN").unwrap();
     let seen: i64 = reader
         .query_row("SELECT count(*) FROM scan", [], |r| r.get(0))
         .unwrap();
     assert_eq!(seen, 1);
-    store.enqueue("export/b.ply", &content_hash(b"b"), 1).unwrap();
+    store
+        .enqueue("export/b.ply", &content_hash(b"b"), 1)
+        .unwrap();
     let (tx, rx) = std::sync::mpsc::channel();
     let worker = std::thread::spawn(move || {
         let done = store.checkpoint_without_waiting().unwrap();

@@ -255,7 +255,10 @@ pub(super) async fn record_decision(
                 ranks: &ranks,
             })?)
         })
-        .await?;
+        .await;
+    // Whether it was recorded or not, no list from before is shown again.
+    state.answers.forget();
+    let record = record?;
     tracing::info!(
         "scan {scan_id}: {} by {curator} (decision #{}, {} of the scan)",
         record.decision,
@@ -341,7 +344,9 @@ pub(super) async fn add_to_library(
             super::grow::add_scan_to_library(store, &library, &ranks, id, name.as_deref())
                 .map_err(ApiError::from)
         })
-        .await?;
+        .await;
+    state.answers.forget();
+    let added = added?;
     tracing::info!(
         "scan {id} added to the library as {} by {curator} (labels from decision #{}); reloading",
         added.reference,

@@ -8,10 +8,13 @@
 //! An answer is tagged with the database's generation: the file's device
 //! and inode, and SQLite's `data_version` as seen by a connection of the
 //! cache's own that never writes, so that any commit by any other
-//! connection (the daemon, the console's writes, `morphoid review` in
-//! another process) changes it. A request under another generation
-//! computes the answer again; requests for the same key at the same moment
-//! share one computation.
+//! connection (the daemon, `morphoid review` in another process) changes
+//! it. An answer of an older generation is still given for [`FRESH_FOR`]
+//! after it was made: while scans are identified the daemon commits
+//! several times a second, and each key would otherwise be computed again
+//! for almost every request. The console's own writes forget every answer
+//! at once, so that a curator sees their decision. Requests for the same
+//! key at the same moment share one computation.
 
 use super::error::ApiError;
 use crate::store::Store;
@@ -19,8 +22,15 @@ use std::collections::HashMap;
 use std::future::Future;
 use std::os::unix::fs::MetadataExt as _;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 use tokio::sync::OnceCell;
+
+/// How long an answer is given after the database changed: the lists are
+/// at most this far behind the daemon. The live overview asks again on the
+/// poll after a change, so that it never stays behind.
+pub(super) const FRESH_FOR: Duration = Duration::from_secs(1);
 
 /// Keys kept at most: beyond that, answers of older generations go first,
 /// then all.
@@ -34,6 +44,10 @@ type Generation = (u64, u64, i64);
 #[derive(Debug)]
 struct Entry {
     generation: Generation,
+    /// When it was asked for first.
+    made: Instant,
+    /// The console's writes before it ([`AnswerCache::forget`]).
+    epoch: u64,
     answer: Arc<OnceCell<Arc<str>>>,
 }
 
@@ -45,6 +59,10 @@ pub(super) struct AnswerCache {
     /// file it has open.
     watch: Mutex<Option<(Store, (u64, u64))>>,
     entries: Mutex<HashMap<String, Entry>>,
+    /// How long an answer outlives a change ([`FRESH_FOR`]).
+    fresh_for: Duration,
+    /// Counts the console's own writes.
+    epoch: AtomicU64,
 }
 
 /// Device and inode of the file at `path`.
@@ -53,13 +71,22 @@ fn file_identity(path: &Path) -> Option<(u64, u64)> {
 }
 
 impl AnswerCache {
-    /// A cache of answers read from the database at `path`.
-    pub(super) fn new(path: &Path) -> Self {
+    /// A cache of answers read from the database at `path`, each given
+    /// for `fresh_for` after the database changed.
+    pub(super) fn new(path: &Path, fresh_for: Duration) -> Self {
         AnswerCache {
             path: path.to_path_buf(),
             watch: Mutex::new(None),
             entries: Mutex::new(HashMap::new()),
+            fresh_for,
+            epoch: AtomicU64::new(0),
         }
+    }
+
+    /// The console wrote to the database: no answer from before is given
+    /// again.
+    pub(super) fn forget(&self) {
+        self.epoch.fetch_add(1, Ordering::SeqCst);
     }
 
     /// The database's generation now, or `None` when it cannot be read
@@ -109,12 +136,15 @@ impl AnswerCache {
             .cloned()
     }
 
-    /// The cell holding `key`'s answer of `generation`, made empty when
-    /// the kept one is of another generation.
+    /// The cell holding `key`'s answer of `generation`, or of an earlier
+    /// one made less than `fresh_for` ago and after the console's last
+    /// write; else a new, empty one.
     fn cell(&self, key: String, generation: Generation) -> Arc<OnceCell<Arc<str>>> {
+        let epoch = self.epoch.load(Ordering::SeqCst);
         let mut entries = self.entries.lock().unwrap_or_else(|p| p.into_inner());
         if let Some(entry) = entries.get(&key) {
-            if entry.generation == generation {
+            let fresh = entry.epoch == epoch && entry.made.elapsed() < self.fresh_for;
+            if (entry.generation == generation && entry.epoch == epoch) || fresh {
                 return Arc::clone(&entry.answer);
             }
         }
@@ -129,6 +159,8 @@ impl AnswerCache {
             key,
             Entry {
                 generation,
+                made: Instant::now(),
+                epoch,
                 answer: Arc::clone(&answer),
             },
         );
@@ -149,25 +181,43 @@ mod tests {
             .unwrap()
     }
 
+    /// `cache.answer("k")`, counting computations in `computed`.
+    fn ask(cache: &Arc<AnswerCache>, computed: &Arc<AtomicUsize>) -> String {
+        let computed = Arc::clone(computed);
+        let answer = runtime().block_on(cache.answer("k".into(), move || async move {
+            let n = computed.fetch_add(1, Ordering::SeqCst) + 1;
+            Ok(format!("answer {n}"))
+        }));
+        answer.unwrap().to_string()
+    }
+
+    #[test]
+    fn an_answer_outlives_a_change_for_its_time_but_not_the_consoles_own_write() {
+        let dir = tempfile::tempdir().unwrap();
+        let db = dir.path().join("ids.sqlite");
+        let mut writer = Store::open(&db).unwrap();
+        let cache = Arc::new(AnswerCache::new(&db, Duration::from_secs(3600)));
+        let computed = Arc::new(AtomicUsize::new(0));
+        assert_eq!(ask(&cache, &computed), "answer 1");
+        writer.enqueue("/scans/a.ply", "00aa", 1).unwrap();
+        assert_eq!(ask(&cache, &computed), "answer 1");
+        cache.forget();
+        assert_eq!(ask(&cache, &computed), "answer 2");
+        assert_eq!(ask(&cache, &computed), "answer 2");
+    }
+
     #[test]
     fn an_answer_is_kept_until_another_connection_commits() {
         let dir = tempfile::tempdir().unwrap();
         let db = dir.path().join("ids.sqlite");
         let mut writer = Store::open(&db).unwrap();
-        let cache = Arc::new(AnswerCache::new(&db));
+        let cache = Arc::new(AnswerCache::new(&db, Duration::ZERO));
         let computed = Arc::new(AtomicUsize::new(0));
-        let ask = |cache: &Arc<AnswerCache>| {
-            let computed = Arc::clone(&computed);
-            runtime().block_on(cache.answer("k".into(), move || async move {
-                let n = computed.fetch_add(1, Ordering::SeqCst) + 1;
-                Ok(format!("answer {n}"))
-            }))
-        };
-        assert_eq!(&*ask(&cache).unwrap(), "answer 1");
-        assert_eq!(&*ask(&cache).unwrap(), "answer 1");
+        assert_eq!(ask(&cache, &computed), "answer 1");
+        assert_eq!(ask(&cache, &computed), "answer 1");
         writer.enqueue("/scans/a.ply", "00aa", 1).unwrap();
-        assert_eq!(&*ask(&cache).unwrap(), "answer 2");
-        assert_eq!(&*ask(&cache).unwrap(), "answer 2");
+        assert_eq!(ask(&cache, &computed), "answer 2");
+        assert_eq!(ask(&cache, &computed), "answer 2");
     }
 
     #[test]
@@ -175,7 +225,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let db = dir.path().join("ids.sqlite");
         Store::open(&db).unwrap();
-        let cache = Arc::new(AnswerCache::new(&db));
+        let cache = Arc::new(AnswerCache::new(&db, FRESH_FOR));
         let computed = Arc::new(AtomicUsize::new(0));
         let rt = runtime();
         let answers: Vec<_> = rt.block_on(async {

@@ -299,11 +299,13 @@ fn filter_form(state: &AppState, pairs: &[(String, String)]) -> String {
 }
 
 /// The overview's script: asks `/api/v1/changes` every [`POLL_MS`]; when
-/// the answer changes, fetches the same page again and swaps its rows in.
+/// the answer changes, fetches the same page again and swaps its rows in,
+/// and once more on the next poll, since the page may be up to
+/// `cache::FRESH_FOR` (less than a poll) behind the change.
 fn live_script() -> String {
     format!(
         "<script>\n(function(){{\n\
-         var last=null,busy=false,live=document.getElementById('live');\n\
+         var last=null,again=false,busy=false,live=document.getElementById('live');\n\
          function stamp(){{live.textContent='live: up to date at '+new Date().toLocaleTimeString();}}\n\
          function swap(){{return fetch(location.href,{{credentials:'same-origin',cache:'no-store'}})\
          .then(function(r){{return r.text();}}).then(function(t){{\
@@ -314,7 +316,7 @@ fn live_script() -> String {
          fetch('/api/v1/changes',{{credentials:'same-origin',cache:'no-store'}})\
          .then(function(r){{if(!r.ok){{throw new Error(r.status);}}return r.json();}})\
          .then(function(j){{var changed=last!==null&&j.changes!==last;last=j.changes;\
-         return changed?swap():null;}})\
+         var fetchNow=changed||again;again=changed;return fetchNow?swap():null;}})\
          .then(stamp,function(){{live.textContent='live: connection lost, retrying';}})\
          .then(function(){{busy=false;}});}}\n\
          tick();setInterval(tick,{POLL_MS});\n}})();\n</script>\n"

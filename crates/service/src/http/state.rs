@@ -60,7 +60,7 @@ impl AppState {
         AppState {
             settings: settings.clone(),
             pool: Arc::new(ReadPool::new(&db, POOL_SIZE)),
-            answers: Arc::new(AnswerCache::new(&db)),
+            answers: Arc::new(AnswerCache::new(&db, super::cache::FRESH_FOR)),
             live,
             sessions: Sessions::new(Duration::from_secs_f64(settings.session_hours * 3600.0)),
             limiter: LoginLimiter::new(settings.login_failures_per_minute),
