@@ -86,12 +86,7 @@ fn f32_forms_of_the_real_teeth() {
         matrix[i][j] = d;
         matrix[j][i] = d;
     }
-    let ranks = labels.ranks().len();
-    let (mut same, mut right64, mut right32) = (
-        vec![0usize; ranks],
-        vec![0usize; ranks],
-        vec![0usize; ranks],
-    );
+    let mut tally = crate::support::library::AnswerTally::new(labels);
     let mut same_nearest = 0usize;
     for i in 0..n {
         let others: Vec<usize> = (0..n).filter(|&j| j != i).collect();
@@ -118,32 +113,17 @@ fn f32_forms_of_the_real_teeth() {
         same_nearest += usize::from(nearest(&f64_of) == nearest(&f32_of));
         let a64 = identify(&rows(&f64_of), labels, 5);
         let a32 = identify(&rows(&f32_of), labels, 5);
-        for (k, rank) in labels.ranks().iter().enumerate() {
-            let truth = labels.get(refs[i].name(), rank);
-            let answer = |id: &morphoid_service::identify::Identification| {
-                id.ranks
-                    .iter()
-                    .find(|r| &r.rank == rank)
-                    .map(|r| r.taxon.clone())
-            };
-            let (e, s) = (answer(&a64), answer(&a32));
-            same[k] += usize::from(e == s);
-            if truth.is_some() {
-                right64[k] += usize::from(e.as_deref() == truth);
-                right32[k] += usize::from(s.as_deref() == truth);
-            }
-        }
+        tally.add(labels, refs[i].name(), &a64, &a32);
     }
     eprintln!("nearest reference the same: {same_nearest}/{n}");
-    for (k, rank) in labels.ranks().iter().enumerate() {
-        eprintln!(
-            "{rank}: same answer {}/{n}; right with f64 {}, with f32 {}",
-            same[k], right64[k], right32[k]
-        );
+    let mut all_same = true;
+    for (rank, same, right64, right32) in tally.per_rank() {
+        eprintln!("{rank}: same answer {same}/{n}; right with f64 {right64}, with f32 {right32}");
+        all_same &= same == n;
     }
     // What docs/design.md says of f32 forms: every answer the same, no
     // distance off by 1 %.
     assert_eq!(same_nearest, n);
-    assert!(same.iter().all(|&k| k == n), "answers changed: {same:?}");
+    assert!(all_same, "answers changed");
     assert!(relative[relative.len() - 1] < 0.01);
 }

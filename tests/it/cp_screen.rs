@@ -56,12 +56,7 @@ fn screen_recall_on_the_116_teeth() {
         ..ScreenParams::default()
     };
     let (mut kept_found, mut kept_total) = (0usize, 0usize);
-    let ranks = labels.ranks().len();
-    let (mut same, mut right_exhaustive, mut right_screened) = (
-        vec![0usize; ranks],
-        vec![0usize; ranks],
-        vec![0usize; ranks],
-    );
+    let mut tally = crate::support::library::AnswerTally::new(labels);
     for i in 0..n {
         let others: Vec<usize> = (0..n).filter(|&j| j != i).collect();
         let nearest = nearest_of(i, &others);
@@ -100,21 +95,7 @@ fn screen_recall_on_the_116_teeth() {
         };
         let exhaustive = identify(&rows(&others), labels, 5);
         let screened = identify(&rows(&kept), labels, 5);
-        for (k, rank) in labels.ranks().iter().enumerate() {
-            let truth = labels.get(refs[i].name(), rank);
-            let answer = |id: &morphoid_service::identify::Identification| {
-                id.ranks
-                    .iter()
-                    .find(|r| &r.rank == rank)
-                    .map(|r| r.taxon.clone())
-            };
-            let (e, s) = (answer(&exhaustive), answer(&screened));
-            same[k] += usize::from(e == s);
-            if truth.is_some() {
-                right_exhaustive[k] += usize::from(e.as_deref() == truth);
-                right_screened[k] += usize::from(s.as_deref() == truth);
-            }
-        }
+        tally.add(labels, refs[i].name(), &exhaustive, &screened);
     }
     eprintln!("| best K by signature | exhaustive nearest among them |");
     eprintln!("|---|---|");
@@ -128,15 +109,16 @@ fn screen_recall_on_the_116_teeth() {
         params.screen_margin,
         kept_total as f64 / n as f64
     );
-    for (k, rank) in labels.ranks().iter().enumerate() {
+    let mut all_alike = true;
+    for (rank, same, exhaustive, screened) in tally.per_rank() {
         eprintln!(
-            "{rank}: same answer {}/{n}; right exhaustive {}, screened {}",
-            same[k], right_exhaustive[k], right_screened[k]
+            "{rank}: same answer {same}/{n}; right exhaustive {exhaustive}, screened {screened}"
         );
+        all_alike &= exhaustive == screened;
     }
     assert!(
         kept_found as f64 >= 0.995 * n as f64,
         "recall {kept_found}/{n}"
     );
-    assert_eq!(right_screened, right_exhaustive);
+    assert!(all_alike, "the screen changed how many answers are right");
 }

@@ -56,3 +56,57 @@ pub(crate) fn real_library() -> Option<RealLibrary> {
         _tmp: tmp,
     })
 }
+
+/// Two identifications of each held-out tooth compared rank by rank: how
+/// often they agree, and how often each is right where the truth is known.
+pub(crate) struct AnswerTally {
+    ranks: Vec<String>,
+    same: Vec<usize>,
+    right: [Vec<usize>; 2],
+}
+
+impl AnswerTally {
+    /// An empty tally over `labels`' ranks.
+    pub(crate) fn new(labels: &morphoid_data::table::Labels) -> Self {
+        let ranks = labels.ranks().to_vec();
+        let zero = vec![0; ranks.len()];
+        AnswerTally {
+            same: zero.clone(),
+            right: [zero.clone(), zero],
+            ranks,
+        }
+    }
+
+    /// Count the two answers `a` and `b` of the tooth `name`.
+    pub(crate) fn add(
+        &mut self,
+        labels: &morphoid_data::table::Labels,
+        name: &str,
+        a: &morphoid_service::identify::Identification,
+        b: &morphoid_service::identify::Identification,
+    ) {
+        for (k, rank) in self.ranks.iter().enumerate() {
+            let truth = labels.get(name, rank);
+            let answer = |id: &morphoid_service::identify::Identification| {
+                id.ranks
+                    .iter()
+                    .find(|r| &r.rank == rank)
+                    .map(|r| r.taxon.clone())
+            };
+            let (x, y) = (answer(a), answer(b));
+            self.same[k] += usize::from(x == y);
+            if truth.is_some() {
+                self.right[0][k] += usize::from(x.as_deref() == truth);
+                self.right[1][k] += usize::from(y.as_deref() == truth);
+            }
+        }
+    }
+
+    /// Per rank: answers the same, right with the first, with the second.
+    pub(crate) fn per_rank(&self) -> impl Iterator<Item = (&str, usize, usize, usize)> + '_ {
+        self.ranks
+            .iter()
+            .enumerate()
+            .map(|(k, r)| (r.as_str(), self.same[k], self.right[0][k], self.right[1][k]))
+    }
+}

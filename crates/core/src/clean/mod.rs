@@ -279,31 +279,18 @@ fn make_disk_of(
         return Err(CleanError::Closed);
     } else {
         let (closed, filled) = holes::fill_all_holes(&m8);
-        match cut_whole_tooth(&closed, filled, report) {
-            Ok(cut) => cut,
-            // A tooth is a ball: handles are the tunnels a thresholded
-            // export leaves where voxels touch along an edge, and a margin
-            // loop through one does not cut the surface in two. The same
-            // solid without them goes through these steps once more.
-            Err(e) if !revoxelized && euler_characteristic(&closed) < 2 => {
-                let Some(solid) = voxelize::revoxelized(&closed, REVOXEL_SAMPLES) else {
-                    return Err(e);
-                };
-                tracing::debug!(
-                    faces = solid.faces.len(),
-                    "whole tooth with handles re-voxelized"
-                );
-                let disk = make_disk_of(&solid, report, crown, true).map_err(|inner| {
-                    tracing::debug!("re-voxelized: {inner}");
-                    e
-                })?;
-                if let Some(c) = report.crown.as_mut() {
-                    c.revoxelized = true;
-                }
+        // A tooth is a ball: handles are the tunnels a thresholded export
+        // leaves where voxels touch along an edge. A margin loop through
+        // one does not cut the surface in two, and a crown that keeps one
+        // is no disk (so it went on every such export measured, after a
+        // whole margin search). The same solid without them is searched
+        // first; the surface as it is only when that fails.
+        if !revoxelized && euler_characteristic(&closed) < 2 {
+            if let Some(disk) = revoxelized_disk(&closed, report, crown) {
                 return Ok(disk);
             }
-            Err(e) => return Err(e),
         }
+        cut_whole_tooth(&closed, filled, report)?
     };
     let (m9, filled) = holes::fill_holes_except_longest(&m8);
     report.filled_holes += filled;
@@ -322,6 +309,31 @@ fn make_disk_of(
     } else {
         report.reversed_orientation = !report.reversed_orientation;
         Ok(orient::reverse_faces(&m9))
+    }
+}
+
+/// The disk of the whole tooth `closed` taken through a voxel grid
+/// ([`voxelize::revoxelized`]), which closes its handles, with `report`
+/// updated; `None` (and `report` as it was) when that fails.
+fn revoxelized_disk(closed: &Mesh, report: &mut CleanReport, crown: CrownMode) -> Option<Mesh> {
+    let solid = voxelize::revoxelized(closed, REVOXEL_SAMPLES)?;
+    tracing::debug!(
+        faces = solid.faces.len(),
+        "whole tooth with handles re-voxelized"
+    );
+    let mut attempt = report.clone();
+    match make_disk_of(&solid, &mut attempt, crown, true) {
+        Ok(disk) => {
+            if let Some(c) = attempt.crown.as_mut() {
+                c.revoxelized = true;
+            }
+            *report = attempt;
+            Some(disk)
+        }
+        Err(e) => {
+            tracing::debug!("re-voxelized: {e}");
+            None
+        }
     }
 }
 

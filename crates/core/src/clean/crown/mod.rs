@@ -38,6 +38,7 @@ mod neck;
 use crate::mesh::{bbox_diagonal, boundary_loops, euler_characteristic, norm, sub, Mesh};
 use geometry::{area_weighted_axes, signed_volume6, taubin_smoothed, Cylinder, SurfaceGeometry};
 use neck::{neck_heights, NeckHeights};
+use rayon::prelude::*;
 
 /// Whether a closed surface is cut to its crown.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -777,6 +778,106 @@ pub(super) fn staircase_smoothed(mesh: &Mesh) -> Mesh {
     )
 }
 
+/// The margin searches about each of `axes` through `centre`: one guided
+/// by the neck seen on the outline from each end of the axis that shows
+/// one (the crown may be at either; the loop still follows a crease near
+/// the neck), then one that follows creases alone, accepted only on a real
+/// crease (an enamel edge).
+fn margin_searches(
+    smoothed: &Mesh,
+    centre: [f64; 3],
+    axes: impl IntoIterator<Item = [f64; 3]>,
+) -> Vec<([f64; 3], Option<NeckHeights>)> {
+    let mut searches = Vec::new();
+    for axis in axes {
+        for sign in [1.0, -1.0] {
+            let a = axis.map(|x| sign * x);
+            let neck = neck_heights(&smoothed.vertices, &Cylinder::new(centre, a))
+                .inspect(|n| tracing::debug!(bulge = n.bulge, "neck seen"))
+                .filter(|n| n.bulge >= MIN_NECK_BULGE);
+            if let Some(n) = neck {
+                searches.push((a, Some(n)));
+            }
+        }
+        searches.push((axis, None));
+    }
+    searches
+}
+
+/// The crown candidate of one margin search about `axis` (guided by
+/// `neck`, or by creases alone): the cheapest loop, searched again about
+/// the normal of the loop found (the principal axis is only near the
+/// tooth's axis; the better of the two is kept), and the crown it cuts;
+/// or why there is none.
+fn margin_candidate(
+    smoothed: &Mesh,
+    geo: &SurfaceGeometry,
+    centre: [f64; 3],
+    axis: [f64; 3],
+    neck: Option<&NeckHeights>,
+) -> Result<Candidate, Rejection> {
+    let Some(first) = margin_loop(smoothed, geo, centre, axis, neck) else {
+        tracing::debug!(neck = neck.is_some(), "no winding loop");
+        return Err(Rejection {
+            score: 0.0,
+            reason: CrownRefusal::NoMarginLine,
+        });
+    };
+    let neck_again = neck.and_then(|_| {
+        neck_heights(
+            &smoothed.vertices,
+            &Cylinder::new(first.centre, first.normal),
+        )
+        .filter(|n| n.bulge >= MIN_NECK_BULGE)
+    });
+    let again = if neck.is_some() && neck_again.is_none() {
+        None
+    } else {
+        margin_loop(
+            smoothed,
+            geo,
+            first.centre,
+            first.normal,
+            neck_again.as_ref(),
+        )
+    };
+    let found = match again {
+        Some(again) if again.score > first.score => again,
+        _ => first,
+    };
+    // A line that dips where no margin lies ran round a wrong axis or the
+    // roots: it cannot be the margin, whatever its merit.
+    let candidate = crown_of_loop(smoothed, geo, &found, neck.is_some()).and_then(|c| {
+        if c.report.cut_height_min < MIN_CUT_HEIGHT {
+            Err(Rejection {
+                score: found.score,
+                reason: CrownRefusal::TooLow {
+                    height: c.report.cut_height_min,
+                },
+            })
+        } else {
+            Ok(c)
+        }
+    });
+    match candidate {
+        Ok(mut c) => {
+            tracing::debug!(
+                neck = neck.is_some(),
+                merit = c.merit(),
+                cut_low = c.report.cut_height_min,
+                cut_high = c.report.cut_height_max,
+                "margin candidate"
+            );
+            c.report.neck_bulge = neck.map_or(0.0, |n| n.bulge);
+            Ok(c)
+        }
+        Err(r) => {
+            tracing::debug!(neck = neck.is_some(), reason = %r.reason, "margin refused");
+            Err(r)
+        }
+    }
+}
+
 /// Cut the crown from a closed, consistently oriented, manifold surface
 /// (see the module documentation). The crown's faces keep their vertices'
 /// positions; normals point outward.
@@ -801,97 +902,23 @@ pub(super) fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
     let (centre, axes) = area_weighted_axes(&geo)
         .filter(|_| bbox_diagonal(mesh) > 0.0)
         .ok_or(CrownError::NoCrown(CrownRefusal::NoArea))?;
+    // The searches are independent: they run in parallel, and their
+    // outcomes are taken in the order of the searches, as one after
+    // another would give them.
+    let span = tracing::Span::current();
+    let outcomes: Vec<Result<Candidate, Rejection>> = margin_searches(&smoothed, centre, axes)
+        .par_iter()
+        .map(|(axis, neck)| {
+            let _in_crown = span.enter();
+            margin_candidate(&smoothed, &geo, centre, *axis, neck.as_ref())
+        })
+        .collect();
     let mut candidates: Vec<Candidate> = Vec::new();
     let mut reasons = Vec::new();
-    for axis in axes {
-        // A loop that follows creases alone, accepted only on a real
-        // crease (an enamel edge), and one guided by the neck seen on the
-        // outline from each end of the axis that shows one (the crown may
-        // be at either; the loop still follows a crease near the neck):
-        // the best of them is taken.
-        let guided: Vec<([f64; 3], NeckHeights)> = [1.0, -1.0]
-            .iter()
-            .filter_map(|&sign| {
-                let a = axis.map(|x| sign * x);
-                neck_heights(&smoothed.vertices, &Cylinder::new(centre, a))
-                    .inspect(|n| tracing::debug!(bulge = n.bulge, "neck seen"))
-                    .filter(|n| n.bulge >= MIN_NECK_BULGE)
-                    .map(|n| (a, n))
-            })
-            .collect();
-        let searches: Vec<([f64; 3], Option<NeckHeights>)> = guided
-            .into_iter()
-            .map(|(a, n)| (a, Some(n)))
-            .chain(std::iter::once((axis, None)))
-            .collect();
-        for (axis, neck) in searches {
-            let Some(first) = margin_loop(&smoothed, &geo, centre, axis, neck.as_ref()) else {
-                tracing::debug!(neck = neck.is_some(), "no winding loop");
-                reasons.push(Rejection {
-                    score: 0.0,
-                    reason: CrownRefusal::NoMarginLine,
-                });
-                continue;
-            };
-            // The principal axis is only near the tooth's axis: search
-            // again about the normal of the loop found, which follows the
-            // margin.
-            let neck_again = neck.as_ref().and_then(|_| {
-                neck_heights(
-                    &smoothed.vertices,
-                    &Cylinder::new(first.centre, first.normal),
-                )
-                .filter(|n| n.bulge >= MIN_NECK_BULGE)
-            });
-            let again = if neck.is_some() && neck_again.is_none() {
-                None
-            } else {
-                margin_loop(
-                    &smoothed,
-                    &geo,
-                    first.centre,
-                    first.normal,
-                    neck_again.as_ref(),
-                )
-            };
-            let found = match again {
-                Some(again) if again.score > first.score => again,
-                _ => first,
-            };
-            // A line that dips where no margin lies ran round a wrong
-            // axis or the roots: it cannot be the margin, whatever its
-            // merit.
-            let candidate = crown_of_loop(&smoothed, &geo, &found, neck.is_some()).and_then(|c| {
-                if c.report.cut_height_min < MIN_CUT_HEIGHT {
-                    Err(Rejection {
-                        score: found.score,
-                        reason: CrownRefusal::TooLow {
-                            height: c.report.cut_height_min,
-                        },
-                    })
-                } else {
-                    Ok(c)
-                }
-            });
-            match &candidate {
-                Ok(c) => tracing::debug!(
-                    neck = neck.is_some(),
-                    merit = c.merit(),
-                    cut_low = c.report.cut_height_min,
-                    cut_high = c.report.cut_height_max,
-                    "margin candidate"
-                ),
-                Err(r) => {
-                    tracing::debug!(neck = neck.is_some(), reason = %r.reason, "margin refused")
-                }
-            }
-            match candidate {
-                Ok(mut c) => {
-                    c.report.neck_bulge = neck.as_ref().map_or(0.0, |n| n.bulge);
-                    candidates.push(c);
-                }
-                Err(reason) => reasons.push(reason),
-            }
+    for outcome in outcomes {
+        match outcome {
+            Ok(c) => candidates.push(c),
+            Err(r) => reasons.push(r),
         }
     }
     let best = best_candidate(candidates);
