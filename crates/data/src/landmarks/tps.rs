@@ -43,122 +43,150 @@ struct Pending {
     id: Option<String>,
 }
 
-/// Parse a TPS file; `path` only names the source in errors.
-pub fn parse_tps(text: &str, path: &Path) -> Result<Vec<NamedLandmarks>, LandmarkError> {
-    let err = |line: usize, message: String| LandmarkError::Syntax {
+/// The error naming `path` and `line`.
+fn syntax(path: &Path, line: usize, message: String) -> LandmarkError {
+    LandmarkError::Syntax {
         path: path.to_path_buf(),
         line,
         message,
-    };
+    }
+}
+
+/// Parse a TPS file; `path` only names the source in errors.
+pub fn parse_tps(text: &str, path: &Path) -> Result<Vec<NamedLandmarks>, LandmarkError> {
     let mut out = Vec::new();
     let mut current: Option<Pending> = None;
-    let finish = |p: Pending, out: &mut Vec<NamedLandmarks>| -> Result<(), LandmarkError> {
-        if p.points.len() != p.count {
-            return Err(err(
-                p.line,
-                format!(
-                    "LM3={} but {} coordinate lines follow",
-                    p.count,
-                    p.points.len()
-                ),
-            ));
-        }
-        let Some(name) = p.id else {
-            return Err(err(
-                p.line,
-                "specimen without ID= (every specimen needs one)".into(),
-            ));
-        };
-        let s = p.scale.unwrap_or(1.0);
-        let points = p.points.iter().map(|q| q.map(|v| v * s)).collect();
-        out.push(NamedLandmarks {
-            name,
-            landmarks: Landmarks::from_points(points),
-        });
-        Ok(())
-    };
     for (line, t) in content_lines(text) {
         if let Some((key, value)) = t.split_once('=') {
             let key = key.trim().to_ascii_uppercase();
-            let value = value.trim();
-            match key.as_str() {
-                "LM3" => {
-                    if let Some(p) = current.take() {
-                        finish(p, &mut out)?;
-                    }
-                    let count = value
-                        .parse::<usize>()
-                        .map_err(|_| err(line, format!("LM3=`{value}` is not a count")))?;
-                    current = Some(Pending {
-                        line,
-                        count,
-                        points: Vec::with_capacity(count.min(1 << 16)),
-                        scale: None,
-                        id: None,
-                    });
-                }
-                "LM" => {
-                    return Err(err(
-                        line,
-                        "2D landmarks (LM=); morphoid reads 3D (LM3=)".into(),
-                    ))
-                }
-                "ID" | "SCALE" | "IMAGE" | "COMMENT" | "VARIABLES" | "CURVES" | "POINTS" => {
-                    let Some(p) = current.as_mut() else {
-                        return Err(err(line, format!("{key}= before any LM3=")));
-                    };
-                    if key == "ID" {
-                        if value.is_empty() {
-                            return Err(err(line, "empty ID=".into()));
-                        }
-                        p.id = Some(value.to_string());
-                    } else if key == "SCALE" {
-                        let s = parse_coordinate(value)
-                            .map_err(|m| err(line, format!("SCALE: {m}")))?;
-                        if s <= 0.0 {
-                            return Err(err(line, format!("SCALE={value} is not positive")));
-                        }
-                        p.scale = Some(s);
-                    } else if key == "CURVES" && value != "0" {
-                        return Err(err(line, "curves (CURVES=) are not supported".into()));
-                    }
-                }
-                _ => return Err(err(line, format!("unknown TPS field `{key}=`"))),
-            }
+            take_field(path, line, &key, value.trim(), &mut current, &mut out)?;
             continue;
         }
         let Some(p) = current.as_mut() else {
-            return Err(err(line, "coordinates before any LM3=".into()));
+            return Err(syntax(path, line, "coordinates before any LM3=".into()));
         };
-        let q = parse_xyz(t).map_err(|m| err(line, m))?;
-        if q.iter().any(|&v| is_missing_sentinel(v)) {
-            return Err(err(
-                line,
-                format!(
-                    "landmark {} is missing (a {} coordinate, the TPS missing-landmark convention); every landmark is needed",
-                    p.points.len() + 1,
-                    q.iter().copied().find(|&v| is_missing_sentinel(v)).unwrap_or(-999.0)
-                ),
-            ));
-        }
-        if p.points.len() == p.count {
-            return Err(err(
-                line,
-                format!(
-                    "more than LM3={} coordinate lines (no ID= between specimens?)",
-                    p.count
-                ),
-            ));
-        }
-        p.points.push(q);
+        p.take_coordinates(path, line, t)?;
     }
     if let Some(p) = current.take() {
-        finish(p, &mut out)?;
+        out.push(p.finish(path)?);
     }
     if out.is_empty() {
         return Err(LandmarkError::Empty(path.to_path_buf()));
     }
     Ok(out)
+}
+
+/// Take the field `key=value` (key upper-cased) at `line`: `LM3=` ends
+/// the specimen being read (into `out`) and starts the next; the others
+/// belong to the specimen being read.
+fn take_field(
+    path: &Path,
+    line: usize,
+    key: &str,
+    value: &str,
+    current: &mut Option<Pending>,
+    out: &mut Vec<NamedLandmarks>,
+) -> Result<(), LandmarkError> {
+    let err = |message: String| syntax(path, line, message);
+    match key {
+        "LM3" => {
+            if let Some(p) = current.take() {
+                out.push(p.finish(path)?);
+            }
+            let count = value
+                .parse::<usize>()
+                .map_err(|_| err(format!("LM3=`{value}` is not a count")))?;
+            *current = Some(Pending {
+                line,
+                count,
+                points: Vec::with_capacity(count.min(1 << 16)),
+                scale: None,
+                id: None,
+            });
+        }
+        "LM" => return Err(err("2D landmarks (LM=); morphoid reads 3D (LM3=)".into())),
+        "ID" | "SCALE" | "IMAGE" | "COMMENT" | "VARIABLES" | "CURVES" | "POINTS" => {
+            let Some(p) = current.as_mut() else {
+                return Err(err(format!("{key}= before any LM3=")));
+            };
+            if key == "ID" {
+                if value.is_empty() {
+                    return Err(err("empty ID=".into()));
+                }
+                p.id = Some(value.to_string());
+            } else if key == "SCALE" {
+                let s = parse_coordinate(value).map_err(|m| err(format!("SCALE: {m}")))?;
+                if s <= 0.0 {
+                    return Err(err(format!("SCALE={value} is not positive")));
+                }
+                p.scale = Some(s);
+            } else if key == "CURVES" && value != "0" {
+                return Err(err("curves (CURVES=) are not supported".into()));
+            }
+        }
+        _ => return Err(err(format!("unknown TPS field `{key}=`"))),
+    }
+    Ok(())
+}
+
+impl Pending {
+    /// Take the coordinate line `t` (at `line`) as the specimen's next
+    /// landmark: an error for a missing landmark or one past its count.
+    fn take_coordinates(&mut self, path: &Path, line: usize, t: &str) -> Result<(), LandmarkError> {
+        let q = parse_xyz(t).map_err(|m| syntax(path, line, m))?;
+        if q.iter().any(|&v| is_missing_sentinel(v)) {
+            return Err(syntax(
+                path,
+                line,
+                format!(
+                    "landmark {} is missing (a {} coordinate, the TPS missing-landmark convention); every landmark is needed",
+                    self.points.len() + 1,
+                    q.iter().copied().find(|&v| is_missing_sentinel(v)).unwrap_or(-999.0)
+                ),
+            ));
+        }
+        if self.points.len() == self.count {
+            return Err(syntax(
+                path,
+                line,
+                format!(
+                    "more than LM3={} coordinate lines (no ID= between specimens?)",
+                    self.count
+                ),
+            ));
+        }
+        self.points.push(q);
+        Ok(())
+    }
+
+    /// The specimen read, its coordinates scaled by its `SCALE=`; an error
+    /// when it has fewer landmarks than its `LM3=` or no `ID=`.
+    fn finish(self, path: &Path) -> Result<NamedLandmarks, LandmarkError> {
+        if self.points.len() != self.count {
+            return Err(syntax(
+                path,
+                self.line,
+                format!(
+                    "LM3={} but {} coordinate lines follow",
+                    self.count,
+                    self.points.len()
+                ),
+            ));
+        }
+        let Some(name) = self.id else {
+            return Err(syntax(
+                path,
+                self.line,
+                "specimen without ID= (every specimen needs one)".into(),
+            ));
+        };
+        let s = self.scale.unwrap_or(1.0);
+        let points = self.points.iter().map(|q| q.map(|v| v * s)).collect();
+        Ok(NamedLandmarks {
+            name,
+            landmarks: Landmarks::from_points(points),
+        })
+    }
 }
 
 /// The TPS text of a collection; names are written as they are (one

@@ -44,10 +44,67 @@ pub(crate) fn from_reader<R: BufRead + 'static>(
     mut reader: R,
     hash: Option<SharedHash>,
 ) -> Result<RawSlices, VolumeError> {
-    let invalid = |problem: String| VolumeError::Invalid {
+    let header = read_header(path, &mut reader)?;
+    let kind = header
+        .kind
+        .ok_or_else(|| invalid(path, "no \"type\" field".into()))?;
+    let dims = header
+        .dims
+        .ok_or_else(|| invalid(path, "no \"sizes\" field".into()))?;
+    let reader = decoded(path, reader, &header.encoding)?;
+    let info = VolumeInfo {
+        format: VolumeFormat::Nrrd,
+        dims,
+        voxel_size: header.spacing,
+        unit: header.unit,
+        bits: (kind.bytes() * 8) as u16,
+    };
+    RawSlices::new(info, path, kind, header.little, reader, hash)
+}
+
+/// The error for an unusable file `path`.
+fn invalid(path: &Path, problem: String) -> VolumeError {
+    VolumeError::Invalid {
         path: path.to_path_buf(),
         problem,
-    };
+    }
+}
+
+/// What an NRRD header says about the data, as far as it has been read.
+struct Header {
+    /// `type`.
+    kind: Option<SampleType>,
+    /// `sizes`.
+    dims: Option<[usize; 3]>,
+    /// `encoding`.
+    encoding: String,
+    /// Not `endian: big`.
+    little: bool,
+    /// From `spacings` or the lengths of `space directions` (1 where they
+    /// say nothing usable).
+    spacing: [f64; 3],
+    /// `space units`; `unknown` for spacings without one.
+    unit: String,
+}
+
+impl Default for Header {
+    /// What a header without the optional fields means: raw
+    /// little-endian samples one voxel apart.
+    fn default() -> Self {
+        Header {
+            kind: None,
+            dims: None,
+            encoding: String::from("raw"),
+            little: true,
+            spacing: [1.0; 3],
+            unit: String::from("voxel"),
+        }
+    }
+}
+
+/// The header read from `reader` (the magic line, then fields up to the
+/// blank line before the data), leaving `reader` at the data.
+fn read_header<R: BufRead>(path: &Path, reader: &mut R) -> Result<Header, VolumeError> {
     let io = |source| VolumeError::Io {
         path: path.to_path_buf(),
         source,
@@ -55,11 +112,9 @@ pub(crate) fn from_reader<R: BufRead + 'static>(
     let mut line = String::new();
     reader.read_line(&mut line).map_err(io)?;
     if !line.starts_with("NRRD000") {
-        return Err(invalid("not an NRRD file (no NRRD000x magic)".into()));
+        return Err(invalid(path, "not an NRRD file (no NRRD000x magic)".into()));
     }
-    let (mut kind, mut dims, mut encoding, mut little) = (None, None, String::from("raw"), true);
-    let mut spacing = [1.0f64; 3];
-    let mut unit = String::from("voxel");
+    let mut header = Header::default();
     let mut header_bytes = line.len();
     loop {
         line.clear();
@@ -67,15 +122,16 @@ pub(crate) fn from_reader<R: BufRead + 'static>(
         header_bytes += n;
         if n == 0 {
             return Err(invalid(
+                path,
                 "the header has no end (no blank line before the data)".into(),
             ));
         }
         if header_bytes > 1 << 20 {
-            return Err(invalid("header longer than 1 MiB".into()));
+            return Err(invalid(path, "header longer than 1 MiB".into()));
         }
         let l = line.trim_end_matches(['\n', '\r']);
         if l.is_empty() {
-            break;
+            return Ok(header);
         }
         if l.starts_with('#') {
             continue;
@@ -84,94 +140,117 @@ pub(crate) fn from_reader<R: BufRead + 'static>(
             continue;
         };
         let value = value.trim_start_matches('=').trim();
-        match key.trim() {
+        header.take_field(path, key.trim(), value)?;
+    }
+}
+
+impl Header {
+    /// Take the field `key: value` into the header; an error for a field
+    /// that rules the file out (another dimension, an unknown type,
+    /// detached data).
+    fn take_field(&mut self, path: &Path, key: &str, value: &str) -> Result<(), VolumeError> {
+        match key {
             "type" => {
-                kind = Some(
+                self.kind = Some(
                     sample_type(value)
-                        .ok_or_else(|| invalid(format!("unsupported type \"{value}\"")))?,
+                        .ok_or_else(|| invalid(path, format!("unsupported type \"{value}\"")))?,
                 )
             }
             "dimension" if value != "3" => {
-                return Err(invalid(format!("dimension {value}; a 3D volume is needed")))
+                return Err(invalid(
+                    path,
+                    format!("dimension {value}; a 3D volume is needed"),
+                ))
             }
-            "sizes" => {
-                let s: Vec<usize> = value
-                    .split_whitespace()
-                    .map(|t| {
-                        t.parse()
-                            .map_err(|_| invalid(format!("bad sizes \"{value}\"")))
-                    })
-                    .collect::<Result<_, _>>()?;
-                if s.len() != 3 || s.contains(&0) {
-                    return Err(invalid(format!(
-                        "sizes \"{value}\": three positive sizes needed"
-                    )));
-                }
-                dims = Some([s[0], s[1], s[2]]);
-            }
-            "encoding" => encoding = value.to_string(),
-            "endian" => little = value != "big",
+            "sizes" => self.dims = Some(sizes(path, value)?),
+            "encoding" => self.encoding = value.to_string(),
+            "endian" => self.little = value != "big",
             "spacings" => {
                 for (k, t) in value.split_whitespace().take(3).enumerate() {
-                    spacing[k] = t
+                    self.spacing[k] = t
                         .parse::<f64>()
                         .ok()
                         .filter(|&v| super::source::plausible_voxel_size(v))
                         .unwrap_or(1.0);
                 }
-                unit = "unknown".into();
+                self.unit = "unknown".into();
             }
             "space directions" => {
-                let vectors: Vec<f64> = value
-                    .split(')')
-                    .filter(|t| t.contains('('))
-                    .map(|t| {
-                        t.trim()
-                            .trim_start_matches('(')
-                            .split(',')
-                            .filter_map(|c| c.trim().parse::<f64>().ok())
-                            .map(|c| c * c)
-                            .sum::<f64>()
-                            .sqrt()
-                    })
-                    .collect();
-                for (k, &l) in vectors.iter().take(3).enumerate() {
+                for (k, &l) in direction_lengths(value).iter().take(3).enumerate() {
                     if super::source::plausible_voxel_size(l) {
-                        spacing[k] = l;
+                        self.spacing[k] = l;
                     }
                 }
-                unit = "unknown".into();
+                self.unit = "unknown".into();
             }
             "space units" => {
                 if let Some(u) = value.split('"').nth(1) {
-                    unit = u.to_string();
+                    self.unit = u.to_string();
                 }
             }
             "data file" | "datafile" => {
                 return Err(invalid(
+                    path,
                     "detached data files are not supported; save as a single .nrrd".into(),
                 ))
             }
             _ => {}
         }
+        Ok(())
     }
-    let kind = kind.ok_or_else(|| invalid("no \"type\" field".into()))?;
-    let dims = dims.ok_or_else(|| invalid("no \"sizes\" field".into()))?;
-    let reader: Box<dyn Read> = match encoding.as_str() {
+}
+
+/// The three positive sizes of a `sizes` field.
+fn sizes(path: &Path, value: &str) -> Result<[usize; 3], VolumeError> {
+    let s: Vec<usize> = value
+        .split_whitespace()
+        .map(|t| {
+            t.parse()
+                .map_err(|_| invalid(path, format!("bad sizes \"{value}\"")))
+        })
+        .collect::<Result<_, _>>()?;
+    if s.len() != 3 || s.contains(&0) {
+        return Err(invalid(
+            path,
+            format!("sizes \"{value}\": three positive sizes needed"),
+        ));
+    }
+    Ok([s[0], s[1], s[2]])
+}
+
+/// The lengths of the vectors `(x,y,z)` of a `space directions` field
+/// (`none` entries have none; unreadable components count as 0).
+fn direction_lengths(value: &str) -> Vec<f64> {
+    value
+        .split(')')
+        .filter(|t| t.contains('('))
+        .map(|t| {
+            t.trim()
+                .trim_start_matches('(')
+                .split(',')
+                .filter_map(|c| c.trim().parse::<f64>().ok())
+                .map(|c| c * c)
+                .sum::<f64>()
+                .sqrt()
+        })
+        .collect()
+}
+
+/// The samples that follow the header in `reader`, decoded as `encoding`
+/// says (raw or gzip).
+fn decoded<R: BufRead + 'static>(
+    path: &Path,
+    reader: R,
+    encoding: &str,
+) -> Result<Box<dyn Read>, VolumeError> {
+    Ok(match encoding {
         "raw" => Box::new(reader),
         "gzip" | "gz" => Box::new(flate2::bufread::MultiGzDecoder::new(reader)),
         other => {
-            return Err(invalid(format!(
-                "unsupported encoding \"{other}\" (raw or gzip)"
-            )))
+            return Err(invalid(
+                path,
+                format!("unsupported encoding \"{other}\" (raw or gzip)"),
+            ))
         }
-    };
-    let info = VolumeInfo {
-        format: VolumeFormat::Nrrd,
-        dims,
-        voxel_size: spacing,
-        unit,
-        bits: (kind.bytes() * 8) as u16,
-    };
-    RawSlices::new(info, path, kind, little, reader, hash)
+    })
 }

@@ -217,49 +217,12 @@ pub fn align(
     compare: &CompareParams,
     progress: impl Fn(usize) + Sync,
 ) -> Result<Alignment, AlignError> {
-    let n = prepared.len();
-    if n < 2 {
-        return Err(AlignError::TooFew(n));
-    }
-    if params.pseudolandmarks < 3 {
-        return Err(AlignError::NoPseudolandmarks);
-    }
-    if distances.values().len() != n || distances.values().iter().any(|r| r.len() != n) {
-        return Err(AlignError::MatrixSize {
-            expected: n,
-            found: distances.values().len(),
-        });
-    }
+    check_align_inputs(prepared.len(), distances, params)?;
     let names: Vec<String> = prepared.iter().map(|p| p.name().to_string()).collect();
-    let template = match &params.template {
-        Some(t) => names
-            .iter()
-            .position(|n| n == t)
-            .ok_or_else(|| AlignError::UnknownTemplate(t.clone()))?,
-        None => medoid(distances.values()).unwrap_or(0),
-    };
-    let surfaces: Vec<Surface> = prepared
-        .par_iter()
-        .map(|p| {
-            Surface::from_normalized(p).map_err(|source| AlignError::Surface {
-                name: p.name().to_string(),
-                source,
-            })
-        })
-        .collect::<Result<_, _>>()?;
+    let template = template_index(&names, distances, params)?;
+    let surfaces = rebuilt_surfaces(prepared)?;
     let steps = carrying_steps(distances.values(), template, params.consistency);
-    let mut reached = vec![false; n];
-    reached[template] = true;
-    for &(_, b) in &steps {
-        reached[b] = true;
-    }
-    let unreached: Vec<String> = (0..n)
-        .filter(|&i| !reached[i])
-        .map(|i| names[i].clone())
-        .collect();
-    if !unreached.is_empty() {
-        return Err(AlignError::Unreached(unreached));
-    }
+    check_reached(&names, template, &steps)?;
     let carried = {
         let _span = tracing::info_span!("carry", template = %names[template]).entered();
         carry_template(prepared, &surfaces, template, &steps, compare, &progress)?
@@ -280,28 +243,16 @@ pub fn align(
         }
         Consistency::SpanningTree | Consistency::Direct => (carried, Vec::new()),
     };
-    // Every specimen is reached (checked above), so every image is there.
-    let template_images: Vec<Vec<[f64; 3]>> = carried
-        .images
-        .iter()
-        .map(|im| im.clone().unwrap_or_default())
-        .collect();
+    let template_images = template_images(&carried);
     let template_mesh = surfaces[template].mesh();
     let template_faces = template_mesh.faces.clone();
     let template_points = fps::pseudolandmarks(template_mesh, params.pseudolandmarks, params.seed);
-    let pseudolandmarks: Vec<Vec<[f64; 3]>> = template_images
-        .par_iter()
-        .zip(&surfaces)
-        .map(|(images, surface)| {
-            template_points
-                .iter()
-                .map(|p| {
-                    p.position(images, &template_faces)
-                        .map_or([f64::NAN; 3], |q| surface.closest(q))
-                })
-                .collect()
-        })
-        .collect();
+    let pseudolandmarks = pseudolandmarks_on(
+        &template_points,
+        &template_images,
+        &template_faces,
+        &surfaces,
+    );
     let handedness = carried.handedness();
     let gpa = generalized_procrustes(&pseudolandmarks, &handedness, template)?;
     let pca = principal_components(&gpa.aligned);
@@ -318,6 +269,116 @@ pub fn align(
         gpa,
         pca,
     })
+}
+
+/// An error unless [`align`] can work on `n` specimens with `distances`
+/// and `params`: at least two specimens, three pseudolandmarks, and an
+/// `n`×`n` matrix.
+fn check_align_inputs(
+    n: usize,
+    distances: &DistanceMatrix,
+    params: &AlignParams,
+) -> Result<(), AlignError> {
+    if n < 2 {
+        return Err(AlignError::TooFew(n));
+    }
+    if params.pseudolandmarks < 3 {
+        return Err(AlignError::NoPseudolandmarks);
+    }
+    if distances.values().len() != n || distances.values().iter().any(|r| r.len() != n) {
+        return Err(AlignError::MatrixSize {
+            expected: n,
+            found: distances.values().len(),
+        });
+    }
+    Ok(())
+}
+
+/// The index in `names` of the template: the one `params` names, or the
+/// medoid of `distances` (the first specimen when it has none).
+fn template_index(
+    names: &[String],
+    distances: &DistanceMatrix,
+    params: &AlignParams,
+) -> Result<usize, AlignError> {
+    Ok(match &params.template {
+        Some(t) => names
+            .iter()
+            .position(|n| n == t)
+            .ok_or_else(|| AlignError::UnknownTemplate(t.clone()))?,
+        None => medoid(distances.values()).unwrap_or(0),
+    })
+}
+
+/// Each specimen's surface rebuilt from its prepared form (in parallel).
+fn rebuilt_surfaces(prepared: &[Prepared]) -> Result<Vec<Surface>, AlignError> {
+    prepared
+        .par_iter()
+        .map(|p| {
+            Surface::from_normalized(p).map_err(|source| AlignError::Surface {
+                name: p.name().to_string(),
+                source,
+            })
+        })
+        .collect()
+}
+
+/// An error naming the specimens that neither are the template nor are
+/// reached by one of `steps`.
+fn check_reached(
+    names: &[String],
+    template: usize,
+    steps: &[(usize, usize)],
+) -> Result<(), AlignError> {
+    let n = names.len();
+    let mut reached = vec![false; n];
+    reached[template] = true;
+    for &(_, b) in steps {
+        reached[b] = true;
+    }
+    let unreached: Vec<String> = (0..n)
+        .filter(|&i| !reached[i])
+        .map(|i| names[i].clone())
+        .collect();
+    if !unreached.is_empty() {
+        return Err(AlignError::Unreached(unreached));
+    }
+    Ok(())
+}
+
+/// The template's vertex images on each specimen, from `carried`.
+fn template_images(carried: &TemplateImages) -> Vec<Vec<[f64; 3]>> {
+    // Every specimen is reached (checked before carrying), so every image
+    // is there.
+    carried
+        .images
+        .iter()
+        .map(|im| im.clone().unwrap_or_default())
+        .collect()
+}
+
+/// The pseudolandmarks on each specimen: each of `template_points` placed
+/// through the specimen's template vertex images (over `template_faces`)
+/// and projected onto its surface; NaN where a point cannot be placed.
+fn pseudolandmarks_on(
+    template_points: &[MeshPoint],
+    template_images: &[Vec<[f64; 3]>],
+    template_faces: &[[u32; 3]],
+    surfaces: &[Surface],
+) -> Vec<Vec<[f64; 3]>> {
+    template_images
+        .par_iter()
+        .zip(surfaces)
+        .map(|(images, surface)| {
+            template_points
+                .iter()
+                .map(|p| {
+                    p.position(images, template_faces)
+                        .map_or([f64::NAN; 3], |q| surface.closest(q))
+                })
+                .collect()
+        })
+        .collect()
 }
 
 impl Alignment {

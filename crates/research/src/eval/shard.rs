@@ -165,47 +165,23 @@ impl ShardFile {
 
     /// Parse shard text (`path` only names the file in errors).
     pub fn parse(text: &str, path: &Path) -> Result<Self, ShardError> {
-        let err = |line: usize, message: String| ShardError::Format {
-            path: path.to_path_buf(),
-            line,
-            message,
-        };
+        let err = |line: usize, message: String| format_error(path, line, message);
         let (first, rest) = text.split_once('\n').unwrap_or((text, ""));
         if first.is_empty() && rest.is_empty() {
             return Err(err(1, "empty file".into()));
         }
-        let shard: Shard = first
-            .trim_end_matches('\r')
-            .strip_prefix("# morphoid matrix shard ")
-            .ok_or_else(|| err(1, "not a morphoid matrix shard".into()))?
-            .trim()
-            .parse()
-            .map_err(|e: morphoid_data::shard::ShardSyntax| err(1, e.to_string()))?;
+        let shard = parse_shard_line(first).map_err(|m| err(1, m))?;
         let (second, rest) = rest.split_once('\n').unwrap_or((rest, ""));
-        let content: Vec<Option<String>> = second
-            .trim_end_matches('\r')
-            .strip_prefix("# content:")
-            .ok_or_else(|| {
-                err(
-                    2,
-                    "expected `# content: …` (a shard of an older morphoid: compute it again)"
-                        .into(),
-                )
-            })?
-            .trim()
-            .split(',')
-            .map(|h| Some(h.trim().to_string()).filter(|h| !h.is_empty()))
-            .collect();
+        let content = parse_content_line(second).map_err(|m| err(2, m))?;
         // The name list is a CSV record after the prefix (a quoted name
         // may hold a line break); the lines of `rest` start at line 3.
         let rest = rest
             .strip_prefix("# names:")
             .ok_or_else(|| err(3, "expected `# names: …`".into()))?;
         let rest = rest.strip_prefix(' ').unwrap_or(rest);
-        let line_of = |line: usize| line + 2;
         // An empty name list leaves no record on the names line.
         let names_empty = rest.starts_with(['\n', '\r']);
-        let mut rows = rows(rest, false).map(|r| r.map_err(|(l, m)| err(line_of(l), m)));
+        let mut rows = rows(rest, false).map(|r| r.map_err(|(l, m)| err(file_line(l), m)));
         let names: Vec<String> = if names_empty {
             Vec::new()
         } else {
@@ -214,14 +190,7 @@ impl ShardFile {
                 None => Vec::new(),
             }
         };
-        let index: HashMap<&str, usize> = names
-            .iter()
-            .enumerate()
-            .map(|(i, n)| (n.as_str(), i))
-            .collect();
-        if index.len() != names.len() {
-            return Err(err(3, "a name occurs twice".into()));
-        }
+        let index = name_index(&names).ok_or_else(|| err(3, "a name occurs twice".into()))?;
         // An empty content line splits into one empty field.
         let content = if names.is_empty() {
             Vec::new()
@@ -234,56 +203,11 @@ impl ShardFile {
                 format!("{} content hashes for {} names", content.len(), names.len()),
             ));
         }
-        match rows.next().transpose()? {
-            Some(h)
-                if h.fields
-                    .iter()
-                    .map(|f| trimmed(f))
-                    .eq(["a", "b", "distance", "forward", "backward"]) => {}
-            h => {
-                return Err(err(
-                    h.map_or(4, |h| line_of(h.line)),
-                    "expected `a,b,distance,forward,backward`".into(),
-                ))
-            }
-        }
-        let mut pairs = Vec::new();
-        for r in rows {
-            let Row { line, fields: f } = r?;
-            let line = line_of(line);
-            if f.len() != 5 {
-                return Err(err(line, format!("{} fields, expected 5", f.len())));
-            }
-            let specimen = |s: &str| {
-                index
-                    .get(trimmed(s))
-                    .copied()
-                    .ok_or_else(|| err(line, format!("`{}` is not in the name list", trimmed(s))))
-            };
-            let (a, b) = (specimen(&f[0])?, specimen(&f[1])?);
-            if a >= b {
-                return Err(err(
-                    line,
-                    format!("pair `{}`,`{}` is not in list order", f[0], f[1]),
-                ));
-            }
-            let mut v = [0.0; 3];
-            for (k, x) in v.iter_mut().enumerate() {
-                let s = f[2 + k].trim();
-                *x = s
-                    .parse()
-                    .ok()
-                    .filter(|x: &f64| x.is_finite())
-                    .ok_or_else(|| err(line, format!("`{s}` is not a finite number")))?;
-            }
-            pairs.push(PairDistance {
-                a,
-                b,
-                distance: v[0],
-                forward: v[1],
-                backward: v[2],
-            });
-        }
+        check_pair_header(rows.next().transpose()?)
+            .map_err(|line| err(line, "expected `a,b,distance,forward,backward`".into()))?;
+        let pairs = rows
+            .map(|r| pair_of_row(r?, &index, path))
+            .collect::<Result<Vec<_>, _>>()?;
         Ok(ShardFile {
             shard,
             names,
@@ -367,7 +291,27 @@ pub fn compute_shard<E: Send>(
 /// range, missing or given twice, a value that is not a distance.
 pub fn merge_shards(shards: &[(PathBuf, ShardFile)]) -> Result<DistanceMatrix, ShardError> {
     let (first_path, first) = shards.first().ok_or(ShardError::NoShards)?;
+    let by_index = shards_by_index(shards, first_path, first)?;
+    check_same_content(shards)?;
+    check_none_missing(&by_index, shards)?;
     let n = first.names.len();
+    let mut values = vec![vec![0.0; n]; n];
+    let mut seen = vec![false; pair_count(n)];
+    for (path, s) in shards {
+        enter_pairs(path, s, &first.names, &mut values, &mut seen)?;
+        check_shard_complete(path, s, &first.names, &seen)?;
+    }
+    Ok(DistanceMatrix::square(first.names.clone(), values))
+}
+
+/// Each shard index's file (`None` for shards not given), once every
+/// shard has been checked against the first (`first_path`, `first`): the
+/// same name list and shard count, and no index given twice.
+fn shards_by_index<'a>(
+    shards: &'a [(PathBuf, ShardFile)],
+    first_path: &Path,
+    first: &ShardFile,
+) -> Result<Vec<Option<&'a Path>>, ShardError> {
     let count = first.shard.count;
     let mut by_index: Vec<Option<&Path>> = vec![None; count];
     for (path, s) in shards {
@@ -400,86 +344,108 @@ pub fn merge_shards(shards: &[(PathBuf, ShardFile)]) -> Result<DistanceMatrix, S
         }
         *slot = Some(path);
     }
-    check_same_content(shards)?;
+    Ok(by_index)
+}
+
+/// An error naming the shards of `by_index` (one slot per shard of the
+/// set) that none of `shards` is, if any.
+fn check_none_missing(
+    by_index: &[Option<&Path>],
+    shards: &[(PathBuf, ShardFile)],
+) -> Result<(), ShardError> {
+    let count = by_index.len();
     let missing: Vec<String> = by_index
         .iter()
         .enumerate()
         .filter(|(_, p)| p.is_none())
         .map(|(k, _)| format!("{}/{count}", k + 1))
         .collect();
-    if !missing.is_empty() {
-        return Err(ShardError::Mismatch(format!(
-            "missing shard(s) {} of the {count} (given: {})",
-            missing.join(", "),
-            shards
-                .iter()
-                .map(|(p, _)| p.display().to_string())
-                .collect::<Vec<_>>()
-                .join(", ")
-        )));
+    if missing.is_empty() {
+        return Ok(());
     }
-    let mut values = vec![vec![0.0; n]; n];
-    let mut seen = vec![false; pair_count(n)];
-    let row_start = |i: usize| i * n - i * (i + 1) / 2;
-    for (path, s) in shards {
-        let range = s.shard.range(pair_count(n));
-        for p in &s.pairs {
-            if p.a >= p.b || p.b >= n {
-                return Err(ShardError::Mismatch(format!(
-                    "{}: pair ({}, {}) is not a pair of the {n} specimens",
-                    path.display(),
-                    p.a,
-                    p.b
-                )));
-            }
-            let pos = row_start(p.a) + (p.b - p.a - 1);
-            if !range.contains(&pos) {
-                return Err(ShardError::Mismatch(format!(
-                    "{}: pair {},{} does not belong to shard {}",
-                    path.display(),
-                    first.names[p.a],
-                    first.names[p.b],
-                    s.shard
-                )));
-            }
-            if let Some(problem) = not_a_distance(p) {
-                return Err(ShardError::Mismatch(format!(
-                    "{}: pair {},{}: {problem}",
-                    path.display(),
-                    first.names[p.a],
-                    first.names[p.b]
-                )));
-            }
-            if std::mem::replace(&mut seen[pos], true) {
-                return Err(ShardError::Mismatch(format!(
-                    "{}: pair {},{} occurs twice",
-                    path.display(),
-                    first.names[p.a],
-                    first.names[p.b]
-                )));
-            }
-            values[p.a][p.b] = p.distance;
-            values[p.b][p.a] = p.distance;
-        }
-        let present = seen[range.clone()].iter().filter(|&&x| x).count();
-        if present != range.len() {
-            let absent = shard_pairs(n, s.shard)
-                .into_iter()
-                .find(|&(a, b)| !seen[row_start(a) + (b - a - 1)]);
-            return Err(ShardError::Mismatch(format!(
-                "{}: shard {} lacks {} of its {} pairs (e.g. {})",
-                path.display(),
-                s.shard,
-                range.len() - present,
-                range.len(),
-                absent.map_or(String::new(), |(a, b)| format!(
-                    "{},{}",
-                    first.names[a], first.names[b]
-                ))
+    Err(ShardError::Mismatch(format!(
+        "missing shard(s) {} of the {count} (given: {})",
+        missing.join(", "),
+        shards
+            .iter()
+            .map(|(p, _)| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    )))
+}
+
+/// The position of the pair `(a, b)`, `a < b`, among the pairs of `n`
+/// specimens in row-major order (row `a` starts at `a·n − a(a+1)/2`).
+fn pair_position(n: usize, a: usize, b: usize) -> usize {
+    a * n - a * (a + 1) / 2 + (b - a - 1)
+}
+
+/// Enter the pairs of shard `s` (from `path`) into `values` (both
+/// triangles) and mark them in `seen` (by [`pair_position`]); an error for
+/// a pair that is not one of the specimens `names`, lies outside the
+/// shard's range, is not a distance, or was seen before.
+fn enter_pairs(
+    path: &Path,
+    s: &ShardFile,
+    names: &[String],
+    values: &mut [Vec<f64>],
+    seen: &mut [bool],
+) -> Result<(), ShardError> {
+    let n = names.len();
+    let range = s.shard.range(pair_count(n));
+    let mismatch = |problem: String| ShardError::Mismatch(format!("{}: {problem}", path.display()));
+    for p in &s.pairs {
+        if p.a >= p.b || p.b >= n {
+            return Err(mismatch(format!(
+                "pair ({}, {}) is not a pair of the {n} specimens",
+                p.a, p.b
             )));
         }
+        let (a, b) = (&names[p.a], &names[p.b]);
+        let pos = pair_position(n, p.a, p.b);
+        if !range.contains(&pos) {
+            return Err(mismatch(format!(
+                "pair {a},{b} does not belong to shard {}",
+                s.shard
+            )));
+        }
+        if let Some(problem) = not_a_distance(p) {
+            return Err(mismatch(format!("pair {a},{b}: {problem}")));
+        }
+        if std::mem::replace(&mut seen[pos], true) {
+            return Err(mismatch(format!("pair {a},{b} occurs twice")));
+        }
+        values[p.a][p.b] = p.distance;
+        values[p.b][p.a] = p.distance;
     }
-    Ok(DistanceMatrix::square(first.names.clone(), values))
+    Ok(())
+}
+
+/// An error naming shard `s` (from `path`) when `seen` lacks any pair of
+/// its range, with the first such pair of `names`.
+fn check_shard_complete(
+    path: &Path,
+    s: &ShardFile,
+    names: &[String],
+    seen: &[bool],
+) -> Result<(), ShardError> {
+    let n = names.len();
+    let range = s.shard.range(pair_count(n));
+    let present = seen[range.clone()].iter().filter(|&&x| x).count();
+    if present == range.len() {
+        return Ok(());
+    }
+    let absent = shard_pairs(n, s.shard)
+        .into_iter()
+        .find(|&(a, b)| !seen[pair_position(n, a, b)]);
+    Err(ShardError::Mismatch(format!(
+        "{}: shard {} lacks {} of its {} pairs (e.g. {})",
+        path.display(),
+        s.shard,
+        range.len() - present,
+        range.len(),
+        absent.map_or(String::new(), |(a, b)| format!("{},{}", names[a], names[b]))
+    )))
 }
 
 /// What is wrong with the values of a pair, if anything: each must be
@@ -536,6 +502,118 @@ fn check_same_content(shards: &[(PathBuf, ShardFile)]) -> Result<(), ShardError>
         differing.len(),
         differing.join("; ")
     )))
+}
+
+/// The error for line `line` (1-based) of the shard file `path`.
+fn format_error(path: &Path, line: usize, message: String) -> ShardError {
+    ShardError::Format {
+        path: path.to_path_buf(),
+        line,
+        message,
+    }
+}
+
+/// The line of the file that line `line` of the name list and the pairs
+/// (which start on the file's third line) is.
+fn file_line(line: usize) -> usize {
+    line + 2
+}
+
+/// The shard named by the first line, `# morphoid matrix shard K/N`.
+fn parse_shard_line(first: &str) -> Result<Shard, String> {
+    first
+        .trim_end_matches('\r')
+        .strip_prefix("# morphoid matrix shard ")
+        .ok_or_else(|| "not a morphoid matrix shard".to_string())?
+        .trim()
+        .parse()
+        .map_err(|e: morphoid_data::shard::ShardSyntax| e.to_string())
+}
+
+/// The content hashes of the second line, `# content: h1,,h3,…` (`None`
+/// where empty).
+fn parse_content_line(second: &str) -> Result<Vec<Option<String>>, String> {
+    Ok(second
+        .trim_end_matches('\r')
+        .strip_prefix("# content:")
+        .ok_or_else(|| {
+            "expected `# content: …` (a shard of an older morphoid: compute it again)".to_string()
+        })?
+        .trim()
+        .split(',')
+        .map(|h| Some(h.trim().to_string()).filter(|h| !h.is_empty()))
+        .collect())
+}
+
+/// Each name's position in `names`; `None` when a name occurs twice.
+fn name_index(names: &[String]) -> Option<HashMap<&str, usize>> {
+    let index: HashMap<&str, usize> = names
+        .iter()
+        .enumerate()
+        .map(|(i, n)| (n.as_str(), i))
+        .collect();
+    (index.len() == names.len()).then_some(index)
+}
+
+/// Whether the row after the names, `header` (`None` at the end of the
+/// file), is `a,b,distance,forward,backward`; else the line to blame.
+fn check_pair_header(header: Option<Row>) -> Result<(), usize> {
+    match header {
+        Some(h)
+            if h.fields
+                .iter()
+                .map(|f| trimmed(f))
+                .eq(["a", "b", "distance", "forward", "backward"]) =>
+        {
+            Ok(())
+        }
+        h => Err(h.map_or(4, |h| file_line(h.line))),
+    }
+}
+
+/// The pair of a row `a,b,distance,forward,backward` of the shard file
+/// `path`, its specimens looked up in `index`: an error unless both are
+/// names of the list, in list order, and the three values finite numbers.
+fn pair_of_row(
+    row: Row,
+    index: &HashMap<&str, usize>,
+    path: &Path,
+) -> Result<PairDistance, ShardError> {
+    let Row { line, fields: f } = row;
+    let line = file_line(line);
+    let err = |message: String| format_error(path, line, message);
+    if f.len() != 5 {
+        return Err(err(format!("{} fields, expected 5", f.len())));
+    }
+    let specimen = |s: &str| {
+        index
+            .get(trimmed(s))
+            .copied()
+            .ok_or_else(|| err(format!("`{}` is not in the name list", trimmed(s))))
+    };
+    let (a, b) = (specimen(&f[0])?, specimen(&f[1])?);
+    if a >= b {
+        return Err(err(format!(
+            "pair `{}`,`{}` is not in list order",
+            f[0], f[1]
+        )));
+    }
+    let mut v = [0.0; 3];
+    for (k, x) in v.iter_mut().enumerate() {
+        let s = f[2 + k].trim();
+        *x = s
+            .parse()
+            .ok()
+            .filter(|x: &f64| x.is_finite())
+            .ok_or_else(|| err(format!("`{s}` is not a finite number")))?;
+    }
+    Ok(PairDistance {
+        a,
+        b,
+        distance: v[0],
+        forward: v[1],
+        backward: v[2],
+    })
 }
 
 /// The first 12 hex digits of a hash, for messages.

@@ -43,7 +43,7 @@ use morphoid_data::present::error_chain;
 use regex::Regex;
 use sd_notify::NotifyState;
 use serial::SerialTrigger;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::signal::unix::{signal, Signal, SignalKind};
@@ -384,91 +384,13 @@ impl<'a> Daemon<'a> {
         let mut new = false;
         let mut failed = false;
         for path in ready {
-            let p = path.clone();
-            let taken = match tokio::task::spawn_blocking(move || intake::take(&p)).await {
-                Ok(h) => h,
-                Err(e) => {
-                    tracing::error!("{}: hashing failed: {e}", path.display());
-                    self.folder.release(&path);
-                    continue;
-                }
-            };
-            // A content hash and size, and the error to record for it (a
-            // file that stayed incomplete too long).
-            let hashed = match taken {
-                Err(e) => Err(e),
-                Ok(intake::Taken::Ready(hash, size)) => {
-                    if self.incomplete.remove(&path).is_some() {
-                        tracing::info!("{}: complete now", path.display());
-                    }
-                    Ok((hash, size, None))
-                }
-                Ok(intake::Taken::Incomplete(problem)) => {
-                    let since = *self.incomplete.entry(path.clone()).or_insert_with(|| {
-                        tracing::info!(
-                            "{}: not complete yet ({problem}); waiting for the rest",
-                            path.display()
-                        );
-                        Instant::now()
-                    });
-                    let limit = Duration::from_secs_f64(self.config.watch.incomplete_seconds);
-                    if since.elapsed() < limit {
-                        self.folder.defer(&path);
-                        continue;
-                    }
-                    self.incomplete.remove(&path);
-                    let message = format!(
-                        "{}: incomplete after waiting {:.0} s: {problem}",
-                        path.display(),
-                        limit.as_secs_f64()
-                    );
-                    let p = path.clone();
-                    match tokio::task::spawn_blocking(move || intake::hash(&p)).await {
-                        Ok(Ok((hash, size))) => Ok((hash, size, Some(message))),
-                        Ok(Err(e)) => Err(e),
-                        Err(_) => {
-                            self.folder.release(&path);
-                            continue;
-                        }
-                    }
-                }
+            let Some(hashed) = self.hashed(&path).await else {
+                continue;
             };
             let queued = match hashed {
                 Err(e) => (Err(e), false),
                 Ok((hash, size, error)) => {
-                    let mut db = db::lock(&self.db);
-                    let out = match db.store() {
-                        Ok((store, _)) => {
-                            intake::enqueue(store, &path, &hash, size).and_then(|q| {
-                                match (&q, &error) {
-                                    (Enqueued::New(id), Some(message)) => {
-                                        tracing::error!("{message}");
-                                        store.fail(*id, message).map_err(|source| {
-                                            intake::IntakeError::Queue {
-                                                path: path.clone(),
-                                                source,
-                                            }
-                                        })?;
-                                        Ok(Enqueued::Existing(*id, crate::store::ScanStatus::Error))
-                                    }
-                                    _ => Ok(q),
-                                }
-                            })
-                        }
-                        Err(source) => Err(intake::IntakeError::Queue {
-                            path: path.clone(),
-                            source,
-                        }),
-                    };
-                    let storage = match &out {
-                        Err(intake::IntakeError::Queue { source, .. }) => db.failed(source),
-                        Ok(_) => {
-                            db.worked();
-                            false
-                        }
-                        Err(_) => false,
-                    };
-                    (out, storage)
+                    self.enqueue_hashed(&path, &hash, size, error.as_deref())
                 }
             };
             match queued {
@@ -496,6 +418,103 @@ impl<'a> Daemon<'a> {
         if new {
             self.worker.wake();
         }
+    }
+
+    /// The settled file `path`'s content hash and size, and the error to
+    /// record for it (a file that stayed incomplete too long), or why it
+    /// cannot be read; `None` when it is not to be queued now (deferred
+    /// while incomplete, or released after the hashing task failed).
+    async fn hashed(&mut self, path: &Path) -> Option<Result<Hashed, intake::IntakeError>> {
+        let p = path.to_path_buf();
+        let taken = match tokio::task::spawn_blocking(move || intake::take(&p)).await {
+            Ok(h) => h,
+            Err(e) => {
+                tracing::error!("{}: hashing failed: {e}", path.display());
+                self.folder.release(path);
+                return None;
+            }
+        };
+        match taken {
+            Err(e) => Some(Err(e)),
+            Ok(intake::Taken::Ready(hash, size)) => {
+                if self.incomplete.remove(path).is_some() {
+                    tracing::info!("{}: complete now", path.display());
+                }
+                Some(Ok((hash, size, None)))
+            }
+            Ok(intake::Taken::Incomplete(problem)) => self.hashed_incomplete(path, &problem).await,
+        }
+    }
+
+    /// [`Daemon::hashed`] for a file whose format says it is incomplete
+    /// (`problem`): deferred (`None`) until it has waited
+    /// `watch.incomplete_seconds`, then hashed as it is, with the error
+    /// to record.
+    async fn hashed_incomplete(
+        &mut self,
+        path: &Path,
+        problem: &str,
+    ) -> Option<Result<Hashed, intake::IntakeError>> {
+        let since = *self
+            .incomplete
+            .entry(path.to_path_buf())
+            .or_insert_with(|| {
+                tracing::info!(
+                    "{}: not complete yet ({problem}); waiting for the rest",
+                    path.display()
+                );
+                Instant::now()
+            });
+        let limit = Duration::from_secs_f64(self.config.watch.incomplete_seconds);
+        if since.elapsed() < limit {
+            self.folder.defer(path);
+            return None;
+        }
+        self.incomplete.remove(path);
+        let message = format!(
+            "{}: incomplete after waiting {:.0} s: {problem}",
+            path.display(),
+            limit.as_secs_f64()
+        );
+        let p = path.to_path_buf();
+        match tokio::task::spawn_blocking(move || intake::hash(&p)).await {
+            Ok(Ok((hash, size))) => Some(Ok((hash, size, Some(message)))),
+            Ok(Err(e)) => Some(Err(e)),
+            Err(_) => {
+                self.folder.release(path);
+                None
+            }
+        }
+    }
+
+    /// Queue the hashed file `path` in the store (failed at once with
+    /// `error` when it has one and is new), and tell the storage's health
+    /// how the database did. Returns what the store did, and whether a
+    /// failure is the storage's (the file is to be queued again later).
+    fn enqueue_hashed(
+        &self,
+        path: &Path,
+        hash: &str,
+        size: u64,
+        error: Option<&str>,
+    ) -> (Result<Enqueued, intake::IntakeError>, bool) {
+        let mut db = db::lock(&self.db);
+        let out = match db.store() {
+            Ok((store, _)) => enqueue_failing(store, path, hash, size, error),
+            Err(source) => Err(intake::IntakeError::Queue {
+                path: path.to_path_buf(),
+                source,
+            }),
+        };
+        let storage = match &out {
+            Err(intake::IntakeError::Queue { source, .. }) => db.failed(source),
+            Ok(_) => {
+                db.worked();
+                false
+            }
+            Err(_) => false,
+        };
+        (out, storage)
     }
 
     /// Queue again the files the database refused, when their wait is up.
@@ -721,6 +740,36 @@ impl<'a> Daemon<'a> {
                 }
             }
         }
+    }
+}
+
+/// A settled file's content hash and size, and the error to record for
+/// it (a file that stayed incomplete too long).
+type Hashed = (String, u64, Option<String>);
+
+/// Queue the hashed file `path` in `store`; when it is new and has an
+/// `error` to record, log it and fail the scan at once (reported as an
+/// existing scan in error: nothing for the worker).
+fn enqueue_failing(
+    store: &mut Store,
+    path: &Path,
+    hash: &str,
+    size: u64,
+    error: Option<&str>,
+) -> Result<Enqueued, intake::IntakeError> {
+    let q = intake::enqueue(store, path, hash, size)?;
+    match (&q, error) {
+        (Enqueued::New(id), Some(message)) => {
+            tracing::error!("{message}");
+            store
+                .fail(*id, message)
+                .map_err(|source| intake::IntakeError::Queue {
+                    path: path.to_path_buf(),
+                    source,
+                })?;
+            Ok(Enqueued::Existing(*id, crate::store::ScanStatus::Error))
+        }
+        _ => Ok(q),
     }
 }
 

@@ -4,7 +4,7 @@
 //! run again and a crash leaves nothing half recorded.
 
 use super::{now_ms, parse_status, to_json, Enqueued, Job, ScanStatus, Store, StoreError};
-use crate::identify::{ScanOutcome, SpecimensOutcome};
+use crate::identify::{ScanOutcome, SpecimenOutcome, SpecimensOutcome};
 use rusqlite::{params, Connection, OptionalExtension, Row, TransactionBehavior};
 
 /// The columns a claim returns, in [`job_from_row`]'s terms.
@@ -125,76 +125,21 @@ impl Store {
         scan_id: i64,
         outcome: &SpecimensOutcome,
     ) -> Result<(), StoreError> {
-        for s in &outcome.specimens {
-            if let Ok(o) = &s.result {
-                validate_outcome(o)?;
-            }
-        }
+        validate_specimens(outcome)?;
         let count = outcome.specimens.len();
-        if count < 2 {
-            return Err(StoreError::OutOfRange("scan.specimens"));
-        }
         let timings = to_json("scan.timings", &outcome.timings_ms)?;
         let segmentation = to_json("scan.cleaning", &outcome.segmentation)?;
         let tx = self
             .conn
             .transaction_with_behavior(TransactionBehavior::Immediate)?;
         require_status(&tx, scan_id, ScanStatus::Running, "complete", "running")?;
-        let (path, hash, size, started): (String, String, i64, Option<i64>) = tx.query_row(
-            "SELECT path, content_hash, size, started_at FROM scan WHERE id = ?1",
-            [scan_id],
-            |r| {
-                Ok((
-                    r.get("path")?,
-                    r.get("content_hash")?,
-                    r.get("size")?,
-                    r.get("started_at")?,
-                ))
-            },
-        )?;
+        let parent = ParentScan::read(&tx, scan_id)?;
         let now = now_ms();
         let mut errors = Vec::new();
         for (i, s) in outcome.specimens.iter().enumerate() {
             let n = i + 1;
-            let position = to_json("scan.position", &s.position)?;
-            let name = format!("{path}#{n}");
-            let (status, error, timings, cleaning, calibrating) = match &s.result {
-                Ok(o) => (
-                    "ok",
-                    None,
-                    Some(to_json("scan.timings", &o.timings_ms)?),
-                    Some(to_json("scan.cleaning", &o.cleaning)?),
-                    o.calibrating,
-                ),
-                Err(e) => {
-                    errors.push(format!("#{n}: {e}"));
-                    ("error", Some(e.clone()), None, None, false)
-                }
-            };
-            tx.execute(
-                "INSERT INTO scan (path, content_hash, size, status, error, attempts, created_at,
-                                   started_at, finished_at, timings, cleaning, files_due,
-                                   calibrating, parent_id, specimen, position)
-                 VALUES (?1, ?2, ?3, ?4, ?5, 1, ?6, ?7, ?6, ?8, ?9, ?10, ?11, ?12, ?13, ?14)",
-                params![
-                    name,
-                    hash,
-                    size,
-                    status,
-                    error,
-                    now,
-                    started,
-                    timings,
-                    cleaning,
-                    self.result_files,
-                    calibrating,
-                    scan_id,
-                    n as i64,
-                    position
-                ],
-            )?;
-            if let Ok(o) = &s.result {
-                insert_outcome(&tx, tx.last_insert_rowid(), o)?;
+            if let Some(e) = insert_specimen(&tx, &parent, n, s, now, self.result_files)? {
+                errors.push(format!("#{n}: {e}"));
             }
         }
         let error = (errors.len() == count).then(|| {
@@ -487,6 +432,99 @@ fn enqueue_in(
         }
     };
     Ok(out)
+}
+
+/// An error unless every specimen's result of `outcome` holds only
+/// numbers the store takes, and it has at least two specimens.
+fn validate_specimens(outcome: &SpecimensOutcome) -> Result<(), StoreError> {
+    for s in &outcome.specimens {
+        if let Ok(o) = &s.result {
+            validate_outcome(o)?;
+        }
+    }
+    if outcome.specimens.len() < 2 {
+        return Err(StoreError::OutOfRange("scan.specimens"));
+    }
+    Ok(())
+}
+
+/// What the rows of a scan's specimens take from the scan's own row.
+struct ParentScan {
+    id: i64,
+    path: String,
+    content_hash: String,
+    size: i64,
+    started_at: Option<i64>,
+}
+
+impl ParentScan {
+    /// The row of scan `scan_id`.
+    fn read(conn: &Connection, scan_id: i64) -> Result<Self, StoreError> {
+        Ok(conn.query_row(
+            "SELECT path, content_hash, size, started_at FROM scan WHERE id = ?1",
+            [scan_id],
+            |r| {
+                Ok(ParentScan {
+                    id: scan_id,
+                    path: r.get("path")?,
+                    content_hash: r.get("content_hash")?,
+                    size: r.get("size")?,
+                    started_at: r.get("started_at")?,
+                })
+            },
+        )?)
+    }
+}
+
+/// Insert the row `<path>#n` of specimen `n` (1-based) of `parent`,
+/// finished `now`, with its result when it has one; returns its error
+/// message when it has none.
+fn insert_specimen(
+    conn: &Connection,
+    parent: &ParentScan,
+    n: usize,
+    s: &SpecimenOutcome,
+    now: i64,
+    result_files: bool,
+) -> Result<Option<String>, StoreError> {
+    let position = to_json("scan.position", &s.position)?;
+    let name = format!("{}#{n}", parent.path);
+    let (status, error, timings, cleaning, calibrating) = match &s.result {
+        Ok(o) => (
+            "ok",
+            None,
+            Some(to_json("scan.timings", &o.timings_ms)?),
+            Some(to_json("scan.cleaning", &o.cleaning)?),
+            o.calibrating,
+        ),
+        Err(e) => ("error", Some(e.clone()), None, None, false),
+    };
+    conn.execute(
+        "INSERT INTO scan (path, content_hash, size, status, error, attempts, created_at,
+                           started_at, finished_at, timings, cleaning, files_due,
+                           calibrating, parent_id, specimen, position)
+         VALUES (?1, ?2, ?3, ?4, ?5, 1, ?6, ?7, ?6, ?8, ?9, ?10, ?11, ?12, ?13, ?14)",
+        params![
+            name,
+            parent.content_hash,
+            parent.size,
+            status,
+            error,
+            now,
+            parent.started_at,
+            timings,
+            cleaning,
+            result_files,
+            calibrating,
+            parent.id,
+            n as i64,
+            position
+        ],
+    )?;
+    if let Ok(o) = &s.result {
+        insert_outcome(conn, conn.last_insert_rowid(), o)?;
+    }
+    Ok(error)
 }
 
 /// A claimed scan row ([`JOB_COLUMNS`]) as a job.
