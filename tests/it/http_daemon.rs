@@ -98,7 +98,18 @@ fn http_the_console_follows_the_running_daemon() {
     assert_eq!(by_genus["scans"][0]["id"], id);
     let page = client.get(format!("{base}/scans/{id}")).send().unwrap();
     assert_eq!(page.status().as_u16(), 200);
-    assert!(page.text().unwrap().contains("new.ply"));
+    let page = page.text().unwrap();
+    assert!(page.contains("new.ply"));
+    // The report's pictures and 3D view, drawn again from the scan's file
+    // by the daemon's library.
+    assert!(
+        page.contains("src=\"data:image/png;base64,"),
+        "no pictures in the console's report:\n{page}"
+    );
+    assert!(
+        page.contains("<canvas"),
+        "no 3D view in the console's report"
+    );
     let metrics = client
         .get(format!("{base}/metrics"))
         .send()

@@ -324,6 +324,7 @@ impl<'a> Daemon<'a> {
             load_library(loader, &config, store, &calibrations)?
         };
         db.set_result_files(files.is_some());
+        live.set_classifier(&classifier);
         let references = classifier.references().len();
         let calibration = classifier.calibration_probe();
         tracing::info!(
@@ -551,6 +552,7 @@ impl<'a> Daemon<'a> {
         });
         match reloaded {
             Ok((config, classifier, files, trigger)) => {
+                self.live.set_classifier(&classifier);
                 self.references = classifier.references().len();
                 self.calibration = classifier.calibration_probe();
                 self.worker.reload(Setup {

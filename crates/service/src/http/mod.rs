@@ -23,6 +23,7 @@
 //!
 //! Modules: `server` (listener, connections, limits), `state`, `pool`,
 //! `cache` (the busiest reads' answers, kept until the database changes),
+//! `pictures` (a report's scene, drawn again by the daemon's library),
 //! `auth`, `query` (the scan filters), `api`, `pages`, `metrics`,
 //! `openapi`, `status` (what the daemon tells the console), `error`.
 
@@ -34,6 +35,7 @@ mod grow;
 mod metrics;
 mod openapi;
 mod pages;
+mod pictures;
 mod pool;
 mod query;
 mod server;

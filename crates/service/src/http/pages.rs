@@ -41,10 +41,6 @@ margin:-.5em 0 1em 0;border-bottom:1px solid #ccc}#console-nav form{display:inli
 #console-nav .who{float:right}#filters label{margin-right:.8em}\
 #review-form fieldset{margin:.5em 0}</style>";
 
-/// What a report drawn by the console says of its pictures.
-const REPORT_NOTE: &str = "The console shows the recorded answer; the pictures and the 3D view \
-     are in the results folder's report ([results] dir) or drawn by `morphoid report SCAN_ID`.";
-
 /// How often the live overview asks whether anything changed.
 const POLL_MS: u32 = 2000;
 
@@ -352,7 +348,15 @@ pub(super) async fn scan_page(
         Ok(r) => r,
         Err(e) => return e.into_page(),
     };
-    let mut html = report_html(&record, None, Some(REPORT_NOTE));
+    // A scan that was not identified has nothing to draw.
+    let mut html = if record.nearest.is_empty() {
+        report_html(&record, None, None)
+    } else {
+        match state.pictures.scene(state.live.classifier(), &record).await {
+            Ok(scene) => report_html(&record, Some(&scene), None),
+            Err(why) => report_html(&record, None, Some(&why)),
+        }
+    };
     // The report links its specimens' pages by file name; here they are
     // found by id.
     for s in &record.specimens {

@@ -2,6 +2,7 @@
 
 use super::auth::{LoginLimiter, Sessions};
 use super::cache::AnswerCache;
+use super::pictures::Pictures;
 use super::pool::ReadPool;
 use super::server::Sources;
 use super::status::LiveStatus;
@@ -27,6 +28,8 @@ pub(super) struct AppState {
     /// The overview's and the scan list's answers, until the database
     /// changes.
     pub answers: Arc<AnswerCache>,
+    /// Reports' scenes, drawn one at a time.
+    pub pictures: Pictures,
     /// What the daemon says of itself.
     pub live: LiveStatus,
     /// Login sessions.
@@ -61,6 +64,7 @@ impl AppState {
             settings: settings.clone(),
             pool: Arc::new(ReadPool::new(&db, POOL_SIZE)),
             answers: Arc::new(AnswerCache::new(&db, super::cache::FRESH_FOR)),
+            pictures: Pictures::new(),
             live,
             sessions: Sessions::new(Duration::from_secs_f64(settings.session_hours * 3600.0)),
             limiter: LoginLimiter::new(settings.login_failures_per_minute),

@@ -1,7 +1,7 @@
 //! What the daemon tells the console about itself: a snapshot it updates
 //! on its housekeeping tick and the console reads on each request.
 
-use crate::classify::CalibrationState;
+use crate::classify::{CalibrationState, Classifier};
 use serde::Serialize;
 use std::sync::{Arc, RwLock};
 use tokio::sync::Notify;
@@ -52,6 +52,9 @@ pub struct SerialStatus {
 pub struct LiveStatus {
     status: Arc<RwLock<DaemonStatus>>,
     reload: Arc<Notify>,
+    /// The daemon's library, with which the console draws a report's
+    /// pictures.
+    classifier: Arc<RwLock<Option<Arc<Classifier>>>>,
 }
 
 impl LiveStatus {
@@ -77,6 +80,21 @@ impl LiveStatus {
     /// Ask the daemon to reload its library (kept until it looks).
     pub fn request_reload(&self) {
         self.reload.notify_one();
+    }
+
+    /// The library the daemon identifies with now (a clone: it shares the
+    /// prepared references).
+    pub(crate) fn set_classifier(&self, classifier: &Classifier) {
+        let mut guard = self.classifier.write().unwrap_or_else(|p| p.into_inner());
+        *guard = Some(Arc::new(classifier.clone()));
+    }
+
+    /// The daemon's library, when a daemon runs.
+    pub(crate) fn classifier(&self) -> Option<Arc<Classifier>> {
+        self.classifier
+            .read()
+            .unwrap_or_else(|p| p.into_inner())
+            .clone()
     }
 
     /// What the daemon waits on for [`LiveStatus::request_reload`].
