@@ -53,7 +53,8 @@ pub(super) fn remove_duplicate_faces(mesh: &Mesh) -> (Mesh, usize) {
             (k, i)
         })
         .collect();
-    keyed.sort_unstable();
+    // Distinct: each carries its face's index.
+    crate::mesh::sort_distinct(&mut keyed);
     let mut keep = vec![true; mesh.faces.len()];
     for w in keyed.windows(2) {
         if w[0].0 == w[1].0 {

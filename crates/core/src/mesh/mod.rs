@@ -36,8 +36,8 @@ pub use topology::{
     longest_boundary_loop, widest_boundary_loop_extent,
 };
 pub(crate) use topology::{
-    boundary_loops_by_length, edge_key, triangle_adjacency, vertex_adjacency, EdgeKey, EdgeMap,
-    NO_TRIANGLE,
+    boundary_loops_by_length, edge_key, sort_distinct, triangle_adjacency, vertex_adjacency,
+    EdgeKey, EdgeMap, NO_TRIANGLE,
 };
 pub(crate) use topology::{half_edge_ends, has_directed_edge};
 

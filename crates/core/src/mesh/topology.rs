@@ -55,7 +55,7 @@ impl EdgeMap {
                 list.push(((u64::from(a) << 32) | u64::from(b), (3 * fi + k) as u32));
             }
         }
-        list.sort_unstable();
+        sort_distinct(&mut list);
         let mut out = EdgeMap {
             edges: Vec::with_capacity(list.len() / 2 + 1),
             offsets: Vec::with_capacity(list.len() / 2 + 2),
@@ -147,8 +147,20 @@ fn boundary_half_edges(faces: &[[u32; 3]], edges: &EdgeMap) -> Vec<(u32, u32)> {
             _ => None,
         })
         .collect();
-    half.sort_unstable();
+    sort_distinct(&mut half);
     half
+}
+
+/// Sort `items`, which are all distinct (so that any sort gives the same
+/// order), on all cores when there are many: the edge lists of a
+/// million-face export take a large share of its cleaning.
+pub(crate) fn sort_distinct<T: Ord + Send>(items: &mut [T]) {
+    use rayon::slice::ParallelSliceMut as _;
+    if items.len() > 1 << 16 {
+        items.par_sort_unstable();
+    } else {
+        items.sort_unstable();
+    }
 }
 
 /// Boundary vertices: those on an edge with exactly one face.

@@ -9,12 +9,15 @@
 //! count, a step across the half-plane `angle = π` moving one copy up or
 //! down), and a winding loop through a vertex `s` is a shortest path from
 //! `s`'s copy at winding 0 to its copy at winding 1. Paths are searched from
-//! every vertex next to that half-plane, each search cut off at the best
-//! loop found so far, so most of them stop after a few steps.
+//! every vertex next to that half-plane (in parallel), each search cut off
+//! at the best loop found so far, so most of them stop after a few steps.
 
 use crate::mesh::HeapItem;
+use rayon::prelude::*;
 use std::collections::BinaryHeap;
 use std::f64::consts::PI;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
 
 /// Winding counts kept apart in the cover: −1, 0, 1, 2 (a loop may cross
 /// the half-plane back and forth where the margin runs steeply).
@@ -113,8 +116,15 @@ impl WindingGraph {
 }
 
 /// The cheapest loop that winds once about the axis, searched from
-/// `sources` in their order (cheapest-looking first makes the cut-offs
-/// bite early); `None` when no loop winds round.
+/// `sources` (cheapest-looking first makes the cut-offs bite early);
+/// `None` when no loop winds round. Of loops of equal cost, the one
+/// through the earliest source is taken.
+///
+/// The sources are searched in parallel, each cut off at the best loop
+/// found so far by any. The answer is the one a search in order would
+/// give: that is the loop of least (cost, source position); a source
+/// after the best one's must beat its cost, one before it may tie, and
+/// the path a search finds does not depend on where it is cut off.
 pub(super) fn cheapest_winding_cycle(
     graph: &WindingGraph,
     sources: &[u32],
@@ -122,32 +132,94 @@ pub(super) fn cheapest_winding_cycle(
     let all = sources.len();
     let sources = graph.sources_with_winding_loop(sources);
     let n = graph.neighbours.len();
-    let mut popped = 0usize;
-    let mut dist = vec![f64::INFINITY; n * LAYERS];
-    let mut prev = vec![u32::MAX; n * LAYERS];
-    let mut touched: Vec<usize> = Vec::new();
-    let mut best: Option<WindingCycle> = None;
-    for &s in &sources {
-        for &i in &touched {
-            dist[i] = f64::INFINITY;
-            prev[i] = u32::MAX;
+    let popped = AtomicUsize::new(0);
+    // The best loop so far and its source's position.
+    let best: Mutex<Option<(usize, WindingCycle)>> = Mutex::new(None);
+    sources.par_iter().enumerate().for_each_init(
+        || Scratch::new(n),
+        |scratch, (position, &s)| {
+            let bound = best
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .as_ref()
+                .map(|(at, b)| (b.cost, *at));
+            let (found, pops) = scratch.cheapest_loop_through(graph, s, bound, position);
+            popped.fetch_add(pops, Ordering::Relaxed);
+            if let Some(cycle) = found {
+                let mut best = best.lock().unwrap_or_else(|p| p.into_inner());
+                let better = best
+                    .as_ref()
+                    .is_none_or(|(at, b)| (cycle.cost, position) < (b.cost, *at));
+                if better {
+                    *best = Some((position, cycle));
+                }
+            }
+        },
+    );
+    tracing::debug!(
+        vertices = n,
+        sources = all,
+        winding = sources.len(),
+        popped = popped.into_inner(),
+        "winding loop search"
+    );
+    best.into_inner()
+        .unwrap_or_else(|p| p.into_inner())
+        .map(|(_, cycle)| cycle)
+}
+
+/// One search's distances and predecessors in the cover, reset between
+/// searches by the entries it touched.
+struct Scratch {
+    dist: Vec<f64>,
+    prev: Vec<u32>,
+    touched: Vec<usize>,
+}
+
+impl Scratch {
+    fn new(vertices: usize) -> Self {
+        Scratch {
+            dist: vec![f64::INFINITY; vertices * LAYERS],
+            prev: vec![u32::MAX; vertices * LAYERS],
+            touched: Vec::new(),
         }
-        touched.clear();
+    }
+
+    /// The cheapest loop through `s` that winds once, if it beats `bound`
+    /// (the best loop's cost and its source's position; a tie beats it
+    /// when `position` comes first), and the nodes popped.
+    fn cheapest_loop_through(
+        &mut self,
+        graph: &WindingGraph,
+        s: u32,
+        bound: Option<(f64, usize)>,
+        position: usize,
+    ) -> (Option<WindingCycle>, usize) {
+        for &i in &self.touched {
+            self.dist[i] = f64::INFINITY;
+            self.prev[i] = u32::MAX;
+        }
+        self.touched.clear();
+        let cut_off = |d: f64| match bound {
+            None => false,
+            Some((cost, at)) if position < at => d > cost,
+            Some((cost, _)) => d >= cost,
+        };
         let s = s as usize;
         let start = s * LAYERS + START;
         let target = s * LAYERS + START + 1;
-        let bound = best.as_ref().map_or(f64::INFINITY, |b| b.cost);
-        dist[start] = 0.0;
-        touched.push(start);
+        self.dist[start] = 0.0;
+        self.touched.push(start);
         let mut heap = BinaryHeap::new();
         heap.push(HeapItem(0.0, start as u32));
+        let mut popped = 0usize;
         while let Some(HeapItem(d, node)) = heap.pop() {
             popped += 1;
             let node = node as usize;
-            if d > dist[node] {
+            if d > self.dist[node] {
                 continue;
             }
-            if d >= bound {
+            if cut_off(d) {
                 break;
             }
             if node == target {
@@ -155,11 +227,10 @@ pub(super) fn cheapest_winding_cycle(
                 let mut at = target;
                 while at != start {
                     vertices.push((at / LAYERS) as u32);
-                    at = prev[at] as usize;
+                    at = self.prev[at] as usize;
                 }
                 vertices.reverse();
-                best = Some(WindingCycle { vertices, cost: d });
-                break;
+                return (Some(WindingCycle { vertices, cost: d }), popped);
             }
             let (v, layer) = (node / LAYERS, node % LAYERS);
             for &(w, cost, step) in &graph.neighbours[v] {
@@ -169,25 +240,18 @@ pub(super) fn cheapest_winding_cycle(
                 }
                 let next = w as usize * LAYERS + l as usize;
                 let nd = d + cost;
-                if nd < dist[next] {
-                    if dist[next].is_infinite() {
-                        touched.push(next);
+                if nd < self.dist[next] {
+                    if self.dist[next].is_infinite() {
+                        self.touched.push(next);
                     }
-                    dist[next] = nd;
-                    prev[next] = node as u32;
+                    self.dist[next] = nd;
+                    self.prev[next] = node as u32;
                     heap.push(HeapItem(nd, next as u32));
                 }
             }
         }
+        (None, popped)
     }
-    tracing::debug!(
-        vertices = n,
-        sources = all,
-        winding = sources.len(),
-        popped,
-        "winding loop search"
-    );
-    best
 }
 
 #[cfg(test)]
@@ -232,6 +296,29 @@ mod tests {
         assert_eq!(cycle.vertices.len(), m);
         assert!((cycle.cost - 0.1 * m as f64).abs() < 1e-9, "{}", cycle.cost);
         assert!(cycle.vertices.iter().all(|&v| v as usize / m == 6));
+    }
+
+    #[test]
+    fn of_equally_cheap_loops_the_one_through_the_earliest_source_is_taken() {
+        // No cheap ring: every ring is a loop of cost m, the cheapest
+        // through each of its vertices; the searches run in parallel.
+        let (m, rings) = (24, 9);
+        let (angles, edges) = cylinder(m, rings, rings);
+        let graph = WindingGraph::new(&angles, &edges, &vec![true; angles.len()]);
+        for order in [false, true] {
+            let mut sources = graph.seam_vertices();
+            if order {
+                sources.reverse();
+            }
+            let cycle = cheapest_winding_cycle(&graph, &sources).unwrap();
+            assert!((cycle.cost - m as f64).abs() < 1e-9, "{}", cycle.cost);
+            let ring = sources[0] as usize / m;
+            assert!(
+                cycle.vertices.iter().all(|&v| v as usize / m == ring),
+                "not the ring of the first source ({ring}): {:?}",
+                cycle.vertices
+            );
+        }
     }
 
     #[test]
