@@ -5,10 +5,12 @@
 use super::auth::{identify, may_read};
 use super::error::ApiError;
 use super::state::AppState;
-use crate::store::IDENTIFICATION_BUCKETS_S;
+use super::status::DaemonStatus;
+use crate::store::{IdentificationTimes, StatusCounts, IDENTIFICATION_BUCKETS_S};
 use axum::extract::State;
 use axum::http::{header, HeaderMap, HeaderValue};
 use axum::response::{IntoResponse, Response};
+use std::collections::BTreeMap;
 use std::fmt::Write;
 use std::sync::Arc;
 
@@ -34,12 +36,20 @@ pub(super) async fn metrics(
         .await?;
     let live = state.live.snapshot();
     let mut m = String::with_capacity(4096);
-    family(
-        &mut m,
-        "morphoid_scans",
-        "gauge",
-        "Scans recorded, by status.",
-    );
+    scan_metrics(&mut m, &counts);
+    identification_histogram(&mut m, &times);
+    daemon_metrics(&mut m, &live);
+    review_metrics(&mut m, &reviews);
+    let mut response = m.into_response();
+    response
+        .headers_mut()
+        .insert(header::CONTENT_TYPE, HeaderValue::from_static(CONTENT_TYPE));
+    Ok(response)
+}
+
+/// `morphoid_scans` by status and `morphoid_queue_length`.
+fn scan_metrics(m: &mut String, counts: &StatusCounts) {
+    family(m, "morphoid_scans", "gauge", "Scans recorded, by status.");
     for (status, n) in [
         ("pending", counts.pending),
         ("running", counts.running),
@@ -51,14 +61,18 @@ pub(super) async fn metrics(
         let _ = writeln!(m, "morphoid_scans{{status=\"{status}\"}} {n}");
     }
     family(
-        &mut m,
+        m,
         "morphoid_queue_length",
         "gauge",
         "Scans waiting to be identified.",
     );
     let _ = writeln!(m, "morphoid_queue_length {}", counts.pending);
+}
+
+/// `morphoid_identification_seconds`: the histogram of times from claim to recorded identification.
+fn identification_histogram(m: &mut String, times: &IdentificationTimes) {
     family(
-        &mut m,
+        m,
         "morphoid_identification_seconds",
         "histogram",
         "Time from a scan's claim to its recorded identification.",
@@ -76,29 +90,33 @@ pub(super) async fn metrics(
     );
     let _ = writeln!(m, "morphoid_identification_seconds_sum {}", times.sum_s);
     let _ = writeln!(m, "morphoid_identification_seconds_count {}", times.count);
+}
+
+/// What the daemon says of itself: degraded storage, running, references, calibrating.
+fn daemon_metrics(m: &mut String, live: &DaemonStatus) {
     family(
-        &mut m,
+        m,
         "morphoid_degraded",
         "gauge",
         "1 while part of the storage is faulty (the status line's degraded).",
     );
     let _ = writeln!(m, "morphoid_degraded {}", u8::from(live.degraded.is_some()));
     family(
-        &mut m,
+        m,
         "morphoid_daemon_running",
         "gauge",
         "1 while a daemon updates the console.",
     );
     let _ = writeln!(m, "morphoid_daemon_running {}", u8::from(live.running));
     family(
-        &mut m,
+        m,
         "morphoid_references",
         "gauge",
         "References in the loaded library.",
     );
     let _ = writeln!(m, "morphoid_references {}", live.references);
     family(
-        &mut m,
+        m,
         "morphoid_calibrating",
         "gauge",
         "1 while the library's confidence is being calibrated.",
@@ -108,8 +126,12 @@ pub(super) async fn metrics(
         "morphoid_calibrating {}",
         u8::from(live.calibration == "calibrating")
     );
+}
+
+/// `morphoid_reviews`: the curators' decisions by kind.
+fn review_metrics(m: &mut String, reviews: &BTreeMap<String, u64>) {
     family(
-        &mut m,
+        m,
         "morphoid_reviews",
         "gauge",
         "Curators' decisions recorded, by kind.",
@@ -118,11 +140,6 @@ pub(super) async fn metrics(
         let n = reviews.get(decision).copied().unwrap_or(0);
         let _ = writeln!(m, "morphoid_reviews{{decision=\"{decision}\"}} {n}");
     }
-    let mut response = m.into_response();
-    response
-        .headers_mut()
-        .insert(header::CONTENT_TYPE, HeaderValue::from_static(CONTENT_TYPE));
-    Ok(response)
 }
 
 /// The `# HELP` and `# TYPE` lines of a metric family.
