@@ -282,6 +282,47 @@ fn a_database_replaced_under_the_daemon_is_used_and_gets_what_it_lacks() {
 }
 
 #[test]
+fn a_scan_whose_row_is_lost_while_it_is_identified_is_identified_again() {
+    // What a disk that loses its last writes, or a backup restored into
+    // the file in place, does to the scan in progress: its row is gone
+    // when the result comes. The file was taken already, so only a fresh
+    // listing can queue it again.
+    let env = env(0.5, "", "");
+    let d = Daemon::start(&env);
+    let mut names = vec![drop_scan(&env, 0)];
+    assert!(wait_until(Duration::from_secs(60), || finished(&env.db) >= 1));
+    let staged = large_scan(&env, 1, 931, 200_000);
+    let large = env.export.join("large.ply");
+    std::fs::rename(&staged, &large).unwrap();
+    names.push("large.ply".into());
+    let running = |db: &Path| {
+        rows(db)
+            .iter()
+            .any(|r| r.path.ends_with("/large.ply") && r.status == ScanStatus::Running)
+    };
+    assert!(
+        wait_until(Duration::from_secs(60), || running(&env.db)),
+        "{}",
+        d.log_text()
+    );
+    let other = rusqlite::Connection::open(&env.db).unwrap();
+    other.busy_timeout(Duration::from_secs(10)).unwrap();
+    let deleted = other
+        .execute("DELETE FROM scan WHERE path LIKE '%/large.ply'", [])
+        .unwrap();
+    drop(other);
+    assert_eq!(deleted, 1);
+    assert!(
+        wait_until(Duration::from_secs(60), || d
+            .log_text()
+            .contains("large.ply: identification not recorded")),
+        "the row was deleted after the identification: {}",
+        d.log_text()
+    );
+    assert_exactly_once(&env, &d, &names, Duration::from_secs(120));
+}
+
+#[test]
 fn a_database_locked_by_another_process_delays_but_loses_nothing() {
     let env = env(0.5, "", "");
     let d = Daemon::start(&env);

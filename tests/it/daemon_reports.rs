@@ -324,6 +324,31 @@ fn scans_are_identified_while_the_calibration_runs_and_get_confidence_after() {
     put(&env, &early, &scan_bytes(3, 301));
     let d = Daemon::start_with(&env, &[("NOTIFY_SOCKET", socket_path.to_str().unwrap())]);
     let recorded = |p: &Path| row_of(&env.db, p).is_some_and(|r| r.status == ScanStatus::Ok);
+    // The calibration's threads run 10 nice steps below the daemon's, so
+    // that a scan arriving meanwhile is identified first.
+    let calibration_niceness = || {
+        let threads = thread_niceness(d.pid());
+        let daemon_nice = threads.iter().find(|(n, _)| n == "morphoid")?.1;
+        let niceness: Vec<i64> = threads
+            .iter()
+            .filter(|(n, _)| n.starts_with("morphoid-calib"))
+            .map(|t| t.1)
+            .collect();
+        (!niceness.is_empty()).then_some((daemon_nice, niceness))
+    };
+    // (A thread just started may not have lowered itself yet.)
+    let mut seen = None;
+    let lowered = wait_until(Duration::from_secs(60), || {
+        seen = calibration_niceness();
+        seen.as_ref().is_some_and(|(daemon_nice, niceness)| {
+            niceness.iter().all(|&n| n == (daemon_nice + 10).min(19))
+        })
+    });
+    assert!(
+        lowered,
+        "calibration threads' nice values (daemon's, theirs): {seen:?}\n{}",
+        d.log_text()
+    );
     assert!(
         wait_until(Duration::from_secs(240), || recorded(&early)),
         "{}",

@@ -2,31 +2,8 @@
 //! shows what the daemon does (its state and each scan as it is
 //! identified) and stops with it.
 
-use crate::support::daemon::{env, genus, put, scan_bytes, wait_until, Daemon};
+use crate::support::daemon::{env, genus, put, scan_bytes, thread_niceness, wait_until, Daemon};
 use std::time::Duration;
-
-/// Each thread of process `pid`: its name and nice value (from
-/// `/proc/PID/task/TID/stat`).
-fn thread_niceness(pid: i32) -> Vec<(String, i64)> {
-    let mut out = Vec::new();
-    for task in std::fs::read_dir(format!("/proc/{pid}/task")).unwrap() {
-        let Ok(stat) = std::fs::read_to_string(task.unwrap().path().join("stat")) else {
-            continue;
-        };
-        let (Some(open), Some(close)) = (stat.find('('), stat.rfind(')')) else {
-            continue;
-        };
-        let name = stat[open + 1..close].to_string();
-        // After the name: state is field 3; nice is field 19.
-        let nice = stat[close + 2..]
-            .split_whitespace()
-            .nth(19 - 3)
-            .and_then(|f| f.parse().ok())
-            .unwrap();
-        out.push((name, nice));
-    }
-    out
-}
 
 #[test]
 fn http_the_console_follows_the_running_daemon() {

@@ -18,5 +18,6 @@ pub mod config;
 pub mod daemon;
 pub mod http;
 pub mod identify;
+mod priority;
 pub mod report;
 pub mod store;

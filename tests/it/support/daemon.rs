@@ -265,3 +265,26 @@ pub(crate) fn genus_of(r: &ScanRecord) -> Option<&str> {
         .find(|k| k.rank == "genus")
         .map(|k| k.taxon.as_str())
 }
+
+/// Each thread of process `pid`: its name and nice value (from
+/// `/proc/PID/task/TID/stat`).
+pub(crate) fn thread_niceness(pid: i32) -> Vec<(String, i64)> {
+    let mut out = Vec::new();
+    for task in std::fs::read_dir(format!("/proc/{pid}/task")).unwrap() {
+        let Ok(stat) = std::fs::read_to_string(task.unwrap().path().join("stat")) else {
+            continue;
+        };
+        let (Some(open), Some(close)) = (stat.find('('), stat.rfind(')')) else {
+            continue;
+        };
+        let name = stat[open + 1..close].to_string();
+        // After the name: state is field 3; nice is field 19.
+        let nice = stat[close + 2..]
+            .split_whitespace()
+            .nth(19 - 3)
+            .and_then(|f| f.parse().ok())
+            .unwrap();
+        out.push((name, nice));
+    }
+    out
+}

@@ -137,6 +137,14 @@ impl Db {
         std::mem::take(&mut self.new_file)
     }
 
+    /// The database lacks a scan this daemon had recorded in it (a disk
+    /// that lost its last writes, a file swapped while the connection was
+    /// closed): the export folder is to be listed again as for a new file,
+    /// so that what it lacks is queued again.
+    pub(super) fn lacks_recorded_scans(&mut self) {
+        self.new_file = true;
+    }
+
     /// Fold the write-ahead log into the database and cut it to nothing
     /// (the periodic bound on its size; see [`Store::checkpoint`]).
     /// Nothing when no connection is open; a failure is handled as any

@@ -820,6 +820,10 @@ fn calibrate_in_background(pending: PendingCalibration, share: &CalibrationShare
     let spawned = std::thread::Builder::new()
         .name("morphoid-calibration".into())
         .spawn(move || {
+            // Below identification: a scan that arrives meanwhile is
+            // identified in seconds, the calibration waits.
+            let niceness = crate::priority::background_niceness();
+            crate::priority::set_thread_niceness(niceness, "calibration");
             let threads = calibration_threads();
             tracing::info!(
                 "calibration started: {n} references compared with each other \
@@ -829,6 +833,9 @@ fn calibrate_in_background(pending: PendingCalibration, share: &CalibrationShare
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
                 .thread_name(|i| format!("morphoid-calibration-{i}"))
+                .start_handler(move |_| {
+                    crate::priority::set_thread_niceness(niceness, "calibration")
+                })
                 .build();
             let fitted = match pool {
                 Ok(pool) => pool.install(|| pending.run()),

@@ -265,6 +265,11 @@ impl WorkerState {
                 guard.worked();
                 return Step::Idle;
             }
+            Ok(Next::Lacking) => {
+                guard.worked();
+                guard.lacks_recorded_scans();
+                return Step::Worked;
+            }
             Err(e) => {
                 if !guard.failed(&e) {
                     // Not the storage: the same request would fail again;
@@ -348,6 +353,11 @@ impl WorkerState {
                     let requeued = store.requeue_running_but(None)?;
                     if requeued > 0 {
                         tracing::info!("{requeued} scan(s) left running are pending again");
+                    }
+                    if matches!(e, StoreError::NoSuchScan(_)) {
+                        // Its file was taken already: only a fresh listing
+                        // queues it again.
+                        return Ok(Next::Lacking);
                     }
                 }
                 Err(e) => {
@@ -521,6 +531,8 @@ enum Next {
     Idle,
     /// A job whose claim has committed, to identify now.
     Claimed(Job),
+    /// The held job's row is gone: the database lacks what was recorded.
+    Lacking,
 }
 
 /// One info line per identified scan: file, nearest taxon per rank with

@@ -40,10 +40,6 @@ const WORKER_THREADS: usize = 2;
 
 /// Blocking threads (database reads, password checks) at most.
 const BLOCKING_THREADS: usize = 8;
-/// How many nice steps below the daemon the console's threads run: the
-/// scanner's identifications come first, and the console takes the CPU
-/// they leave (on an idle machine it changes nothing).
-const CONSOLE_NICENESS: i32 = 10;
 
 /// How long a stop waits for requests in progress.
 const STOP_GRACE: Duration = Duration::from_secs(2);
@@ -138,24 +134,6 @@ pub struct Server {
     thread: Option<std::thread::JoinHandle<()>>,
 }
 
-/// The nice value of the console's threads: [`CONSOLE_NICENESS`] steps
-/// below the calling (daemon's) thread, at most 19.
-fn console_niceness() -> i32 {
-    let base = rustix::process::getpriority_process(None).unwrap_or(0);
-    (base + CONSOLE_NICENESS).min(19)
-}
-
-/// Give the calling thread the nice value `niceness` (absolute, so that a
-/// thread started by a console thread does not go lower still). A refusal
-/// leaves it at the daemon's priority, which is only slower for
-/// identification under load.
-fn set_thread_niceness(niceness: i32) {
-    let thread = rustix::thread::gettid();
-    if let Err(e) = rustix::process::setpriority_process(Some(thread), niceness) {
-        tracing::debug!("http: console thread stays at the daemon's priority: {e}");
-    }
-}
-
 impl Server {
     /// Start the server that `settings` configures (`None`: `listen` is not
     /// set) on `sources`.
@@ -183,12 +161,12 @@ impl Server {
         let local = listener
             .local_addr()
             .map_err(|source| HttpError::Bind { addr, source })?;
-        let niceness = console_niceness();
+        let niceness = crate::priority::background_niceness();
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(WORKER_THREADS)
             .max_blocking_threads(BLOCKING_THREADS)
             .thread_name("morphoid-http")
-            .on_thread_start(move || set_thread_niceness(niceness))
+            .on_thread_start(move || crate::priority::set_thread_niceness(niceness, "console"))
             .enable_all()
             .build()
             .map_err(|source| HttpError::Start {
