@@ -296,8 +296,8 @@ fn filter_form(state: &AppState, pairs: &[(String, String)]) -> String {
 
 /// The overview's script: asks `/api/v1/changes` every [`POLL_MS`]; when
 /// the answer changes, fetches the same page again and swaps its rows in,
-/// and once more on the next poll, since the page may be up to
-/// `cache::FRESH_FOR` (less than a poll) behind the change.
+/// and once more on the next poll, since the page may be up to 1 s (the
+/// answer cache's bound, less than a poll) behind the change.
 fn live_script() -> String {
     format!(
         "<script>\n(function(){{\n\
