@@ -3,7 +3,7 @@
 use super::closest::TriangleGrid;
 use crate::mesh::{
     boundary_vertices, bounding_box, cross, dot, edge_face_map, edge_key, norm, sub,
-    subdivide_midpoint, triangle_normal2, EdgeKey, Mesh,
+    subdivide_midpoint, triangle_normal2, EdgeKey, EdgeMap, Mesh,
 };
 use rayon::prelude::*;
 use rustc_hash::FxHashMap as HashMap;
@@ -275,19 +275,7 @@ fn angle_at(p: [f64; 3], q: [f64; 3], r: [f64; 3]) -> f64 {
 fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
     let ef = edge_face_map(mesh);
     let mut faces = mesh.faces.clone();
-    let mut e2f: HashMap<EdgeKey, [u32; 2]> =
-        HashMap::with_capacity_and_hasher(ef.len(), Default::default());
-    let mut degree = vec![0u32; mesh.vertices.len()];
-    for e in 0..ef.len() {
-        let (a, b) = ef.edge(e);
-        degree[a as usize] += 1;
-        degree[b as usize] += 1;
-        let fs = ef.faces_of(e);
-        // Boundary edges are kept with NONE as second face: they must block
-        // flips that would create them again, but are never flipped.
-        let second = if fs.len() == 2 { fs[1] } else { NONE };
-        e2f.insert(edge_key(a, b), [fs[0], second]);
-    }
+    let (mut e2f, mut degree) = edge_faces_and_degrees(&ef, mesh.vertices.len());
     let cos_max = max_dihedral.cos();
     let v = &mesh.vertices;
     let mut stack: Vec<(u32, u32)> = ef
@@ -305,26 +293,10 @@ fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
         if steps > budget {
             break;
         }
-        let Some(&[f, g]) = e2f.get(&edge_key(x, y)) else {
+        let Some(quad) = quad_around_edge(&faces, &e2f, x, y) else {
             continue;
         };
-        if g == NONE {
-            continue;
-        }
-        // Orient so that face f runs a → b.
-        let (ff, gg) = (faces[f as usize], faces[g as usize]);
-        let Some(k) = (0..3).find(|&k| {
-            (ff[k] == x && ff[(k + 1) % 3] == y) || (ff[k] == y && ff[(k + 1) % 3] == x)
-        }) else {
-            continue;
-        };
-        let (a, b, c) = (ff[k], ff[(k + 1) % 3], ff[(k + 2) % 3]);
-        let Some(d) = (0..3)
-            .find(|&j| gg[j] == b && gg[(j + 1) % 3] == a)
-            .map(|j| gg[(j + 2) % 3])
-        else {
-            continue;
-        };
+        let EdgeQuad { a, b, c, d, .. } = quad;
         if c == d
             || e2f.contains_key(&edge_key(c, d))
             || degree[a as usize] <= 3
@@ -336,48 +308,141 @@ fn flip_to_delaunay(mesh: &Mesh, max_dihedral: f64) -> (Mesh, usize) {
         if angle_at(pc, pa, pb) + angle_at(pd, pa, pb) <= std::f64::consts::PI + 1e-9 {
             continue;
         }
-        let (n1, n2) = (triangle_normal2(pa, pb, pc), triangle_normal2(pb, pa, pd));
-        let (l1, l2) = (norm(n1), norm(n2));
-        // A cap (an angle near 180°) has no reliable normal: flip it away
-        // whatever the dihedral angle, judging by its neighbour's normal.
-        let cap1 = angle_at(pc, pa, pb) > CAP_ANGLE;
-        let cap2 = angle_at(pd, pa, pb) > CAP_ANGLE;
-        let n = if cap1 && !cap2 && l2 > 0.0 {
-            n2.map(|x| x / l2)
-        } else if cap2 && !cap1 && l1 > 0.0 {
-            n1.map(|x| x / l1)
-        } else {
-            if l1 <= 0.0 || l2 <= 0.0 || dot(n1, n2) < cos_max * l1 * l2 {
-                continue;
-            }
-            [0, 1, 2].map(|i| n1[i] / l1 + n2[i] / l2)
+        let Some(n) = flip_reference_normal(pa, pb, pc, pd, cos_max) else {
+            continue;
         };
-        let (m1, m2) = (triangle_normal2(pa, pd, pc), triangle_normal2(pd, pb, pc));
-        let (k1, k2) = (norm(m1), norm(m2));
-        if k1 <= 0.0 || k2 <= 0.0 || dot(m1, n) <= 0.5 * k1 || dot(m2, n) <= 0.5 * k2 {
+        if flipped_faces_turn_away(pa, pb, pc, pd, n) {
             continue;
         }
-        faces[f as usize] = [a, d, c];
-        faces[g as usize] = [d, b, c];
-        e2f.remove(&edge_key(a, b));
-        e2f.insert(edge_key(c, d), [f, g]);
-        for (e, from, to) in [(edge_key(a, d), g, f), (edge_key(b, c), f, g)] {
-            if let Some(fs) = e2f.get_mut(&e) {
-                for s in fs.iter_mut() {
-                    if *s == from {
-                        *s = to;
-                    }
-                }
-            }
-        }
-        degree[a as usize] -= 1;
-        degree[b as usize] -= 1;
-        degree[c as usize] += 1;
-        degree[d as usize] += 1;
+        flip_quad(&mut faces, &mut e2f, &mut degree, quad);
         flips += 1;
         stack.extend([(a, d), (d, b), (b, c), (c, a)]);
     }
     (Mesh::new(mesh.vertices.clone(), faces), flips)
+}
+
+/// The two faces of each edge by its key and each vertex's edge count.
+fn edge_faces_and_degrees(ef: &EdgeMap, vertices: usize) -> (HashMap<EdgeKey, [u32; 2]>, Vec<u32>) {
+    let mut e2f: HashMap<EdgeKey, [u32; 2]> =
+        HashMap::with_capacity_and_hasher(ef.len(), Default::default());
+    let mut degree = vec![0u32; vertices];
+    for e in 0..ef.len() {
+        let (a, b) = ef.edge(e);
+        degree[a as usize] += 1;
+        degree[b as usize] += 1;
+        let fs = ef.faces_of(e);
+        // Boundary edges are kept with NONE as second face: they must block
+        // flips that would create them again, but are never flipped.
+        let second = if fs.len() == 2 { fs[1] } else { NONE };
+        e2f.insert(edge_key(a, b), [fs[0], second]);
+    }
+    (e2f, degree)
+}
+
+/// An interior edge `a`–`b` with its two faces: `f` runs a → b → c, `g`
+/// runs b → a → d.
+#[derive(Debug, Clone, Copy)]
+struct EdgeQuad {
+    f: u32,
+    g: u32,
+    a: u32,
+    b: u32,
+    c: u32,
+    d: u32,
+}
+
+/// The quad around the edge `x`–`y`, oriented by its first face; `None`
+/// when the edge is gone, on the boundary, or its faces do not run it in
+/// opposite directions.
+fn quad_around_edge(
+    faces: &[[u32; 3]],
+    e2f: &HashMap<EdgeKey, [u32; 2]>,
+    x: u32,
+    y: u32,
+) -> Option<EdgeQuad> {
+    let &[f, g] = e2f.get(&edge_key(x, y))?;
+    if g == NONE {
+        return None;
+    }
+    // Orient so that face f runs a → b.
+    let (ff, gg) = (faces[f as usize], faces[g as usize]);
+    let k = (0..3)
+        .find(|&k| (ff[k] == x && ff[(k + 1) % 3] == y) || (ff[k] == y && ff[(k + 1) % 3] == x))?;
+    let (a, b, c) = (ff[k], ff[(k + 1) % 3], ff[(k + 2) % 3]);
+    let d = (0..3)
+        .find(|&j| gg[j] == b && gg[(j + 1) % 3] == a)
+        .map(|j| gg[(j + 2) % 3])?;
+    Some(EdgeQuad { f, g, a, b, c, d })
+}
+
+/// The direction the flipped faces of the quad `a b c d` are checked
+/// against: the sum of the two faces' unit normals, or a cap's
+/// neighbour's unit normal; `None` when the faces are degenerate or their
+/// normals further apart than the angle whose cosine is `cos_max`.
+fn flip_reference_normal(
+    pa: [f64; 3],
+    pb: [f64; 3],
+    pc: [f64; 3],
+    pd: [f64; 3],
+    cos_max: f64,
+) -> Option<[f64; 3]> {
+    let (n1, n2) = (triangle_normal2(pa, pb, pc), triangle_normal2(pb, pa, pd));
+    let (l1, l2) = (norm(n1), norm(n2));
+    // A cap (an angle near 180°) has no reliable normal: flip it away
+    // whatever the dihedral angle, judging by its neighbour's normal.
+    let cap1 = angle_at(pc, pa, pb) > CAP_ANGLE;
+    let cap2 = angle_at(pd, pa, pb) > CAP_ANGLE;
+    if cap1 && !cap2 && l2 > 0.0 {
+        Some(n2.map(|x| x / l2))
+    } else if cap2 && !cap1 && l1 > 0.0 {
+        Some(n1.map(|x| x / l1))
+    } else if l1 <= 0.0 || l2 <= 0.0 || dot(n1, n2) < cos_max * l1 * l2 {
+        None
+    } else {
+        Some([0, 1, 2].map(|i| n1[i] / l1 + n2[i] / l2))
+    }
+}
+
+/// Whether a face of the flipped quad (`a d c`, `d b c`) is degenerate or
+/// turned 60° or more away from the direction `n`.
+fn flipped_faces_turn_away(
+    pa: [f64; 3],
+    pb: [f64; 3],
+    pc: [f64; 3],
+    pd: [f64; 3],
+    n: [f64; 3],
+) -> bool {
+    let (m1, m2) = (triangle_normal2(pa, pd, pc), triangle_normal2(pd, pb, pc));
+    let (k1, k2) = (norm(m1), norm(m2));
+    k1 <= 0.0 || k2 <= 0.0 || dot(m1, n) <= 0.5 * k1 || dot(m2, n) <= 0.5 * k2
+}
+
+/// Replace the quad's edge `a`–`b` by `c`–`d`: its two faces, the edge
+/// table and the four vertices' edge counts.
+fn flip_quad(
+    faces: &mut [[u32; 3]],
+    e2f: &mut HashMap<EdgeKey, [u32; 2]>,
+    degree: &mut [u32],
+    quad: EdgeQuad,
+) {
+    let EdgeQuad { f, g, a, b, c, d } = quad;
+    faces[f as usize] = [a, d, c];
+    faces[g as usize] = [d, b, c];
+    e2f.remove(&edge_key(a, b));
+    e2f.insert(edge_key(c, d), [f, g]);
+    for (e, from, to) in [(edge_key(a, d), g, f), (edge_key(b, c), f, g)] {
+        if let Some(fs) = e2f.get_mut(&e) {
+            for s in fs.iter_mut() {
+                if *s == from {
+                    *s = to;
+                }
+            }
+        }
+    }
+    degree[a as usize] -= 1;
+    degree[b as usize] -= 1;
+    degree[c as usize] += 1;
+    degree[d as usize] += 1;
 }
 
 /// The surface that relaxed vertices are projected back onto: its

@@ -341,7 +341,37 @@ fn harmonic_disk_map(
     weights: &[((u32, u32), f64)],
 ) -> Result<Vec<[f64; 2]>, FlattenError> {
     let n = positions.len();
-    // Interior numbering.
+    let (interior_index, m) = interior_numbering(n, boundary);
+    let pc = interior_index[center as usize].ok_or_else(|| FlattenError::Degenerate {
+        reason: "the centre vertex is on the boundary".into(),
+    })?;
+    let factor = SpdFactor::new(&csc_from_columns(
+        m,
+        interior_stiffness_columns(&interior_index, m, weights),
+    ))?;
+
+    // Green's function with unit source at the centre.
+    let mut green = vec![vec![0.0; m]];
+    green[0][pc] = 1.0;
+    factor.solve_columns(&mut green)?;
+    let u = &green[0];
+
+    let flux = boundary_flux(&interior_index, weights, u, n);
+    let flux_total: f64 = boundary.iter().map(|&b| flux[b as usize].max(0.0)).sum();
+    if !(flux_total.is_finite() && flux_total > 0.0) {
+        return Err(FlattenError::Solve {
+            reason: format!("harmonic measure of the boundary is {flux_total}"),
+        });
+    }
+    let omega = boundary_measures(positions, boundary, &flux, flux_total);
+    let mut uv = boundary_on_circle(boundary, &omega, n);
+    harmonic_extension(&factor, &interior_index, m, weights, &mut uv)?;
+    Ok(uv)
+}
+
+/// Each vertex's number among the interior vertices (`None` on the
+/// boundary), in vertex order, and how many interior vertices there are.
+fn interior_numbering(n: usize, boundary: &[u32]) -> (Vec<Option<usize>>, usize) {
     let mut interior_index: Vec<Option<usize>> = vec![Some(0); n];
     for &b in boundary {
         interior_index[b as usize] = None;
@@ -353,12 +383,17 @@ fn harmonic_disk_map(
             m += 1;
         }
     }
-    let pc = interior_index[center as usize].ok_or_else(|| FlattenError::Degenerate {
-        reason: "the centre vertex is on the boundary".into(),
-    })?;
+    (interior_index, m)
+}
 
-    // K_II = −L_II (positive definite for positive weights and a connected
-    // mesh with a boundary).
+/// The columns of K_II = −L_II, the interior block of the negated weighted
+/// Laplacian (positive definite for positive weights and a connected mesh
+/// with a boundary): lower triangle only, diagonal last in each column.
+fn interior_stiffness_columns(
+    interior_index: &[Option<usize>],
+    m: usize,
+    weights: &[((u32, u32), f64)],
+) -> Vec<Vec<(usize, f64)>> {
     let mut cols: Vec<Vec<(usize, f64)>> = vec![Vec::new(); m];
     let mut diag = vec![0.0; m];
     for &((i, j), w) in weights {
@@ -378,15 +413,17 @@ fn harmonic_disk_map(
     for (j, c) in cols.iter_mut().enumerate() {
         c.push((j, diag[j]));
     }
-    let factor = SpdFactor::new(&csc_from_columns(m, cols))?;
+    cols
+}
 
-    // Green's function with unit source at the centre.
-    let mut green = vec![vec![0.0; m]];
-    green[0][pc] = 1.0;
-    factor.solve_columns(&mut green)?;
-    let u = &green[0];
-
-    // Flux through each boundary vertex = its harmonic measure.
+/// Flux of the Green's function `u` (by interior number) through each
+/// boundary vertex = its harmonic measure; zero at interior vertices.
+fn boundary_flux(
+    interior_index: &[Option<usize>],
+    weights: &[((u32, u32), f64)],
+    u: &[f64],
+    n: usize,
+) -> Vec<f64> {
     let mut flux = vec![0.0; n];
     for &((i, j), w) in weights {
         match (interior_index[i as usize], interior_index[j as usize]) {
@@ -395,12 +432,18 @@ fn harmonic_disk_map(
             _ => {}
         }
     }
-    let flux_total: f64 = boundary.iter().map(|&b| flux[b as usize].max(0.0)).sum();
-    if !(flux_total.is_finite() && flux_total > 0.0) {
-        return Err(FlattenError::Solve {
-            reason: format!("harmonic measure of the boundary is {flux_total}"),
-        });
-    }
+    flux
+}
+
+/// Each boundary vertex's share of the circle (unnormalized): its
+/// harmonic measure, raised to at least [`MIN_MEASURE_SHARE`] of its share
+/// by boundary length.
+fn boundary_measures(
+    positions: &[[f64; 3]],
+    boundary: &[u32],
+    flux: &[f64],
+    flux_total: f64,
+) -> Vec<f64> {
     // A boundary vertex with no interior neighbour (the tip of an "ear"
     // triangle whose three vertices are all on the boundary) has zero flux;
     // two such neighbours would land on the same point of the circle. Give
@@ -408,7 +451,7 @@ fn harmonic_disk_map(
     // length, which keeps the boundary polygon strictly convex.
     let dual_length = boundary_dual_lengths(positions, boundary);
     let length_total: f64 = dual_length.iter().sum();
-    let omega: Vec<f64> = boundary
+    boundary
         .iter()
         .zip(&dual_length)
         .map(|(&b, &l)| {
@@ -419,17 +462,33 @@ fn harmonic_disk_map(
             };
             flux[b as usize].max(MIN_MEASURE_SHARE * share * flux_total)
         })
-        .collect();
+        .collect()
+}
+
+/// Disk coordinates of `n` vertices with the boundary on the unit circle,
+/// each boundary vertex at the middle of its arc of measure `omega`, in
+/// boundary order; interior vertices at the origin.
+fn boundary_on_circle(boundary: &[u32], omega: &[f64], n: usize) -> Vec<[f64; 2]> {
     let total: f64 = omega.iter().sum();
     let mut uv = vec![[0.0; 2]; n];
     let mut acc = 0.0;
-    for (&b, &w) in boundary.iter().zip(&omega) {
+    for (&b, &w) in boundary.iter().zip(omega) {
         let theta = std::f64::consts::TAU * (acc + 0.5 * w) / total;
         acc += w;
         uv[b as usize] = [theta.cos(), theta.sin()];
     }
+    uv
+}
 
-    // Harmonic extension of the boundary positions.
+/// Harmonic extension of the boundary positions in `uv` to the interior
+/// vertices, with the factorization of the interior block.
+fn harmonic_extension(
+    factor: &SpdFactor,
+    interior_index: &[Option<usize>],
+    m: usize,
+    weights: &[((u32, u32), f64)],
+    uv: &mut [[f64; 2]],
+) -> Result<(), FlattenError> {
     let mut rhs = vec![vec![0.0; m], vec![0.0; m]];
     for &((i, j), w) in weights {
         let (a, b) = (i as usize, j as usize);
@@ -451,7 +510,7 @@ fn harmonic_disk_map(
             uv[v] = [rhs[0][k], rhs[1][k]];
         }
     }
-    Ok(uv)
+    Ok(())
 }
 
 /// Smallest share of the harmonic measure a boundary vertex gets, as a

@@ -23,110 +23,230 @@ const KUHN: [[usize; 4]; 6] = [
 /// The closed surface `{ field = iso }` around the samples above `iso`,
 /// in the grid's physical coordinates.
 pub fn isosurface(grid: &Grid, iso: f32) -> Mesh {
-    let [nx, ny, nz] = grid.dims;
-    // Padded by one sample of "outside" on every side.
-    let (px, py, pz) = (nx + 2, ny + 2, nz + 2);
-    let low = grid.values.iter().copied().fold(iso, f32::min) - 1.0;
-    let value = |x: usize, y: usize, z: usize| -> f32 {
-        if x == 0 || y == 0 || z == 0 || x > nx || y > ny || z > nz {
-            low
-        } else {
-            grid.values[grid.index(x - 1, y - 1, z - 1)]
-        }
+    let field = PaddedField::new(grid, iso);
+    let [px, py, pz] = field.dims;
+    let mut edges = EdgeVertices {
+        vertices: Vec::new(),
+        on_edge: FxHashMap::default(),
+        total: (px * py * pz) as u64,
     };
-    let position = |x: usize, y: usize, z: usize| -> [f64; 3] {
+    let mut faces: Vec<[u32; 3]> = Vec::new();
+    for z in 0..pz - 1 {
+        for y in 0..py - 1 {
+            for x in 0..px - 1 {
+                let cube = field.cube([x, y, z]);
+                if cube.inside == 0 || cube.inside == 8 {
+                    continue;
+                }
+                let pending = cube_triangles(&field, &cube, &mut edges);
+                push_facing_out(&edges.vertices, pending, &mut faces);
+            }
+        }
+    }
+    Mesh::new(edges.vertices, faces)
+}
+
+/// The grid padded by one sample of "outside" on every side, and the
+/// level of the surface.
+struct PaddedField<'a> {
+    grid: &'a Grid,
+    /// The level: samples above it are inside.
+    iso: f32,
+    /// Samples along x, y, z, padding included.
+    dims: [usize; 3],
+    /// The value of the padding: below the level and every sample.
+    low: f32,
+}
+
+/// One cube of the padded grid.
+struct Cube {
+    /// The padded sample at its corner 0.
+    corner: [usize; 3],
+    /// Its corners' padded sample numbers, by corner number.
+    idx: [usize; 8],
+    /// Its corners' values, by corner number.
+    val: [f32; 8],
+    /// How many of its corners are inside.
+    inside: u32,
+}
+
+impl<'a> PaddedField<'a> {
+    /// `grid` padded, with the surface at level `iso`.
+    fn new(grid: &'a Grid, iso: f32) -> Self {
+        let [nx, ny, nz] = grid.dims;
+        Self {
+            grid,
+            iso,
+            dims: [nx + 2, ny + 2, nz + 2],
+            low: grid.values.iter().copied().fold(iso, f32::min) - 1.0,
+        }
+    }
+
+    /// The value at padded sample (x, y, z).
+    fn value(&self, x: usize, y: usize, z: usize) -> f32 {
+        let [nx, ny, nz] = self.grid.dims;
+        if x == 0 || y == 0 || z == 0 || x > nx || y > ny || z > nz {
+            self.low
+        } else {
+            self.grid.values[self.grid.index(x - 1, y - 1, z - 1)]
+        }
+    }
+
+    /// The physical position of padded sample (x, y, z).
+    fn position(&self, x: usize, y: usize, z: usize) -> [f64; 3] {
+        let grid = self.grid;
         [
             grid.origin[0] + (x as f64 - 1.0) * grid.spacing[0],
             grid.origin[1] + (y as f64 - 1.0) * grid.spacing[1],
             grid.origin[2] + (z as f64 - 1.0) * grid.spacing[2],
         ]
-    };
-    let total = (px * py * pz) as u64;
-    let mut vertices: Vec<[f64; 3]> = Vec::new();
-    let mut faces: Vec<[u32; 3]> = Vec::new();
-    let mut on_edge: FxHashMap<u64, u32> = FxHashMap::default();
-    for z in 0..pz - 1 {
-        for y in 0..py - 1 {
-            for x in 0..px - 1 {
-                let mut idx = [0usize; 8];
-                let mut val = [0f32; 8];
-                let mut inside = 0u32;
-                for c in 0..8 {
-                    let (cx, cy, cz) = (x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1));
-                    idx[c] = cx + px * (cy + py * cz);
-                    val[c] = value(cx, cy, cz);
-                    inside += u32::from(val[c] > iso);
-                }
-                if inside == 0 || inside == 8 {
-                    continue;
-                }
-                let corner_pos =
-                    |c: usize| position(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1));
-                let mut pending: Vec<([u32; 3], [f64; 3])> = Vec::new();
-                let mut vertex = |a: usize, b: usize| -> u32 {
-                    let (ia, ib) = (idx[a], idx[b]);
-                    let key = ia.min(ib) as u64 * total + ia.max(ib) as u64;
-                    *on_edge.entry(key).or_insert_with(|| {
-                        let t =
-                            f64::from((iso - val[a]) / (val[b] - val[a])).clamp(1e-3, 1.0 - 1e-3);
-                        let (pa, pb) = (corner_pos(a), corner_pos(b));
-                        vertices.push([
-                            pa[0] + t * (pb[0] - pa[0]),
-                            pa[1] + t * (pb[1] - pa[1]),
-                            pa[2] + t * (pb[2] - pa[2]),
-                        ]);
-                        (vertices.len() - 1) as u32
-                    })
-                };
-                for tet in KUHN {
-                    let ins: Vec<usize> = tet.iter().copied().filter(|&c| val[c] > iso).collect();
-                    let out: Vec<usize> = tet.iter().copied().filter(|&c| val[c] <= iso).collect();
-                    let tris: Vec<[u32; 3]> = match (ins.len(), out.len()) {
-                        (1, 3) => vec![[
-                            vertex(ins[0], out[0]),
-                            vertex(ins[0], out[1]),
-                            vertex(ins[0], out[2]),
-                        ]],
-                        (3, 1) => vec![[
-                            vertex(ins[0], out[0]),
-                            vertex(ins[1], out[0]),
-                            vertex(ins[2], out[0]),
-                        ]],
-                        (2, 2) => {
-                            let q = [
-                                vertex(ins[0], out[0]),
-                                vertex(ins[0], out[1]),
-                                vertex(ins[1], out[1]),
-                                vertex(ins[1], out[0]),
-                            ];
-                            vec![[q[0], q[1], q[2]], [q[0], q[2], q[3]]]
-                        }
-                        _ => Vec::new(),
-                    };
-                    let centroid = |cs: &[usize]| {
-                        let mut s = [0.0; 3];
-                        for &c in cs {
-                            let p = corner_pos(c);
-                            (0..3).for_each(|a| s[a] += p[a] / cs.len() as f64);
-                        }
-                        s
-                    };
-                    let outward = sub(centroid(&out), centroid(&ins));
-                    pending.extend(tris.into_iter().map(|t| (t, outward)));
-                }
-                for (t, outward) in pending {
-                    let [a, b, c] = t.map(|v| vertices[v as usize]);
-                    let n = cross(sub(b, a), sub(c, a));
-                    faces.push(if dot(n, outward) >= 0.0 {
-                        t
-                    } else {
-                        [t[0], t[2], t[1]]
-                    });
-                }
-            }
+    }
+
+    /// The cube whose corner 0 is padded sample `[x, y, z]`.
+    fn cube(&self, [x, y, z]: [usize; 3]) -> Cube {
+        let [px, py, _] = self.dims;
+        let mut idx = [0usize; 8];
+        let mut val = [0f32; 8];
+        let mut inside = 0u32;
+        for c in 0..8 {
+            let (cx, cy, cz) = (x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1));
+            idx[c] = cx + px * (cy + py * cz);
+            val[c] = self.value(cx, cy, cz);
+            inside += u32::from(val[c] > self.iso);
+        }
+        Cube {
+            corner: [x, y, z],
+            idx,
+            val,
+            inside,
         }
     }
-    Mesh::new(vertices, faces)
+
+    /// The physical position of corner `c` of `cube`.
+    fn corner_position(&self, cube: &Cube, c: usize) -> [f64; 3] {
+        let [x, y, z] = cube.corner;
+        self.position(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1))
+    }
+
+    /// The mean physical position of the corners `cs` of `cube`.
+    fn corner_centroid(&self, cube: &Cube, cs: &[usize]) -> [f64; 3] {
+        let mut s = [0.0; 3];
+        for &c in cs {
+            let p = self.corner_position(cube, c);
+            (0..3).for_each(|a| s[a] += p[a] / cs.len() as f64);
+        }
+        s
+    }
+}
+
+/// The surface's vertices, one on each grid edge it crosses.
+struct EdgeVertices {
+    vertices: Vec<[f64; 3]>,
+    /// The vertex of each crossed edge, by the edge's key.
+    on_edge: FxHashMap<u64, u32>,
+    /// Samples of the padded grid: an edge's key is its lower sample
+    /// number times this plus its higher one.
+    total: u64,
+}
+
+impl EdgeVertices {
+    /// The vertex on the edge between corners `a` and `b` of `cube`, where
+    /// the values interpolate linearly to the level; made on first use.
+    fn on_edge(&mut self, field: &PaddedField, cube: &Cube, a: usize, b: usize) -> u32 {
+        let (ia, ib) = (cube.idx[a], cube.idx[b]);
+        let key = ia.min(ib) as u64 * self.total + ia.max(ib) as u64;
+        let vertices = &mut self.vertices;
+        let (iso, val) = (field.iso, &cube.val);
+        *self.on_edge.entry(key).or_insert_with(|| {
+            let t = f64::from((iso - val[a]) / (val[b] - val[a])).clamp(1e-3, 1.0 - 1e-3);
+            let (pa, pb) = (
+                field.corner_position(cube, a),
+                field.corner_position(cube, b),
+            );
+            vertices.push([
+                pa[0] + t * (pb[0] - pa[0]),
+                pa[1] + t * (pb[1] - pa[1]),
+                pa[2] + t * (pb[2] - pa[2]),
+            ]);
+            (vertices.len() - 1) as u32
+        })
+    }
+}
+
+/// The triangles of one cube, tetrahedron by tetrahedron, each with the
+/// direction from its tetrahedron's inside corners to its outside ones.
+fn cube_triangles(
+    field: &PaddedField,
+    cube: &Cube,
+    edges: &mut EdgeVertices,
+) -> Vec<([u32; 3], [f64; 3])> {
+    let iso = field.iso;
+    let mut pending: Vec<([u32; 3], [f64; 3])> = Vec::new();
+    for tet in KUHN {
+        let ins: Vec<usize> = tet.iter().copied().filter(|&c| cube.val[c] > iso).collect();
+        let out: Vec<usize> = tet
+            .iter()
+            .copied()
+            .filter(|&c| cube.val[c] <= iso)
+            .collect();
+        let tris = tetrahedron_triangles(&ins, &out, |a, b| edges.on_edge(field, cube, a, b));
+        let outward = sub(
+            field.corner_centroid(cube, &out),
+            field.corner_centroid(cube, &ins),
+        );
+        pending.extend(tris.into_iter().map(|t| (t, outward)));
+    }
+    pending
+}
+
+/// The triangles where the surface crosses a tetrahedron whose corners
+/// `ins` are inside and `out` outside; `vertex(a, b)` is the vertex on the
+/// edge between corners `a` and `b`.
+fn tetrahedron_triangles(
+    ins: &[usize],
+    out: &[usize],
+    mut vertex: impl FnMut(usize, usize) -> u32,
+) -> Vec<[u32; 3]> {
+    match (ins.len(), out.len()) {
+        (1, 3) => vec![[
+            vertex(ins[0], out[0]),
+            vertex(ins[0], out[1]),
+            vertex(ins[0], out[2]),
+        ]],
+        (3, 1) => vec![[
+            vertex(ins[0], out[0]),
+            vertex(ins[1], out[0]),
+            vertex(ins[2], out[0]),
+        ]],
+        (2, 2) => {
+            let q = [
+                vertex(ins[0], out[0]),
+                vertex(ins[0], out[1]),
+                vertex(ins[1], out[1]),
+                vertex(ins[1], out[0]),
+            ];
+            vec![[q[0], q[1], q[2]], [q[0], q[2], q[3]]]
+        }
+        _ => Vec::new(),
+    }
+}
+
+/// Append the `pending` triangles to `faces`, each turned so that its
+/// normal does not point against its outward direction.
+fn push_facing_out(
+    vertices: &[[f64; 3]],
+    pending: Vec<([u32; 3], [f64; 3])>,
+    faces: &mut Vec<[u32; 3]>,
+) {
+    for (t, outward) in pending {
+        let [a, b, c] = t.map(|v| vertices[v as usize]);
+        let n = cross(sub(b, a), sub(c, a));
+        faces.push(if dot(n, outward) >= 0.0 {
+            t
+        } else {
+            [t[0], t[2], t[1]]
+        });
+    }
 }
 
 #[cfg(test)]

@@ -105,17 +105,59 @@ pub(super) fn reconstruct_surface(
     min_points: usize,
 ) -> Result<(Mesh, CloudReport), CloudError> {
     let total = points.len();
-    let too_few = |left: usize| CloudError::TooFewInliers { left, total };
-    let spreads = principal_axes(points).ok_or(too_few(total))?.spreads;
+    refuse_degenerate(points)?;
+    let inliers = without_outliers(points, min_points)?;
+
+    // Tangent planes, oriented consistently.
+    let nb = Neighbours::new(&inliers);
+    let spacing = mean_neighbour_distances(&nb, NEIGHBOURS);
+    let lists = neighbour_lists(&nb, NEIGHBOURS);
+    let planes = oriented_planes(&inliers, &lists);
+
+    let samples = OrientedSamples {
+        neighbours: &nb,
+        planes: &planes,
+        spacing: &spacing,
+    };
+    let (surface, h) = zero_set_surface(&inliers, &samples)?;
+    let report = CloudReport {
+        points_in: total,
+        outliers_removed: total - inliers.len(),
+        triangles: surface.faces.len(),
+    };
+    tracing::debug!(
+        points = total,
+        outliers = report.outliers_removed,
+        triangles = report.triangles,
+        grid = h,
+        "point cloud reconstructed"
+    );
+    Ok((surface, report))
+}
+
+/// Refuses a cloud whose points lie on one line or in one plane, or that
+/// has no principal axes (too few points).
+fn refuse_degenerate(points: &[[f64; 3]]) -> Result<(), CloudError> {
+    let total = points.len();
+    let spreads = principal_axes(points)
+        .ok_or(CloudError::TooFewInliers { left: total, total })?
+        .spreads;
     if spreads[1] <= DEGENERATE_SPREAD * spreads[0] {
         return Err(CloudError::Collinear);
     }
     if spreads[2] <= DEGENERATE_SPREAD * spreads[0] {
         return Err(CloudError::Flat);
     }
+    Ok(())
+}
 
-    // Outliers: isolated points first, so that they do not spoil the
-    // planes of the off-surface test.
+/// The points that are not outliers ([`outliers`]); refused when fewer
+/// than `min_points` (or than a point's neighbourhood) are left.
+fn without_outliers(points: &[[f64; 3]], min_points: usize) -> Result<Vec<[f64; 3]>, CloudError> {
+    let total = points.len();
+    let too_few = |left: usize| CloudError::TooFewInliers { left, total };
+    // Isolated points first, so that they do not spoil the planes of the
+    // off-surface test.
     let nb = Neighbours::new(points);
     let spacing = mean_neighbour_distances(&nb, NEIGHBOURS);
     let isolated = outliers::isolated_points(&spacing, &neighbour_lists(&nb, NEIGHBOURS));
@@ -130,35 +172,44 @@ pub(super) fn reconstruct_surface(
     if inliers.len() < min_points.max(NEIGHBOURS + 1) {
         return Err(too_few(inliers.len()));
     }
+    Ok(inliers)
+}
 
-    // Tangent planes, oriented consistently.
-    let nb = Neighbours::new(&inliers);
-    let spacing = mean_neighbour_distances(&nb, NEIGHBOURS);
-    let lists = neighbour_lists(&nb, NEIGHBOURS);
+/// Each point's tangent plane through its neighbourhood (`lists`), with
+/// normals oriented consistently along a minimum spanning tree.
+fn oriented_planes(points: &[[f64; 3]], lists: &[Vec<usize>]) -> Vec<LocalPlane> {
     let planes: Vec<LocalPlane> = lists
         .iter()
         .enumerate()
         .map(|(i, list)| {
-            let mut around: Vec<[f64; 3]> = list.iter().map(|&j| inliers[j]).collect();
-            around.push(inliers[i]);
+            let mut around: Vec<[f64; 3]> = list.iter().map(|&j| points[j]).collect();
+            around.push(points[i]);
             local_plane(&around).unwrap_or(LocalPlane {
-                centroid: inliers[i],
+                centroid: points[i],
                 normal: [0.0, 0.0, 1.0],
                 residual: 0.0,
             })
         })
         .collect();
     let normals: Vec<[f64; 3]> = planes.iter().map(|p| p.normal).collect();
-    let oriented = orient_by_propagation(&normals, &lists);
-    let planes: Vec<LocalPlane> = planes
+    let oriented = orient_by_propagation(&normals, lists);
+    planes
         .iter()
         .zip(&oriented)
         .map(|(p, &normal)| LocalPlane { normal, ..*p })
-        .collect();
+        .collect()
+}
 
-    // The zero set near the points.
-    let s = upper_median(&spacing).unwrap_or(0.0);
-    let diagonal = crate::mesh::bbox_diagonal(&Mesh::new(inliers.clone(), Vec::new()));
+/// The zero set of the blended signed distance near the `inliers` (the
+/// samples' positions), trimmed to where they are, and the grid spacing
+/// it was extracted at.
+fn zero_set_surface(
+    inliers: &[[f64; 3]],
+    samples: &OrientedSamples,
+) -> Result<(Mesh, f64), CloudError> {
+    let spacing = samples.spacing;
+    let s = upper_median(spacing).unwrap_or(0.0);
+    let diagonal = crate::mesh::bbox_diagonal(&Mesh::new(inliers.to_vec(), Vec::new()));
     let h = (GRID_SPACING * s).max(diagonal / MAX_CELLS_PER_DIAGONAL);
     if h <= 0.0 || !h.is_finite() {
         return Err(CloudError::NoSurface(0));
@@ -169,46 +220,32 @@ pub(super) fn reconstruct_surface(
         h,
     };
     // Sparse places get a wider band, so that their cells exist.
-    let nodes = band_nodes(&inliers, &grid, |i| {
+    let nodes = band_nodes(inliers, &grid, |i| {
         (2.5 * h).max(2.0 * spacing[i]).min(6.0 * h)
     });
-    let samples = OrientedSamples {
-        neighbours: &nb,
-        planes: &planes,
-        spacing: &spacing,
-    };
     let width = BLEND_WIDTH * s;
-    let values: Vec<f64> = {
-        use rayon::prelude::*;
-        nodes
-            .par_iter()
-            .map(|&n| {
-                let x = [0, 1, 2].map(|d| grid.origin[d] + h * n[d] as f64);
-                reconstruct::signed_distance(&samples, x, width).0
-            })
-            .collect()
-    };
+    let values = node_values(samples, &grid, &nodes, width);
     let nets = surface_nets(&grid, &nodes, &values);
-    let projected = reconstruct::project_to_zero_set(&samples, &nets, width, PROJECTION_STEPS);
-    let among = reconstruct::among_samples(&samples, &projected, TRIM_GAP, TRIM_OFFSET);
+    let projected = reconstruct::project_to_zero_set(samples, &nets, width, PROJECTION_STEPS);
+    let among = reconstruct::among_samples(samples, &projected, TRIM_GAP, TRIM_OFFSET);
     let trimmed = reconstruct::trim_from_boundary(&projected, &among);
     let surface = reconstruct::drop_nonmanifold(&trimmed, 5);
     if surface.faces.len() < 3 {
         return Err(CloudError::NoSurface(surface.faces.len()));
     }
-    let report = CloudReport {
-        points_in: total,
-        outliers_removed: total - inliers.len(),
-        triangles: surface.faces.len(),
-    };
-    tracing::debug!(
-        points = total,
-        outliers = report.outliers_removed,
-        triangles = report.triangles,
-        grid = h,
-        "point cloud reconstructed"
-    );
-    Ok((surface, report))
+    Ok((surface, h))
+}
+
+/// The blended signed distance (blending width `width`) at each grid node.
+fn node_values(samples: &OrientedSamples, grid: &Grid, nodes: &[[i32; 3]], width: f64) -> Vec<f64> {
+    use rayon::prelude::*;
+    nodes
+        .par_iter()
+        .map(|&n| {
+            let x = [0, 1, 2].map(|d| grid.origin[d] + grid.h * n[d] as f64);
+            reconstruct::signed_distance(samples, x, width).0
+        })
+        .collect()
 }
 
 #[cfg(test)]

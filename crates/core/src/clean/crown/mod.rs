@@ -626,68 +626,31 @@ fn judge(
     if !(0.08..=0.92).contains(&fraction) {
         return Err(CrownRefusal::CrownShare { share: fraction });
     }
-    // The cut: edges between a crown face and a removed one.
-    let (mut turn_len, mut len_sum, mut crease_len) = (0.0, 0.0, 0.0);
-    let mut cut_vertices = vec![false; mesh.vertices.len()];
-    for e in 0..geo.edges.len() {
-        if let &[f, g] = geo.edges.faces_of(e) {
-            if inside[f as usize] != inside[g as usize] {
-                let (a, b) = geo.edges.edge(e);
-                let len = norm(sub(mesh.vertices[a as usize], mesh.vertices[b as usize]));
-                turn_len += geo.turn[e] * len;
-                len_sum += len;
-                if geo.turn[e] >= 10f64.to_radians() {
-                    crease_len += len;
-                }
-                cut_vertices[a as usize] = true;
-                cut_vertices[b as usize] = true;
-            }
-        }
-    }
-    let crease = (turn_len / len_sum.max(f64::MIN_POSITIVE)).to_degrees();
+    let cut = cut_crease(mesh, geo, inside);
+    let crease = cut.degrees;
     if crease_required && !(crease >= MIN_CREASE_DEGREES) {
         return Err(CrownRefusal::NoCrease { degrees: crease });
     }
-    let coverage = crease_len / len_sum.max(f64::MIN_POSITIVE);
+    let coverage = cut.coverage;
     if crease_required && !(coverage >= MIN_CREASE_COVERAGE) {
         return Err(CrownRefusal::ShortCrease { coverage });
     }
     let cut_points: Vec<[f64; 3]> = (0..mesh.vertices.len())
-        .filter(|&v| cut_vertices[v])
+        .filter(|&v| cut.vertices[v])
         .map(|v| mesh.vertices[v])
         .collect();
-    let cut_heights: Vec<f64> = cut_points.iter().map(|&p| cyl.height(p)).collect();
-    let cut_low = cut_heights.iter().copied().fold(f64::MAX, f64::min);
-    let cut_high = cut_heights.iter().copied().fold(f64::MIN, f64::max);
-    let cut_mean = cut_heights.iter().sum::<f64>() / cut_heights.len().max(1) as f64;
+    let CutHeights {
+        low: cut_low,
+        mean: cut_mean,
+        high: cut_high,
+    } = cut_heights(cyl, &cut_points);
     let cut_radius = cross_radius(cyl, &cut_points);
-    let mut crown_top = f64::MIN;
-    let mut root_points = Vec::new();
-    let mut root_low = f64::MAX;
-    for (f, face) in mesh.faces.iter().enumerate() {
-        for &v in face {
-            let z = cyl.height(mesh.vertices[v as usize]);
-            if inside[f] {
-                crown_top = crown_top.max(z);
-            } else {
-                root_low = root_low.min(z);
-            }
-        }
-    }
+    let (crown_top, root_low) = crown_top_and_root_low(mesh, cyl, inside);
     if crown_top - cut_mean < 0.2 * cut_radius {
         return Err(CrownRefusal::Flat);
     }
     let slab = root_low + 0.15 * (cut_mean - root_low);
-    for (f, face) in mesh.faces.iter().enumerate() {
-        if !inside[f] {
-            for &v in face {
-                let p = mesh.vertices[v as usize];
-                if cyl.height(p) <= slab {
-                    root_points.push(p);
-                }
-            }
-        }
-    }
+    let root_points = root_points_below(mesh, cyl, inside, slab);
     let apex_radius = cross_radius(cyl, &root_points);
     if !(apex_radius < 0.75 * cut_radius) {
         return Err(CrownRefusal::NoTaper);
@@ -721,6 +684,98 @@ fn judge(
         neck_bulge: 0.0,
         revoxelized: false,
     })
+}
+
+/// How the surface turns along a cut, and where the cut runs.
+struct CutCrease {
+    /// Length-weighted mean turn of the surface across the cut's edges
+    /// (degrees).
+    degrees: f64,
+    /// Share of the cut's length on crease edges (turn ≥ 10°).
+    coverage: f64,
+    /// Whether each vertex is an end of a cut edge.
+    vertices: Vec<bool>,
+}
+
+/// The cut: edges between a crown face and a removed one, with the
+/// surface's turn along it.
+fn cut_crease(mesh: &Mesh, geo: &SurfaceGeometry, inside: &[bool]) -> CutCrease {
+    let (mut turn_len, mut len_sum, mut crease_len) = (0.0, 0.0, 0.0);
+    let mut cut_vertices = vec![false; mesh.vertices.len()];
+    for e in 0..geo.edges.len() {
+        if let &[f, g] = geo.edges.faces_of(e) {
+            if inside[f as usize] != inside[g as usize] {
+                let (a, b) = geo.edges.edge(e);
+                let len = norm(sub(mesh.vertices[a as usize], mesh.vertices[b as usize]));
+                turn_len += geo.turn[e] * len;
+                len_sum += len;
+                if geo.turn[e] >= 10f64.to_radians() {
+                    crease_len += len;
+                }
+                cut_vertices[a as usize] = true;
+                cut_vertices[b as usize] = true;
+            }
+        }
+    }
+    CutCrease {
+        degrees: (turn_len / len_sum.max(f64::MIN_POSITIVE)).to_degrees(),
+        coverage: crease_len / len_sum.max(f64::MIN_POSITIVE),
+        vertices: cut_vertices,
+    }
+}
+
+/// Heights along the axis of the cut's vertices.
+struct CutHeights {
+    /// The lowest.
+    low: f64,
+    /// The mean.
+    mean: f64,
+    /// The highest.
+    high: f64,
+}
+
+/// Lowest, mean and highest height along the axis of `cut_points`.
+fn cut_heights(cyl: &Cylinder, cut_points: &[[f64; 3]]) -> CutHeights {
+    let heights: Vec<f64> = cut_points.iter().map(|&p| cyl.height(p)).collect();
+    let low = heights.iter().copied().fold(f64::MAX, f64::min);
+    let high = heights.iter().copied().fold(f64::MIN, f64::max);
+    let mean = heights.iter().sum::<f64>() / heights.len().max(1) as f64;
+    CutHeights { low, mean, high }
+}
+
+/// The greatest height along the axis of a crown face's corner and the
+/// least of a removed face's corner.
+fn crown_top_and_root_low(mesh: &Mesh, cyl: &Cylinder, inside: &[bool]) -> (f64, f64) {
+    let mut crown_top = f64::MIN;
+    let mut root_low = f64::MAX;
+    for (f, face) in mesh.faces.iter().enumerate() {
+        for &v in face {
+            let z = cyl.height(mesh.vertices[v as usize]);
+            if inside[f] {
+                crown_top = crown_top.max(z);
+            } else {
+                root_low = root_low.min(z);
+            }
+        }
+    }
+    (crown_top, root_low)
+}
+
+/// The corners of removed faces at height `slab` or lower, once per face
+/// they are a corner of, in face order.
+fn root_points_below(mesh: &Mesh, cyl: &Cylinder, inside: &[bool], slab: f64) -> Vec<[f64; 3]> {
+    let mut root_points = Vec::new();
+    for (f, face) in mesh.faces.iter().enumerate() {
+        if !inside[f] {
+            for &v in face {
+                let p = mesh.vertices[v as usize];
+                if cyl.height(p) <= slab {
+                    root_points.push(p);
+                }
+            }
+        }
+    }
+    root_points
 }
 
 /// How much lower (share of the tooth's length) than the neck seen on the
