@@ -76,6 +76,9 @@
 //! - `MORPHOID_BENCH_IDENTIFY`: crowns in each identification batch
 //!   (default 16);
 //! - `MORPHOID_BENCH_SEED`: the seed of everything made (default 32);
+//! - `MORPHOID_BENCH_CLIENT_NICE`: nice steps the load client's threads
+//!   take below the daemon's (default 0), as when the browsers are on
+//!   other machines and take none of its CPU;
 //! - `MORPHOID_BENCH_CSV`: also write the figures as CSV to this file;
 //! - `MORPHOID_BENCH_WORK`: a folder to work in, kept at the end, instead of
 //!   a temporary one (its database is made again each run);
@@ -177,6 +180,23 @@ struct Knobs {
     identify: usize,
     seed: u64,
     csv: Option<PathBuf>,
+    /// Nice steps the load client's threads take below the bench's.
+    client_nice: i32,
+}
+
+/// Lower the calling thread's priority by `steps` nice steps (0: leave
+/// it). Clients on other machines take none of the daemon's CPU; niced,
+/// this one takes only what the daemon leaves.
+fn lower_thread_priority(steps: i32) {
+    if steps == 0 {
+        return;
+    }
+    // SAFETY: plain syscalls on the calling thread, no memory passed.
+    unsafe {
+        let tid = libc::gettid() as libc::id_t;
+        let now = libc::getpriority(libc::PRIO_PROCESS, tid);
+        libc::setpriority(libc::PRIO_PROCESS, tid, (now + steps).min(19));
+    }
 }
 
 /// `name` from the environment, or `default`.
@@ -221,6 +241,7 @@ impl Knobs {
             identify: knob("MORPHOID_BENCH_IDENTIFY", DEFAULT_IDENTIFY)?,
             seed: knob("MORPHOID_BENCH_SEED", DEFAULT_SEED)?,
             csv: std::env::var_os("MORPHOID_BENCH_CSV").map(PathBuf::from),
+            client_nice: knob("MORPHOID_BENCH_CLIENT_NICE", 0)?,
         };
         ensure!(
             k.scans >= SEED_SCANS,
@@ -251,12 +272,13 @@ fn main() -> Result<()> {
             .join(" ")
     );
     println!(
-        "console load: {} scans, {} connections, {} s, {} crowns a batch, seed {}, folder {}",
+        "console load: {} scans, {} connections, {} s, {} crowns a batch, seed {}, client {} nice steps below, folder {}",
         knobs.scans,
         knobs.connections,
         knobs.seconds,
         knobs.identify,
         knobs.seed,
+        knobs.client_nice,
         root.display()
     );
 
@@ -285,8 +307,10 @@ fn main() -> Result<()> {
     let t = Instant::now();
     let daemon = Daemon::start(&env);
     let base = console_address(&daemon)?;
+    let client_nice = knobs.client_nice;
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
+        .on_thread_start(move || lower_thread_priority(client_nice))
         .enable_all()
         .build()
         .context("tokio runtime")?;

@@ -54,7 +54,10 @@ pub(super) async fn list_scans(
     let key = format!("scans?{}", raw.as_deref().unwrap_or(""));
     let body = state
         .answers
-        .answer(key, || scans_page_json(&state, query))
+        .answer(key, {
+            let state = Arc::clone(&state);
+            move || async move { scans_page_json(&state, query).await }
+        })
         .await?;
     Ok((
         [(header::CONTENT_TYPE, "application/json")],

@@ -22,7 +22,7 @@ use std::collections::HashMap;
 use std::future::Future;
 use std::os::unix::fs::MetadataExt as _;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tokio::sync::OnceCell;
@@ -30,13 +30,14 @@ use tokio::sync::OnceCell;
 /// How long an answer is given after the database changed. The live
 /// overview asks again on the poll after a change, so that it never stays
 /// behind.
-pub(super) const FRESH_FOR: Duration = Duration::from_millis(900);
+pub(super) const FRESH_FOR: Duration = Duration::from_millis(800);
 
 /// How long a reading of the database's generation is used before it is
 /// read again (at most `fresh_for`): a `stat` and a pragma on the blocking
 /// pool for every request cost a thread hand-off each, which under two
 /// hundred connections was a large part of the console's CPU. With
-/// [`FRESH_FOR`], the lists are at most 1 s behind the daemon.
+/// [`FRESH_FOR`] and the time to draw a page, the lists are about 1 s
+/// behind the daemon at most.
 const GENERATION_READ_EVERY: Duration = Duration::from_millis(100);
 
 /// Keys kept at most: beyond that, answers of older generations go first,
@@ -56,6 +57,19 @@ struct Entry {
     /// The console's writes before it ([`AnswerCache::forget`]).
     epoch: u64,
     answer: Arc<OnceCell<Arc<str>>>,
+    /// The key's last answer before this generation's (of the same
+    /// epoch): given while this one is computed.
+    previous: Option<Arc<str>>,
+    /// Whether this generation's answer is being computed.
+    computing: Arc<AtomicBool>,
+}
+
+/// What [`AnswerCache::cell`] gives for a key: its entry's cell, the
+/// answer to give meanwhile, and the flag of a computation under way.
+struct Slot {
+    answer: Arc<OnceCell<Arc<str>>>,
+    previous: Option<Arc<str>>,
+    computing: Arc<AtomicBool>,
 }
 
 /// Answers by key, each valid for one generation of the database.
@@ -121,24 +135,51 @@ impl AnswerCache {
     }
 
     /// The answer for `key` under the database's present generation:
-    /// kept, being computed by another request (then awaited), or
-    /// computed now by `compute`. An error is returned, never kept.
+    /// kept, or computed now by `compute` (requests for the same key at the
+    /// same moment wait for one computation). When the key has an answer
+    /// from before the last change, that one is given at once and the new
+    /// one is computed in the background: under many connections a
+    /// request never waits for a page to be drawn, and a list is at most
+    /// one computation later than [`FRESH_FOR`] behind. An error is
+    /// returned, never kept.
     pub(super) async fn answer<F, Fut>(
         self: &Arc<Self>,
         key: String,
         compute: F,
     ) -> Result<Arc<str>, ApiError>
     where
-        F: FnOnce() -> Fut,
-        Fut: Future<Output = Result<String, ApiError>>,
+        F: FnOnce() -> Fut + Send + 'static,
+        Fut: Future<Output = Result<String, ApiError>> + Send + 'static,
     {
         let Some(generation) = self.recent_generation().await else {
             return compute().await.map(Arc::from);
         };
-        let cell = self.cell(key, generation);
-        cell.get_or_try_init(|| async { compute().await.map(Arc::from) })
-            .await
-            .cloned()
+        let slot = self.cell(key, generation);
+        if let Some(done) = slot.answer.get() {
+            return Ok(Arc::clone(done));
+        }
+        let Some(previous) = slot.previous else {
+            return slot
+                .answer
+                .get_or_try_init(|| async { compute().await.map(Arc::from) })
+                .await
+                .cloned();
+        };
+        if !slot.computing.swap(true, Ordering::SeqCst) {
+            let (cell, computing) = (slot.answer, slot.computing);
+            tokio::spawn(async move {
+                let made = cell
+                    .get_or_try_init(|| async { compute().await.map(Arc::from) })
+                    .await;
+                if let Err(e) = made {
+                    // The next request tries again; until then the answer
+                    // from before is given.
+                    tracing::debug!("http: a kept answer could not be renewed: {e}");
+                    computing.store(false, Ordering::SeqCst);
+                }
+            });
+        }
+        Ok(previous)
     }
 
     /// The database's generation as read less than
@@ -171,14 +212,24 @@ impl AnswerCache {
 
     /// The cell holding `key`'s answer of `generation`, or of an earlier
     /// one made less than `fresh_for` ago and after the console's last
-    /// write; else a new, empty one.
-    fn cell(&self, key: String, generation: Generation) -> Arc<OnceCell<Arc<str>>> {
+    /// write; else a new, empty one, with the key's last answer of the
+    /// same epoch to give meanwhile.
+    fn cell(&self, key: String, generation: Generation) -> Slot {
         let epoch = self.epoch.load(Ordering::SeqCst);
         let mut entries = self.entries.lock().unwrap_or_else(|p| p.into_inner());
+        let mut previous = None;
         if let Some(entry) = entries.get(&key) {
             let fresh = entry.epoch == epoch && entry.made.elapsed() < self.fresh_for;
             if (entry.generation == generation && entry.epoch == epoch) || fresh {
-                return Arc::clone(&entry.answer);
+                return Slot {
+                    answer: Arc::clone(&entry.answer),
+                    previous: entry.previous.clone(),
+                    computing: Arc::clone(&entry.computing),
+                };
+            }
+            // (A cache allowed no delay gives none.)
+            if entry.epoch == epoch && !self.fresh_for.is_zero() {
+                previous = entry.answer.get().cloned().or(entry.previous.clone());
             }
         }
         if entries.len() >= MAX_ENTRIES {
@@ -188,6 +239,7 @@ impl AnswerCache {
             }
         }
         let answer = Arc::new(OnceCell::new());
+        let computing = Arc::new(AtomicBool::new(false));
         entries.insert(
             key,
             Entry {
@@ -195,9 +247,15 @@ impl AnswerCache {
                 made: Instant::now(),
                 epoch,
                 answer: Arc::clone(&answer),
+                previous: previous.clone(),
+                computing: Arc::clone(&computing),
             },
         );
-        answer
+        Slot {
+            answer,
+            previous,
+            computing,
+        }
     }
 }
 
@@ -251,6 +309,44 @@ mod tests {
         writer.enqueue("/scans/a.ply", "00aa", 1).unwrap();
         assert_eq!(ask(&cache, &computed), "answer 2");
         assert_eq!(ask(&cache, &computed), "answer 2");
+    }
+
+    #[test]
+    fn after_a_change_the_answer_from_before_is_given_while_the_new_one_is_computed() {
+        let dir = tempfile::tempdir().unwrap();
+        let db = dir.path().join("ids.sqlite");
+        let mut writer = Store::open(&db).unwrap();
+        let fresh_for = Duration::from_millis(50);
+        let cache = Arc::new(AnswerCache::new(&db, fresh_for));
+        let computed = Arc::new(AtomicUsize::new(0));
+        let rt = runtime();
+        let ask = || {
+            let computed = Arc::clone(&computed);
+            rt.block_on(cache.answer("k".into(), move || async move {
+                tokio::time::sleep(Duration::from_secs(1)).await;
+                let n = computed.fetch_add(1, Ordering::SeqCst) + 1;
+                Ok(format!("answer {n}"))
+            }))
+            .unwrap()
+            .to_string()
+        };
+        assert_eq!(ask(), "answer 1");
+        writer.enqueue("/scans/a.ply", "00aa", 1).unwrap();
+        std::thread::sleep(fresh_for * 3);
+        // Given at once, although the new answer takes 1 s.
+        let asked = Instant::now();
+        assert_eq!(ask(), "answer 1");
+        assert!(asked.elapsed() < Duration::from_millis(500));
+        let renewed = (0..500).any(|_| {
+            std::thread::sleep(Duration::from_millis(20));
+            ask() == "answer 2"
+        });
+        assert!(renewed, "the new answer never came");
+        // One computation, however many requests came meanwhile.
+        assert_eq!(computed.load(Ordering::SeqCst), 2);
+        // The console's own write is never answered from before.
+        cache.forget();
+        assert_eq!(ask(), "answer 3");
     }
 
     #[test]

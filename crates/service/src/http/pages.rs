@@ -182,7 +182,10 @@ pub(super) async fn overview(
     let key = format!("overview?{}", raw.as_deref().unwrap_or(""));
     let rows = state
         .answers
-        .answer(key, || overview_rows(&state, query, &pairs))
+        .answer(key, {
+            let (state, pairs) = (Arc::clone(&state), pairs.clone());
+            move || async move { overview_rows(&state, query, &pairs).await }
+        })
         .await;
     let html = match rows {
         Ok(html) => html,
