@@ -2,7 +2,7 @@
 //! `<point x= y= z= name= active=/>` element per landmark. Inactive points
 //! (`active="0"`) are read like the others, so that counts match the file.
 
-use super::{parse_coordinate, LandmarkError, Landmarks};
+use super::{coordinate_error, parse_coordinate, LandmarkError, Landmarks};
 use crate::present::escape;
 use quick_xml::events::Event;
 use quick_xml::{Reader, XmlVersion};
@@ -64,7 +64,10 @@ pub(super) fn parse_picked_points(text: &str, path: &Path) -> Result<Landmarks, 
                         }
                         _ => continue,
                     };
-                    xyz[slot] = Some(parse_coordinate(&value).map_err(|m| err(start, m))?);
+                    xyz[slot] = Some(
+                        parse_coordinate(&value)
+                            .map_err(|e| coordinate_error(path, line_of(text, start), e))?,
+                    );
                 }
                 let [Some(x), Some(y), Some(z)] = xyz else {
                     return Err(err(start, "<point> lacks an x, y or z attribute".into()));

@@ -192,6 +192,26 @@ pub enum LandmarkError {
         /// What is wrong.
         message: String,
     },
+    /// A coordinate (or a line of `x y z`) that cannot be read, at a line.
+    #[error("{path}:{line}: {source}")]
+    Coordinate {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong with the value.
+        source: CoordinateError,
+    },
+    /// A TPS `SCALE=` value that cannot be read, at a line.
+    #[error("{path}:{line}: SCALE: {source}")]
+    Scale {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong with the value.
+        source: CoordinateError,
+    },
     /// Malformed content at an element of a JSON document.
     #[error("{path}: {element}: {message}")]
     Element {
@@ -491,11 +511,46 @@ fn content_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
         .filter(|(_, t)| !t.is_empty())
 }
 
+/// Why a landmark coordinate, or a line of `x y z`, cannot be read.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum CoordinateError {
+    /// The text is not a number.
+    #[error("`{text}` is not a number")]
+    NotANumber {
+        /// The text (trimmed).
+        text: String,
+    },
+    /// The number is infinite or NaN.
+    #[error("coordinate `{text}` is not finite")]
+    NotFinite {
+        /// The text (trimmed).
+        text: String,
+    },
+    /// A line of `x y z` holds another number of values.
+    #[error("{found} values; a 3D landmark has 3")]
+    ValueCount {
+        /// The number of values on the line.
+        found: usize,
+    },
+}
+
+/// The error for the coordinate error `source` at line `line` (1-based)
+/// of the file `path`.
+fn coordinate_error(path: &Path, line: usize, source: CoordinateError) -> LandmarkError {
+    LandmarkError::Coordinate {
+        path: path.to_path_buf(),
+        line,
+        source,
+    }
+}
+
 /// One landmark written as `x y z` (whitespace-separated).
-fn parse_xyz(line: &str) -> Result<[f64; 3], String> {
+fn parse_xyz(line: &str) -> Result<[f64; 3], CoordinateError> {
     let fields: Vec<&str> = line.split_whitespace().collect();
     if fields.len() != 3 {
-        return Err(format!("{} values; a 3D landmark has 3", fields.len()));
+        return Err(CoordinateError::ValueCount {
+            found: fields.len(),
+        });
     }
     let mut q = [0.0; 3];
     for (d, f) in fields.iter().enumerate() {
@@ -511,12 +566,16 @@ fn xyz_line(p: &[f64; 3]) -> String {
 }
 
 /// Parse one coordinate; non-finite values are rejected.
-fn parse_coordinate(field: &str) -> Result<f64, String> {
+fn parse_coordinate(field: &str) -> Result<f64, CoordinateError> {
     let t = field.trim();
     match t.parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
-        Ok(_) => Err(format!("coordinate `{t}` is not finite")),
-        Err(_) => Err(format!("`{t}` is not a number")),
+        Ok(_) => Err(CoordinateError::NotFinite {
+            text: t.to_string(),
+        }),
+        Err(_) => Err(CoordinateError::NotANumber {
+            text: t.to_string(),
+        }),
     }
 }
 
@@ -630,7 +689,11 @@ mod tests {
         ));
         assert!(matches!(
             &got.problems[1].1,
-            LandmarkProblem::Unreadable(LandmarkError::Syntax { line: 2, .. })
+            LandmarkProblem::Unreadable(LandmarkError::Coordinate {
+                line: 2,
+                source: CoordinateError::NotANumber { .. },
+                ..
+            })
         ));
         let why = got.problems[1].1.to_string();
         assert!(why.contains("d.csv:2"), "{why}");
@@ -644,6 +707,34 @@ mod tests {
         ));
         let why = got.problems[0].1.to_string();
         assert!(why.contains("more than one landmark file"), "{why}");
+    }
+
+    #[test]
+    fn coordinate_errors_are_typed_and_read_as_before() {
+        assert_eq!(
+            parse_coordinate(" x1 ").unwrap_err(),
+            CoordinateError::NotANumber { text: "x1".into() }
+        );
+        assert_eq!(
+            parse_coordinate("inf").unwrap_err().to_string(),
+            "coordinate `inf` is not finite"
+        );
+        assert_eq!(
+            parse_coordinate("oops").unwrap_err().to_string(),
+            "`oops` is not a number"
+        );
+        assert_eq!(
+            parse_xyz("1 2").unwrap_err().to_string(),
+            "2 values; a 3D landmark has 3"
+        );
+        let path = Path::new("t.tps");
+        let e = parse("LM3=1\n1 2 3\nSCALE=x\nID=a\n", Format::Tps, path).unwrap_err();
+        assert_eq!(e.to_string(), "t.tps:3: SCALE: `x` is not a number");
+        assert!(matches!(e, LandmarkError::Scale { line: 3, .. }), "{e:?}");
+        let e = parse("LM3=1\n1 NaN 3\nID=a\n", Format::Tps, path).unwrap_err();
+        assert_eq!(e.to_string(), "t.tps:2: coordinate `NaN` is not finite");
+        let source = std::error::Error::source(&e).map(ToString::to_string);
+        assert_eq!(source.as_deref(), Some("coordinate `NaN` is not finite"));
     }
 
     #[test]

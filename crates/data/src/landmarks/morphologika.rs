@@ -14,7 +14,7 @@
 //! starting with `'` are comments.
 
 use super::tps::{one_line, NamedLandmarks};
-use super::{content_lines, parse_xyz, xyz_line, LandmarkError, Landmarks};
+use super::{content_lines, coordinate_error, parse_xyz, xyz_line, LandmarkError, Landmarks};
 use std::path::Path;
 
 /// Whether `text` looks like a morphologika file (its first non-blank line
@@ -68,7 +68,10 @@ pub fn parse_morphologika(text: &str, path: &Path) -> Result<Vec<NamedLandmarks>
             "landmarks" => landmarks = Some(count(t, line, "landmarks")?),
             "dimensions" => dimensions = Some(count(t, line, "dimensions")?),
             "names" => names.push(t.trim_start_matches('\'').to_string()),
-            "rawpoints" => points.push((parse_xyz(t).map_err(|m| err(line, m))?, line)),
+            "rawpoints" => {
+                let p = parse_xyz(t).map_err(|e| coordinate_error(path, line, e))?;
+                points.push((p, line));
+            }
             "" => return Err(err(line, "content before any [section]".into())),
             _ => {}
         }

@@ -2,7 +2,7 @@
 //! (`.mrk.json`). Points are converted to LPS on reading (see the module
 //! documentation of [`super`]); the writers declare LPS.
 
-use super::{parse_coordinate, LandmarkError, Landmarks};
+use super::{coordinate_error, parse_coordinate, LandmarkError, Landmarks};
 use crate::table::csv_text::{rows, CsvString, Row};
 use serde_json::{json, Value};
 use std::path::Path;
@@ -113,7 +113,7 @@ pub(super) fn parse_fcsv(text: &str, path: &Path) -> Result<Landmarks, LandmarkE
         let mut p = [0.0; 3];
         for (k, c) in [x, y, z].into_iter().enumerate() {
             let f = fields.get(c).map(String::as_str).unwrap_or("");
-            p[k] = parse_coordinate(f).map_err(|m| err(line, m))?;
+            p[k] = parse_coordinate(f).map_err(|e| coordinate_error(path, line, e))?;
         }
         let label = col("label").and_then(|c| fields.get(c)).cloned();
         lm.push(space.to_lps(p), label);

@@ -5,7 +5,7 @@
 //! without commas is split at whitespace (`x y z`). Files are written with
 //! commas.
 
-use super::{parse_coordinate, LandmarkError, Landmarks};
+use super::{coordinate_error, parse_coordinate, LandmarkError, Landmarks};
 use crate::table::csv_text::{rows, CsvString, Row};
 use std::path::Path;
 
@@ -87,11 +87,11 @@ pub(super) fn parse_csv(text: &str, path: &Path) -> Result<Landmarks, LandmarkEr
                     ));
                 } else {
                     // Neither numbers nor a header: report the first bad field.
-                    let bad = fields[..3]
-                        .iter()
-                        .find_map(|f| parse_coordinate(f).err())
-                        .unwrap_or_default();
-                    return Err(err(line, bad));
+                    let bad = fields[..3].iter().find_map(|f| parse_coordinate(f).err());
+                    return Err(match bad {
+                        Some(e) => coordinate_error(path, line, e),
+                        None => err(line, String::new()),
+                    });
                 };
                 layout.insert(new)
             }
@@ -109,7 +109,7 @@ pub(super) fn parse_csv(text: &str, path: &Path) -> Result<Landmarks, LandmarkEr
         let mut p = [0.0; 3];
         for (k, &c) in lay.xyz.iter().enumerate() {
             let f = fields.get(c).map(String::as_str).unwrap_or("");
-            p[k] = parse_coordinate(f).map_err(|m| err(line, m))?;
+            p[k] = parse_coordinate(f).map_err(|e| coordinate_error(path, line, e))?;
         }
         let label = lay
             .label

@@ -15,7 +15,10 @@
 //! a specimen without `ID=`, a count that does not match its lines and 2D
 //! (`LM=`) data. Written files hold `LM3=`, the coordinates and `ID=`.
 
-use super::{content_lines, parse_coordinate, parse_xyz, xyz_line, LandmarkError, Landmarks};
+use super::{
+    content_lines, coordinate_error, parse_coordinate, parse_xyz, xyz_line, LandmarkError,
+    Landmarks,
+};
 use std::path::Path;
 
 /// The landmarks of one specimen of a collection file.
@@ -115,7 +118,11 @@ fn take_field(
                 }
                 p.id = Some(value.to_string());
             } else if key == "SCALE" {
-                let s = parse_coordinate(value).map_err(|m| err(format!("SCALE: {m}")))?;
+                let s = parse_coordinate(value).map_err(|source| LandmarkError::Scale {
+                    path: path.to_path_buf(),
+                    line,
+                    source,
+                })?;
                 if s <= 0.0 {
                     return Err(err(format!("SCALE={value} is not positive")));
                 }
@@ -133,7 +140,7 @@ impl Pending {
     /// Take the coordinate line `t` (at `line`) as the specimen's next
     /// landmark: an error for a missing landmark or one past its count.
     fn take_coordinates(&mut self, path: &Path, line: usize, t: &str) -> Result<(), LandmarkError> {
-        let q = parse_xyz(t).map_err(|m| syntax(path, line, m))?;
+        let q = parse_xyz(t).map_err(|e| coordinate_error(path, line, e))?;
         if q.iter().any(|&v| is_missing_sentinel(v)) {
             return Err(syntax(
                 path,

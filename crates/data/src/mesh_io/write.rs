@@ -55,12 +55,12 @@ impl Encoding {
 pub enum SaveError {
     /// The mesh itself cannot be written (bad index, non-finite coordinate,
     /// or no faces for a format that needs them).
-    #[error("{}: cannot write: {message}", shown(.path))]
+    #[error("{}: cannot write: {source}", shown(.path))]
     InvalidMesh {
         /// The target file.
         path: PathBuf,
         /// What is wrong with the mesh.
-        message: String,
+        source: EncodeError,
     },
     /// The file could not be written.
     #[error("{}: cannot write: {source}", shown(.path))]
@@ -95,9 +95,9 @@ pub fn save(path: &Path, mesh: &Mesh) -> Result<(), SaveError> {
 
 /// Write a mesh with an explicit encoding (the extension is not checked).
 pub fn save_as(path: &Path, mesh: &Mesh, encoding: Encoding) -> Result<(), SaveError> {
-    let bytes = encode(mesh, encoding).map_err(|e| SaveError::InvalidMesh {
+    let bytes = encode(mesh, encoding).map_err(|source| SaveError::InvalidMesh {
         path: path.to_path_buf(),
-        message: e.0,
+        source,
     })?;
     Ok(write_atomic(path, &bytes)?)
 }
@@ -118,36 +118,67 @@ pub fn write_stl_ascii(path: &Path, mesh: &Mesh) -> Result<(), SaveError> {
 }
 
 /// Why a mesh cannot be encoded: a face index out of range, a non-finite
-/// coordinate, or a point cloud for STL.
-#[derive(Debug, Clone, thiserror::Error)]
-#[error("{0}")]
-pub struct EncodeError(pub String);
+/// coordinate, too many vertices or faces, or a point cloud for STL.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum EncodeError {
+    /// A vertex has a NaN or infinite coordinate.
+    #[error("vertex {vertex} has a non-finite coordinate")]
+    NonFiniteVertex {
+        /// The vertex's index.
+        vertex: usize,
+    },
+    /// More vertices than the formats' indices can address.
+    #[error("{count} vertices are too many to write")]
+    TooManyVertices {
+        /// The number of vertices.
+        count: usize,
+    },
+    /// A face refers to a vertex that does not exist.
+    #[error("face {face} refers to a vertex past {vertices}")]
+    FaceOutOfRange {
+        /// The face's index.
+        face: usize,
+        /// The number of vertices.
+        vertices: usize,
+    },
+    /// STL holds triangles only, and the mesh has none.
+    #[error("STL cannot hold a point cloud (the mesh has no faces)")]
+    StlPointCloud,
+    /// More faces than binary STL can count.
+    #[error("too many faces for STL")]
+    StlTooManyFaces {
+        /// The number of faces.
+        count: usize,
+    },
+}
 
 /// Encode a mesh in memory.
 pub fn encode(mesh: &Mesh, encoding: Encoding) -> Result<Vec<u8>, EncodeError> {
-    check_writable(mesh).map_err(EncodeError)?;
+    check_writable(mesh)?;
     Ok(match encoding {
         Encoding::PlyBinaryLe => ply_binary(mesh, false),
         Encoding::PlyBinaryBe => ply_binary(mesh, true),
         Encoding::PlyAscii => ply_ascii(mesh),
-        Encoding::StlBinary => stl_binary(mesh).map_err(EncodeError)?,
-        Encoding::StlAscii => stl_ascii(mesh).map_err(EncodeError)?,
+        Encoding::StlBinary => stl_binary(mesh)?,
+        Encoding::StlAscii => stl_ascii(mesh)?,
         Encoding::Obj => obj(mesh),
         Encoding::Off => off(mesh),
     })
 }
 
-fn check_writable(mesh: &Mesh) -> Result<(), String> {
-    if let Some(i) = mesh.first_non_finite_vertex() {
-        return Err(format!("vertex {i} has a non-finite coordinate"));
+/// Error unless every format can write `mesh`: finite coordinates, a
+/// vertex count the indices can address, faces within the vertices.
+fn check_writable(mesh: &Mesh) -> Result<(), EncodeError> {
+    if let Some(vertex) = mesh.first_non_finite_vertex() {
+        return Err(EncodeError::NonFiniteVertex { vertex });
     }
     let n = mesh.vertices.len();
     if n > i32::MAX as usize {
         // PLY stores indices as int, OBJ/OFF readers as u32.
-        return Err(format!("{n} vertices are too many to write"));
+        return Err(EncodeError::TooManyVertices { count: n });
     }
-    if let Some((fi, _)) = mesh.first_face_out_of_range() {
-        return Err(format!("face {fi} refers to a vertex past {n}"));
+    if let Some((face, _)) = mesh.first_face_out_of_range() {
+        return Err(EncodeError::FaceOutOfRange { face, vertices: n });
     }
     Ok(())
 }
@@ -228,17 +259,20 @@ fn face_normal(mesh: &Mesh, f: &[u32; 3]) -> [f32; 3] {
     }
 }
 
-fn require_faces(mesh: &Mesh) -> Result<(), String> {
+/// Error unless `mesh` has faces (STL holds triangles only).
+fn require_faces(mesh: &Mesh) -> Result<(), EncodeError> {
     if mesh.faces.is_empty() {
-        Err("STL cannot hold a point cloud (the mesh has no faces)".into())
+        Err(EncodeError::StlPointCloud)
     } else {
         Ok(())
     }
 }
 
-fn stl_binary(mesh: &Mesh) -> Result<Vec<u8>, String> {
+fn stl_binary(mesh: &Mesh) -> Result<Vec<u8>, EncodeError> {
     require_faces(mesh)?;
-    let count = u32::try_from(mesh.faces.len()).map_err(|_| "too many faces for STL")?;
+    let count = u32::try_from(mesh.faces.len()).map_err(|_| EncodeError::StlTooManyFaces {
+        count: mesh.faces.len(),
+    })?;
     let mut out = Vec::with_capacity(84 + 50 * mesh.faces.len());
     let mut header = [b' '; 80];
     let label = b"binary STL written by morphoid";
@@ -259,7 +293,7 @@ fn stl_binary(mesh: &Mesh) -> Result<Vec<u8>, String> {
     Ok(out)
 }
 
-fn stl_ascii(mesh: &Mesh) -> Result<Vec<u8>, String> {
+fn stl_ascii(mesh: &Mesh) -> Result<Vec<u8>, EncodeError> {
     require_faces(mesh)?;
     let mut s = String::from("solid morphoid\n");
     for f in &mesh.faces {
@@ -300,4 +334,79 @@ fn off(mesh: &Mesh) -> Vec<u8> {
         let _ = writeln!(s, "3 {} {} {}", f[0], f[1], f[2]);
     }
     s.into_bytes()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn encode_errors_read_as_before() {
+        let cases = [
+            (
+                EncodeError::NonFiniteVertex { vertex: 3 },
+                "vertex 3 has a non-finite coordinate",
+            ),
+            (
+                EncodeError::TooManyVertices { count: 5 },
+                "5 vertices are too many to write",
+            ),
+            (
+                EncodeError::FaceOutOfRange {
+                    face: 2,
+                    vertices: 4,
+                },
+                "face 2 refers to a vertex past 4",
+            ),
+            (
+                EncodeError::StlPointCloud,
+                "STL cannot hold a point cloud (the mesh has no faces)",
+            ),
+            (
+                EncodeError::StlTooManyFaces { count: 9 },
+                "too many faces for STL",
+            ),
+        ];
+        for (e, text) in cases {
+            assert_eq!(e.to_string(), text);
+        }
+    }
+
+    #[test]
+    fn unwritable_meshes_are_refused_with_the_reason_as_source() {
+        let cloud = Mesh {
+            vertices: vec![[0.0; 3]],
+            faces: vec![],
+        };
+        assert_eq!(
+            encode(&cloud, Encoding::StlAscii).unwrap_err(),
+            EncodeError::StlPointCloud
+        );
+        let nan = Mesh {
+            vertices: vec![[0.0, f64::NAN, 0.0]],
+            faces: vec![],
+        };
+        assert_eq!(
+            encode(&nan, Encoding::Obj).unwrap_err(),
+            EncodeError::NonFiniteVertex { vertex: 0 }
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.stl");
+        let e = save(&path, &cloud).unwrap_err();
+        assert!(
+            matches!(
+                &e,
+                SaveError::InvalidMesh {
+                    source: EncodeError::StlPointCloud,
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+        assert!(
+            e.to_string()
+                .ends_with(": cannot write: STL cannot hold a point cloud (the mesh has no faces)"),
+            "{e}"
+        );
+    }
 }

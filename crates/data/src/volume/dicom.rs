@@ -119,7 +119,10 @@ fn open_object(
     // parser given the data set exactly where the walk found it (its own
     // reading of a malformed file meta group may start elsewhere).
     let data = super::dicom_scan::data_set_checked(bytes)
-        .map_err(|p| invalid(path, p))?
+        .map_err(|source| VolumeError::DicomFraming {
+            path: path.to_path_buf(),
+            source,
+        })?
         .ok_or_else(|| {
             invalid(
                 path,

@@ -43,12 +43,117 @@ pub(crate) struct DataSet<'a> {
     pub pixel_data: Option<usize>,
 }
 
+/// Why the framing of a DICOM file is refused: a length that runs past
+/// the end or splits a binary value, a deflated data set that cannot be
+/// inflated within bounds, or framing the walk cannot follow.
+#[derive(Debug, thiserror::Error)]
+pub enum DicomFramingError {
+    /// The deflated data set cannot be inflated.
+    #[error("the deflated data set cannot be inflated: {0}")]
+    Inflate(#[source] std::io::Error),
+    /// The deflated data set inflates to more than `limit` bytes.
+    #[error("the deflated data set inflates to more than {limit} bytes")]
+    InflatesTooFar {
+        /// The largest inflated data set taken (bytes).
+        limit: u64,
+    },
+    /// An element of a binary VR whose length is not a whole number of
+    /// values.
+    #[error(
+        "element ({:04X},{:04X}) at byte {at} of VR {vr} holds {len} bytes, not a whole number \
+         of {value_size}-byte values (corrupt file)",
+        .tag.0,
+        .tag.1
+    )]
+    PartialValue {
+        /// The element's tag.
+        tag: Tag,
+        /// Where its header starts in the file (bytes).
+        at: usize,
+        /// Its value representation.
+        vr: VR,
+        /// Its declared value length (bytes).
+        len: u32,
+        /// The size of one value of the VR (bytes).
+        value_size: u32,
+    },
+    /// An element whose value runs past the end of the data.
+    #[error(
+        "element ({:04X},{:04X}) at byte {at} declares {len} bytes, but only {left} follow \
+         (truncated or corrupt file)",
+        .tag.0,
+        .tag.1
+    )]
+    PastTheEnd {
+        /// The element's tag.
+        tag: Tag,
+        /// Where its header starts in the file (bytes).
+        at: usize,
+        /// Its declared value length (bytes).
+        len: u32,
+        /// The bytes left after its header.
+        left: usize,
+    },
+    /// The data set's framing cannot be followed.
+    #[error("the data set's framing is broken at byte {at}: {why} (corrupt or truncated file)")]
+    Broken {
+        /// Where in the file (bytes).
+        at: usize,
+        /// What breaks the framing there.
+        why: BrokenFraming,
+    },
+}
+
+/// What breaks a data set's framing where the walk cannot follow it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BrokenFraming {
+    /// A sequence or item ends at byte `end` of the file, before the
+    /// current position.
+    EndsBefore {
+        /// Where the sequence or item ends in the file (bytes).
+        end: usize,
+    },
+    /// The data ends inside a sequence.
+    EndsInSequence,
+    /// The data ends inside an element header.
+    EndsInHeader,
+    /// A pixel data fragment of undefined length.
+    UndefinedFragment,
+    /// An element where an item belongs.
+    NotAnItem {
+        /// The element's tag.
+        tag: Tag,
+    },
+}
+
+impl std::fmt::Display for BrokenFraming {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            BrokenFraming::EndsBefore { end } => {
+                write!(f, "a sequence or item ends at byte {end}, before it")
+            }
+            BrokenFraming::EndsInSequence => {
+                f.write_str("the data ends inside a sequence (truncated file)")
+            }
+            BrokenFraming::EndsInHeader => {
+                f.write_str("the data ends inside an element header (truncated file)")
+            }
+            BrokenFraming::UndefinedFragment => {
+                f.write_str("a pixel data fragment of undefined length")
+            }
+            BrokenFraming::NotAnItem { tag } => {
+                write!(f, "({:04X},{:04X}) where an item belongs", tag.0, tag.1)
+            }
+        }
+    }
+}
+
 /// Walk the framing of the DICOM file `bytes`: its transfer syntax when
 /// the file meta group can be read (the data set is walked only for the
 /// syntaxes the reader takes), `None` when it cannot (the parser reports
 /// why), or what is wrong when a length runs past the end.
 #[cfg(test)]
-fn transfer_syntax_checked(bytes: &[u8]) -> Result<Option<String>, String> {
+fn transfer_syntax_checked(bytes: &[u8]) -> Result<Option<String>, DicomFramingError> {
     Ok(data_set_checked(bytes)?.map(|d| d.syntax))
 }
 
@@ -57,7 +162,7 @@ fn transfer_syntax_checked(bytes: &[u8]) -> Result<Option<String>, String> {
 /// walked only for the syntaxes the reader takes), `None` when it cannot,
 /// or what is wrong when a length runs past the end or the framing cannot
 /// be followed.
-pub(crate) fn data_set_checked(bytes: &[u8]) -> Result<Option<DataSet<'_>>, String> {
+pub(crate) fn data_set_checked(bytes: &[u8]) -> Result<Option<DataSet<'_>>, DicomFramingError> {
     let start = if bytes.get(128..132) == Some(b"DICM") {
         132
     } else if bytes.get(..4) == Some(b"DICM") {
@@ -73,16 +178,7 @@ pub(crate) fn data_set_checked(bytes: &[u8]) -> Result<Option<DataSet<'_>>, Stri
         IMPLICIT_VR_LE => (rest.into(), IMPLICIT_VR_LE, data_set(rest, end, false)?),
         EXPLICIT_VR_LE => (rest.into(), EXPLICIT_VR_LE, data_set(rest, end, true)?),
         DEFLATED_EXPLICIT_VR_LE => {
-            let mut inflated = Vec::new();
-            flate2::read::DeflateDecoder::new(rest)
-                .take(MAX_INFLATED + 1)
-                .read_to_end(&mut inflated)
-                .map_err(|e| format!("the deflated data set cannot be inflated: {e}"))?;
-            if inflated.len() as u64 > MAX_INFLATED {
-                return Err(format!(
-                    "the deflated data set inflates to more than {MAX_INFLATED} bytes"
-                ));
-            }
+            let inflated = inflate(rest)?;
             let pixel_data = data_set(&inflated, 0, true)?;
             (inflated.into(), EXPLICIT_VR_LE, pixel_data)
         }
@@ -94,6 +190,21 @@ pub(crate) fn data_set_checked(bytes: &[u8]) -> Result<Option<DataSet<'_>>, Stri
         encoding,
         pixel_data,
     }))
+}
+
+/// The deflated data set `rest` inflated, refused past `MAX_INFLATED`.
+fn inflate(rest: &[u8]) -> Result<Vec<u8>, DicomFramingError> {
+    let mut inflated = Vec::new();
+    flate2::read::DeflateDecoder::new(rest)
+        .take(MAX_INFLATED + 1)
+        .read_to_end(&mut inflated)
+        .map_err(DicomFramingError::Inflate)?;
+    if inflated.len() as u64 > MAX_INFLATED {
+        return Err(DicomFramingError::InflatesTooFar {
+            limit: MAX_INFLATED,
+        });
+    }
+    Ok(inflated)
 }
 
 fn u16_at(b: &[u8], at: usize) -> Option<u16> {
@@ -189,7 +300,7 @@ fn implicit_header(b: &[u8], at: usize) -> Option<Header> {
 
 /// Error unless `len` bytes follow the header that ends at `at` (of
 /// `total`); `offset` places `b` in the file for the message.
-fn check(h: &Header, at: usize, total: usize, offset: usize) -> Result<(), String> {
+fn check(h: &Header, at: usize, total: usize, offset: usize) -> Result<(), DicomFramingError> {
     let left = total - at;
     // The parser reads a binary VR in whole values and leaves a remainder
     // unread: it would go on out of step with the framing.
@@ -200,25 +311,21 @@ fn check(h: &Header, at: usize, total: usize, offset: usize) -> Result<(), Strin
         _ => 1,
     };
     if h.len != UNDEFINED && !h.len.is_multiple_of(size) {
-        return Err(format!(
-            "element ({:04X},{:04X}) at byte {} of VR {} holds {} bytes, not a whole number \
-             of {size}-byte values (corrupt file)",
-            h.tag.0,
-            h.tag.1,
-            offset + at - h.size,
-            h.vr.to_string(),
-            h.len
-        ));
+        return Err(DicomFramingError::PartialValue {
+            tag: h.tag,
+            at: offset + at - h.size,
+            vr: h.vr,
+            len: h.len,
+            value_size: size,
+        });
     }
     if h.len as usize > left {
-        return Err(format!(
-            "element ({:04X},{:04X}) at byte {} declares {} bytes, but only {left} follow \
-             (truncated or corrupt file)",
-            h.tag.0,
-            h.tag.1,
-            offset + at - h.size,
-            h.len
-        ));
+        return Err(DicomFramingError::PastTheEnd {
+            tag: h.tag,
+            at: offset + at - h.size,
+            len: h.len,
+            left,
+        });
     }
     Ok(())
 }
@@ -226,7 +333,7 @@ fn check(h: &Header, at: usize, total: usize, offset: usize) -> Result<(), Strin
 /// The file meta group from `start` as the parser reads it (explicit VR,
 /// its length from (0002,0000)): the transfer syntax and where the data
 /// set starts, or `None` where the parser would fail.
-fn meta_group(b: &[u8], start: usize) -> Result<Option<(String, usize)>, String> {
+fn meta_group(b: &[u8], start: usize) -> Result<Option<(String, usize)>, DicomFramingError> {
     let Some(first) = explicit_header(b, start) else {
         return Ok(None);
     };
@@ -271,9 +378,34 @@ enum Open {
     Item { end: Option<usize> },
 }
 
-/// Why the data set's framing cannot be followed at byte `at` (of the file).
-fn broken(at: usize, why: &str) -> String {
-    format!("the data set's framing is broken at byte {at}: {why} (corrupt or truncated file)")
+/// The error for framing broken at byte `at` (of the file) by `why`.
+fn broken(at: usize, why: BrokenFraming) -> DicomFramingError {
+    DicomFramingError::Broken { at, why }
+}
+
+/// Where a sequence or item of length `len` whose content starts at `at`
+/// ends; `None` for an undefined length.
+fn end_of(at: usize, len: u32) -> Option<usize> {
+    (len != UNDEFINED).then(|| at.saturating_add(len as usize))
+}
+
+/// The walk of a data set: the bytes, where they are in the file, how
+/// headers are encoded, and the walk's position and state.
+struct Walk<'a> {
+    /// The data set.
+    b: &'a [u8],
+    /// Where `b` starts in the file (for messages).
+    offset: usize,
+    /// Whether headers are explicit VR.
+    explicit: bool,
+    /// What is open around the current position, innermost last.
+    open: Vec<Open>,
+    /// The current position in `b`.
+    at: usize,
+    /// Where the top-level pixel data element starts, once seen.
+    pixel_data: Option<usize>,
+    /// Whether an item header (or the sequence's end) comes next.
+    in_sequence: bool,
 }
 
 /// Walk the data set `b` (at byte `offset` of the file, for messages) as
@@ -281,137 +413,189 @@ fn broken(at: usize, why: &str) -> String {
 /// sequence header, item headers; items hold elements, except those of
 /// encapsulated pixel data, which hold bytes. A sequence or item of
 /// defined length ends where its length says.
-fn data_set(b: &[u8], offset: usize, explicit: bool) -> Result<Option<usize>, String> {
-    let header = |at| {
-        if explicit {
-            explicit_header(b, at)
-        } else {
-            implicit_header(b, at)
-        }
+fn data_set(b: &[u8], offset: usize, explicit: bool) -> Result<Option<usize>, DicomFramingError> {
+    let mut walk = Walk {
+        b,
+        offset,
+        explicit,
+        open: Vec::new(),
+        at: 0,
+        pixel_data: None,
+        in_sequence: false,
     };
-    let end_of = |at: usize, len: u32| (len != UNDEFINED).then(|| at.saturating_add(len as usize));
-    let mut open: Vec<Open> = Vec::new();
-    let mut at = 0;
-    let mut pixel_data = None;
-    // Whether an item header (or the sequence's end) comes next.
-    let mut in_sequence = false;
     loop {
-        while let Some(&top) = open.last() {
+        walk.close_ended()?;
+        if walk.in_sequence {
+            walk.sequence_entry()?;
+            continue;
+        }
+        let Some(h) = walk.header() else {
+            return walk.end();
+        };
+        walk.element(&h);
+        walk.value_of(&h)?;
+    }
+}
+
+impl Walk<'_> {
+    /// The element header at the current position, in the data set's
+    /// encoding.
+    fn header(&self) -> Option<Header> {
+        if self.explicit {
+            explicit_header(self.b, self.at)
+        } else {
+            implicit_header(self.b, self.at)
+        }
+    }
+
+    /// Close the sequences and items that end at the current position;
+    /// error if one ended before it.
+    fn close_ended(&mut self) -> Result<(), DicomFramingError> {
+        while let Some(&top) = self.open.last() {
             let (end, item) = match top {
                 Open::Sequence { end, .. } => (end, false),
                 Open::Item { end } => (end, true),
             };
             match end {
-                Some(e) if e == at => {
-                    open.pop();
-                    in_sequence = item;
+                Some(e) if e == self.at => {
+                    self.open.pop();
+                    self.in_sequence = item;
                 }
-                Some(e) if e < at => {
+                Some(e) if e < self.at => {
                     return Err(broken(
-                        offset + at,
-                        &format!("a sequence or item ends at byte {}, before it", offset + e),
+                        self.offset + self.at,
+                        BrokenFraming::EndsBefore {
+                            end: self.offset + e,
+                        },
                     ))
                 }
                 _ => break,
             }
         }
-        if in_sequence {
-            let (Some(group), Some(element), Some(len)) =
-                (u16_at(b, at), u16_at(b, at + 2), u32_at(b, at + 4))
-            else {
-                return Err(broken(
-                    offset + at,
-                    "the data ends inside a sequence (truncated file)",
-                ));
-            };
-            at += 8;
-            match (group, element) {
-                (0xFFFE, 0xE000) => {
-                    let fragments = matches!(
-                        open.last(),
-                        Some(Open::Sequence {
-                            fragments: true,
-                            ..
-                        })
-                    );
-                    if fragments {
-                        if len == UNDEFINED {
-                            return Err(broken(
-                                offset + at - 8,
-                                "a pixel data fragment of undefined length",
-                            ));
-                        }
-                        let h = Header {
-                            tag: Tag(group, element),
-                            vr: VR::OB,
-                            len,
-                            size: 8,
-                        };
-                        check(&h, at, b.len(), offset)?;
-                        at += len as usize;
-                    } else {
-                        in_sequence = false;
-                        open.push(Open::Item {
-                            end: end_of(at, len),
-                        });
-                    }
-                }
-                (0xFFFE, 0xE00D) => {
-                    open.pop();
-                }
-                (0xFFFE, 0xE0DD) => {
-                    open.pop();
-                    in_sequence = false;
-                }
-                _ => {
-                    return Err(broken(
-                        offset + at - 8,
-                        &format!("({group:04X},{element:04X}) where an item belongs"),
-                    ))
-                }
-            }
-            continue;
-        }
-        let Some(h) = header(at) else {
-            if at == b.len() && open.is_empty() {
-                return Ok(pixel_data);
-            }
-            return Err(broken(
-                offset + at,
-                if open.is_empty() {
-                    "the data ends inside an element header (truncated file)"
-                } else {
-                    "the data ends inside a sequence (truncated file)"
-                },
-            ));
+        Ok(())
+    }
+
+    /// Read the header inside a sequence: an item (entered, or skipped
+    /// with its bytes for a pixel data fragment), an item's end or the
+    /// sequence's end; anything else breaks the framing.
+    fn sequence_entry(&mut self) -> Result<(), DicomFramingError> {
+        let (b, at) = (self.b, self.at);
+        let (Some(group), Some(element), Some(len)) =
+            (u16_at(b, at), u16_at(b, at + 2), u32_at(b, at + 4))
+        else {
+            return Err(broken(self.offset + at, BrokenFraming::EndsInSequence));
         };
-        if h.tag == Tag(0x7FE0, 0x0010) && open.is_empty() && pixel_data.is_none() {
-            pixel_data = Some(at);
+        self.at += 8;
+        match (group, element) {
+            (0xFFFE, 0xE000) => {
+                let fragments = matches!(
+                    self.open.last(),
+                    Some(Open::Sequence {
+                        fragments: true,
+                        ..
+                    })
+                );
+                if fragments {
+                    self.skip_fragment(len)?;
+                } else {
+                    self.in_sequence = false;
+                    self.open.push(Open::Item {
+                        end: end_of(self.at, len),
+                    });
+                }
+            }
+            (0xFFFE, 0xE00D) => {
+                self.open.pop();
+            }
+            (0xFFFE, 0xE0DD) => {
+                self.open.pop();
+                self.in_sequence = false;
+            }
+            _ => {
+                return Err(broken(
+                    self.offset + self.at - 8,
+                    BrokenFraming::NotAnItem {
+                        tag: Tag(group, element),
+                    },
+                ))
+            }
         }
-        at += h.size;
+        Ok(())
+    }
+
+    /// Skip the pixel data fragment of `len` bytes whose item header
+    /// ends at the current position, its length checked.
+    fn skip_fragment(&mut self, len: u32) -> Result<(), DicomFramingError> {
+        if len == UNDEFINED {
+            return Err(broken(
+                self.offset + self.at - 8,
+                BrokenFraming::UndefinedFragment,
+            ));
+        }
+        let h = Header {
+            tag: Tag(0xFFFE, 0xE000),
+            vr: VR::OB,
+            len,
+            size: 8,
+        };
+        check(&h, self.at, self.b.len(), self.offset)?;
+        self.at += len as usize;
+        Ok(())
+    }
+
+    /// Where the data ends without a header: the pixel data's position
+    /// when nothing is open and no byte is left, else why the framing is
+    /// broken.
+    fn end(&self) -> Result<Option<usize>, DicomFramingError> {
+        if self.at == self.b.len() && self.open.is_empty() {
+            return Ok(self.pixel_data);
+        }
+        let why = if self.open.is_empty() {
+            BrokenFraming::EndsInHeader
+        } else {
+            BrokenFraming::EndsInSequence
+        };
+        Err(broken(self.offset + self.at, why))
+    }
+
+    /// Note the element of header `h` at the current position (the first
+    /// top-level pixel data) and step over its header.
+    fn element(&mut self, h: &Header) {
+        if h.tag == Tag(0x7FE0, 0x0010) && self.open.is_empty() && self.pixel_data.is_none() {
+            self.pixel_data = Some(self.at);
+        }
+        self.at += h.size;
+    }
+
+    /// Enter or step over the value of the element of header `h`, whose
+    /// header ends at the current position: a sequence (or an element of
+    /// undefined length, read as one) is opened, an item's end closes
+    /// the item, any other value is checked and skipped.
+    fn value_of(&mut self, h: &Header) -> Result<(), DicomFramingError> {
         if h.vr == VR::SQ {
-            open.push(Open::Sequence {
+            self.open.push(Open::Sequence {
                 fragments: false,
-                end: end_of(at, h.len),
+                end: end_of(self.at, h.len),
             });
-            in_sequence = true;
+            self.in_sequence = true;
         } else if h.tag == Tag(0xFFFE, 0xE00D) {
             // An item's end; ignored outside any sequence.
-            if open.pop().is_some() {
-                in_sequence = true;
+            if self.open.pop().is_some() {
+                self.in_sequence = true;
             }
         } else if h.len == UNDEFINED {
             // Encapsulated pixel data holds fragments; any other element
             // of undefined length is read as a sequence of items.
-            open.push(Open::Sequence {
+            self.open.push(Open::Sequence {
                 fragments: h.tag == Tag(0x7FE0, 0x0010),
                 end: None,
             });
-            in_sequence = true;
+            self.in_sequence = true;
         } else {
-            check(&h, at, b.len(), offset)?;
-            at += h.len as usize;
+            check(h, self.at, self.b.len(), self.offset)?;
+            self.at += h.len as usize;
         }
+        Ok(())
     }
 }
 
@@ -442,13 +626,13 @@ mod tests {
         // Rows (US, 2 bytes), then an OB element of 4 GB - 2 in a short file.
         b.extend([0x28, 0x00, 0x10, 0x00, b'U', b'S', 2, 0, 64, 0]);
         assert_eq!(
-            transfer_syntax_checked(&b),
-            Ok(Some(EXPLICIT_VR_LE.to_string()))
+            transfer_syntax_checked(&b).unwrap(),
+            Some(EXPLICIT_VR_LE.to_string())
         );
         b.extend([0x09, 0x00, 0x10, 0x00, b'O', b'B', 0, 0]);
         b.extend(0xFFFF_FFFEu32.to_le_bytes());
         b.extend([0u8; 16]);
-        let e = transfer_syntax_checked(&b).unwrap_err();
+        let e = transfer_syntax_checked(&b).unwrap_err().to_string();
         assert!(
             e.contains("(0009,0010)") && e.contains("4294967294") && e.contains("16 follow"),
             "{e}"
@@ -466,7 +650,7 @@ mod tests {
         b.extend(UNDEFINED.to_le_bytes());
         b.extend([0x08, 0x00, 0x50, 0x11]);
         b.extend(1_000_000u32.to_le_bytes());
-        let e = transfer_syntax_checked(&b).unwrap_err();
+        let e = transfer_syntax_checked(&b).unwrap_err().to_string();
         assert!(e.contains("(0008,1150)") && e.contains("1000000"), "{e}");
     }
 
@@ -476,7 +660,7 @@ mod tests {
         // and go on two bytes out of step.
         let mut b = meta(IMPLICIT_VR_LE);
         b.extend([0x28, 0x00, 0x00, 0x00, 2, 0, 0, 0, 1, 2]);
-        let e = transfer_syntax_checked(&b).unwrap_err();
+        let e = transfer_syntax_checked(&b).unwrap_err().to_string();
         assert!(
             e.contains("(0028,0000)") && e.contains("VR UL holds 2 bytes"),
             "{e}"
@@ -491,18 +675,18 @@ mod tests {
         b.extend([0x09, 0x00, 0x10, 0x00]);
         b.extend(UNDEFINED.to_le_bytes());
         b.extend([0x28, 0x00, 0x10, 0x00, 2, 0, 0, 0, 64, 0]);
-        let e = transfer_syntax_checked(&b).unwrap_err();
+        let e = transfer_syntax_checked(&b).unwrap_err().to_string();
         assert!(e.contains("(0028,0010) where an item belongs"), "{e}");
         // A data set that stops inside an element header.
         let mut c = meta(EXPLICIT_VR_LE);
         c.extend([0x28, 0x00, 0x10, 0x00, b'U']);
-        let e = transfer_syntax_checked(&c).unwrap_err();
+        let e = transfer_syntax_checked(&c).unwrap_err().to_string();
         assert!(e.contains("inside an element header"), "{e}");
         // A sequence left open at the end.
         let mut d = meta(EXPLICIT_VR_LE);
         d.extend([0x08, 0x00, 0x40, 0x11, b'S', b'Q', 0, 0]);
         d.extend(UNDEFINED.to_le_bytes());
-        let e = transfer_syntax_checked(&d).unwrap_err();
+        let e = transfer_syntax_checked(&d).unwrap_err().to_string();
         assert!(e.contains("ends inside a sequence"), "{e}");
     }
 
@@ -523,7 +707,94 @@ mod tests {
         c.extend([
             0x09, 0x00, 0x10, 0x00, b'O', b'B', 0, 0, 0xFF, 0xFF, 0xFF, 0x00,
         ]);
-        assert_eq!(transfer_syntax_checked(&c), Ok(Some(jpeg.to_string())));
-        assert_eq!(transfer_syntax_checked(b"not dicom"), Ok(None));
+        assert_eq!(transfer_syntax_checked(&c).unwrap(), Some(jpeg.to_string()));
+        assert_eq!(transfer_syntax_checked(b"not dicom").unwrap(), None);
+    }
+
+    #[test]
+    fn errors_carry_their_data_and_read_as_before() {
+        let mut b = meta(EXPLICIT_VR_LE);
+        b.extend([0x09, 0x00, 0x10, 0x00, b'O', b'B', 0, 0]);
+        b.extend(0xFFFF_FFFEu32.to_le_bytes());
+        b.extend([0u8; 16]);
+        let e = transfer_syntax_checked(&b).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                DicomFramingError::PastTheEnd {
+                    tag: Tag(0x0009, 0x0010),
+                    len: 0xFFFF_FFFE,
+                    left: 16,
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+        let tag = Tag(0x0028, 0x0010);
+        let cases = [
+            (
+                DicomFramingError::Inflate(std::io::Error::other("bad")),
+                "the deflated data set cannot be inflated: bad".to_string(),
+            ),
+            (
+                DicomFramingError::InflatesTooFar {
+                    limit: MAX_INFLATED,
+                },
+                format!("the deflated data set inflates to more than {MAX_INFLATED} bytes"),
+            ),
+            (
+                DicomFramingError::PartialValue {
+                    tag,
+                    at: 10,
+                    vr: VR::UL,
+                    len: 2,
+                    value_size: 4,
+                },
+                "element (0028,0010) at byte 10 of VR UL holds 2 bytes, not a whole number \
+                 of 4-byte values (corrupt file)"
+                    .to_string(),
+            ),
+            (
+                DicomFramingError::PastTheEnd {
+                    tag,
+                    at: 10,
+                    len: 99,
+                    left: 3,
+                },
+                "element (0028,0010) at byte 10 declares 99 bytes, but only 3 follow \
+                 (truncated or corrupt file)"
+                    .to_string(),
+            ),
+        ];
+        for (e, text) in cases {
+            assert_eq!(e.to_string(), text);
+        }
+        let framing = |why: &str| {
+            format!("the data set's framing is broken at byte 7: {why} (corrupt or truncated file)")
+        };
+        for (why, text) in [
+            (
+                BrokenFraming::EndsBefore { end: 5 },
+                "a sequence or item ends at byte 5, before it",
+            ),
+            (
+                BrokenFraming::EndsInSequence,
+                "the data ends inside a sequence (truncated file)",
+            ),
+            (
+                BrokenFraming::EndsInHeader,
+                "the data ends inside an element header (truncated file)",
+            ),
+            (
+                BrokenFraming::UndefinedFragment,
+                "a pixel data fragment of undefined length",
+            ),
+            (
+                BrokenFraming::NotAnItem { tag },
+                "(0028,0010) where an item belongs",
+            ),
+        ] {
+            assert_eq!(broken(7, why).to_string(), framing(text));
+        }
     }
 }

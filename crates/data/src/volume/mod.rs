@@ -16,6 +16,7 @@ mod source;
 mod stack;
 
 pub(crate) use dicom::slice_positions_along_normal;
+pub use dicom_scan::{BrokenFraming, DicomFramingError};
 pub use source::VolumeFormat;
 pub(crate) use source::VolumeInfo;
 pub use stack::{slice_format, slice_paths};
@@ -125,6 +126,16 @@ pub enum VolumeError {
         path: PathBuf,
         /// The parser's error.
         source: Box<dicom_object::ReadError>,
+    },
+    /// A DICOM file's framing is corrupt: a length runs past the end or
+    /// splits a value, or the framing cannot be followed (checked before
+    /// the parser reads the file).
+    #[error("{path}: {source}")]
+    DicomFraming {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with the framing.
+        source: DicomFramingError,
     },
     /// The volume is malformed or unusable (the problem says why).
     #[error("{path}: {problem}")]

@@ -120,6 +120,17 @@ pub enum ShardError {
         /// What is wrong.
         message: String,
     },
+    /// The first two lines of a shard file do not name the shard and the
+    /// content hashes.
+    #[error("{}:{line}: {source}", path.display())]
+    Header {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// What is wrong with the line.
+        source: ShardHeaderError,
+    },
     /// A shard file could not be written (it names the file and the step).
     #[error(transparent)]
     Write(#[from] AtomicWriteError),
@@ -129,6 +140,21 @@ pub enum ShardError {
     /// No shard files were given.
     #[error("no shard files to merge")]
     NoShards,
+}
+
+/// Why a shard file's first line (`# morphoid matrix shard K/N`) or
+/// second line (`# content: …`) cannot be read.
+#[derive(Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ShardHeaderError {
+    /// The first line is not a shard file's.
+    #[error("not a morphoid matrix shard")]
+    NotAShard,
+    /// The first line's shard is not `K/N` with `1 ≤ K ≤ N`.
+    #[error(transparent)]
+    Shard(#[from] morphoid_data::shard::ShardSyntax),
+    /// The second line is not `# content: …`.
+    #[error("expected `# content: …` (a shard of an older morphoid: compute it again)")]
+    NoContentLine,
 }
 
 impl ShardFile {
@@ -170,9 +196,16 @@ impl ShardFile {
         if first.is_empty() && rest.is_empty() {
             return Err(err(1, "empty file".into()));
         }
-        let shard = parse_shard_line(first).map_err(|m| err(1, m))?;
+        let header = |line: usize| {
+            move |source| ShardError::Header {
+                path: path.to_path_buf(),
+                line,
+                source,
+            }
+        };
+        let shard = parse_shard_line(first).map_err(header(1))?;
         let (second, rest) = rest.split_once('\n').unwrap_or((rest, ""));
-        let content = parse_content_line(second).map_err(|m| err(2, m))?;
+        let content = parse_content_line(second).map_err(header(2))?;
         // The name list is a CSV record after the prefix (a quoted name
         // may hold a line break); the lines of `rest` start at line 3.
         let rest = rest
@@ -520,25 +553,22 @@ fn file_line(line: usize) -> usize {
 }
 
 /// The shard named by the first line, `# morphoid matrix shard K/N`.
-fn parse_shard_line(first: &str) -> Result<Shard, String> {
-    first
+fn parse_shard_line(first: &str) -> Result<Shard, ShardHeaderError> {
+    Ok(first
         .trim_end_matches('\r')
         .strip_prefix("# morphoid matrix shard ")
-        .ok_or_else(|| "not a morphoid matrix shard".to_string())?
+        .ok_or(ShardHeaderError::NotAShard)?
         .trim()
-        .parse()
-        .map_err(|e: morphoid_data::shard::ShardSyntax| e.to_string())
+        .parse()?)
 }
 
 /// The content hashes of the second line, `# content: h1,,h3,…` (`None`
 /// where empty).
-fn parse_content_line(second: &str) -> Result<Vec<Option<String>>, String> {
+fn parse_content_line(second: &str) -> Result<Vec<Option<String>>, ShardHeaderError> {
     Ok(second
         .trim_end_matches('\r')
         .strip_prefix("# content:")
-        .ok_or_else(|| {
-            "expected `# content: …` (a shard of an older morphoid: compute it again)".to_string()
-        })?
+        .ok_or(ShardHeaderError::NoContentLine)?
         .trim()
         .split(',')
         .map(|h| Some(h.trim().to_string()).filter(|h| !h.is_empty()))
@@ -703,6 +733,40 @@ mod tests {
         assert_eq!(ShardFile::parse(&text, Path::new("s.csv")).unwrap(), s);
         let e = ShardFile::parse(&text.replace(",e\n", ",x\n"), Path::new("s.csv")).unwrap_err();
         assert!(e.to_string().starts_with("s.csv:"), "{e}");
+    }
+
+    #[test]
+    fn header_lines_are_checked_with_typed_errors() {
+        let path = Path::new("s.csv");
+        let cases = [
+            (
+                "x\n",
+                1,
+                ShardHeaderError::NotAShard,
+                "s.csv:1: not a morphoid matrix shard",
+            ),
+            (
+                "# morphoid matrix shard 3/2\n",
+                1,
+                ShardHeaderError::Shard("3/2".parse::<Shard>().unwrap_err()),
+                "s.csv:1: `3/2`: a shard is K/N with 1 ≤ K ≤ N, e.g. 2/8",
+            ),
+            (
+                "# morphoid matrix shard 1/2\n# names: a\n",
+                2,
+                ShardHeaderError::NoContentLine,
+                "s.csv:2: expected `# content: …` (a shard of an older morphoid: compute it \
+                 again)",
+            ),
+        ];
+        for (text, at, why, message) in cases {
+            let e = ShardFile::parse(text, path).unwrap_err();
+            assert_eq!(e.to_string(), message);
+            assert!(
+                matches!(&e, ShardError::Header { line, source, .. } if *line == at && *source == why),
+                "{e:?}"
+            );
+        }
     }
 
     #[test]

@@ -29,7 +29,7 @@ pub fn write_bad_inputs(dir: &Path) -> std::io::Result<Vec<(PathBuf, &'static st
         out.push((path, what));
         Ok(())
     };
-    let to_io = |e: morphoid_data::mesh_io::EncodeError| std::io::Error::other(e.0);
+    let to_io = |e: morphoid_data::mesh_io::EncodeError| std::io::Error::other(e);
     let small = crown(&CROWN_GENERA[0], 7, 300);
 
     put("empty.ply", b"", "an empty file")?;
