@@ -37,7 +37,7 @@ pub(crate) fn seeds() -> std::io::Result<Vec<Seed>> {
 }
 
 fn encoded(mesh: &Mesh, encoding: Encoding) -> std::io::Result<Vec<u8>> {
-    encode(mesh, encoding).map_err(|e| std::io::Error::other(e))
+    encode(mesh, encoding).map_err(std::io::Error::other)
 }
 
 /// Small crowns in every encoding, a point cloud, and the bad inputs the
