@@ -83,45 +83,46 @@ impl Default for Http {
 
 impl Http {
     /// `listen` as a socket address (`None`: the server is off).
-    pub fn listen_addr(&self) -> Result<Option<std::net::SocketAddr>, String> {
+    pub fn listen_addr(&self) -> Result<Option<std::net::SocketAddr>, ValueError> {
         self.listen
             .as_deref()
             .map(|l| {
-                l.parse().map_err(|_| {
-                    format!("http.listen {l:?} is not an address and port such as 127.0.0.1:8472")
+                l.parse().map_err(|_| ValueError::NotAnAddress {
+                    value: l.to_string(),
                 })
             })
             .transpose()
     }
 
     /// Checks of the values the types do not catch.
-    fn validate(&self) -> Result<(), String> {
+    fn validate(&self) -> Result<(), ValueError> {
         self.listen_addr()?;
-        let positive = |name: &str, v: f64| {
-            if v.is_finite() && v > 0.0 {
+        let positive = |key: &'static str, value: f64| {
+            if value.is_finite() && value > 0.0 {
                 Ok(())
             } else {
-                Err(format!("http.{name} must be a positive number, not {v}"))
+                Err(ValueError::NotPositive { key, value })
             }
         };
-        positive("header_timeout_seconds", self.header_timeout_seconds)?;
-        positive("request_timeout_seconds", self.request_timeout_seconds)?;
-        positive("session_hours", self.session_hours)?;
+        positive("http.header_timeout_seconds", self.header_timeout_seconds)?;
+        positive("http.request_timeout_seconds", self.request_timeout_seconds)?;
+        positive("http.session_hours", self.session_hours)?;
         if self.max_body_bytes == 0 || self.max_connections == 0 {
-            return Err("http.max_body_bytes and http.max_connections must be positive".into());
+            return Err(ValueError::NoBodyOrConnections);
         }
         // hyper's smallest read buffer: a head must fit in it.
         if self.max_header_bytes < 8192 {
-            return Err(format!(
-                "http.max_header_bytes must be at least 8192, not {}",
-                self.max_header_bytes
-            ));
+            return Err(ValueError::TooSmall {
+                key: "http.max_header_bytes",
+                least: 8192,
+                value: self.max_header_bytes,
+            });
         }
         if self.tls_cert.is_some() != self.tls_key.is_some() {
-            return Err("http.tls_cert and http.tls_key go together (both or neither)".into());
+            return Err(ValueError::TlsHalf);
         }
         if self.login_failures_per_minute == 0 {
-            return Err("http.login_failures_per_minute must be at least 1".into());
+            return Err(ValueError::NoLoginFailures);
         }
         Ok(())
     }
@@ -266,6 +267,83 @@ pub enum ConfigError {
         /// The parser's message (names the key and the line).
         message: String,
     },
+    /// A value the types accept but the checks do not.
+    #[error("{path}: {source}")]
+    Value {
+        /// The file.
+        path: PathBuf,
+        /// Which value, and why.
+        source: ValueError,
+    },
+}
+
+/// A configuration value that parses but cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum ValueError {
+    /// A number of seconds below zero, or not a number.
+    #[error("{key} must be a non-negative number, not {value}")]
+    Negative {
+        /// The key.
+        key: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// A value that must be above zero.
+    #[error("{key} must be a positive number, not {value}")]
+    NotPositive {
+        /// The key.
+        key: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// A count below its least value.
+    #[error("{key} must be at least {least}, not {value}")]
+    TooSmall {
+        /// The key.
+        key: &'static str,
+        /// The least value.
+        least: usize,
+        /// Its value.
+        value: usize,
+    },
+    /// `results.dir = ""`.
+    #[error("results.dir is empty (leave it out for no result files)")]
+    EmptyResultsDir,
+    /// A `[cp]` value.
+    #[error("[cp] {0}")]
+    Cp(#[source] morphoid_core::cp::ParamError),
+    /// `serial.port = ""`.
+    #[error("serial.port is empty")]
+    EmptySerialPort,
+    /// `serial.baud = 0`.
+    #[error("serial.baud must be positive")]
+    NoBaud,
+    /// `serial.trigger` is not a regular expression.
+    #[error("serial.trigger {pattern:?} is not a valid regex: {source}")]
+    Trigger {
+        /// The pattern.
+        pattern: String,
+        /// Why the regex crate refused it.
+        source: regex::Error,
+    },
+    /// An empty `watch.ignore` pattern.
+    #[error("watch.ignore contains an empty pattern")]
+    EmptyIgnorePattern,
+    /// `http.listen` is not an address and port.
+    #[error("http.listen {value:?} is not an address and port such as 127.0.0.1:8472")]
+    NotAnAddress {
+        /// The value.
+        value: String,
+    },
+    /// `http.max_body_bytes` or `http.max_connections` is zero.
+    #[error("http.max_body_bytes and http.max_connections must be positive")]
+    NoBodyOrConnections,
+    /// Only one of `http.tls_cert` and `http.tls_key`.
+    #[error("http.tls_cert and http.tls_key go together (both or neither)")]
+    TlsHalf,
+    /// `http.login_failures_per_minute = 0`.
+    #[error("http.login_failures_per_minute must be at least 1")]
+    NoLoginFailures,
 }
 
 impl Config {
@@ -286,29 +364,30 @@ impl Config {
         };
         let config: Config =
             toml::from_str(text).map_err(|e| invalid(e.to_string().trim().replace('\n', " ")))?;
-        config.validate().map_err(invalid)?;
+        config.validate().map_err(|source| ConfigError::Value {
+            path: path.to_path_buf(),
+            source,
+        })?;
         Ok(config)
     }
 
     /// Checks of values that the types alone do not catch.
-    fn validate(&self) -> Result<(), String> {
-        if !(self.watch.settle_seconds.is_finite() && self.watch.settle_seconds >= 0.0) {
-            return Err(format!(
-                "watch.settle_seconds must be a non-negative number, not {}",
-                self.watch.settle_seconds
-            ));
-        }
-        if !(self.watch.incomplete_seconds.is_finite() && self.watch.incomplete_seconds >= 0.0) {
-            return Err(format!(
-                "watch.incomplete_seconds must be a non-negative number, not {}",
-                self.watch.incomplete_seconds
-            ));
-        }
+    fn validate(&self) -> Result<(), ValueError> {
+        let non_negative = |key: &'static str, value: f64| {
+            if value.is_finite() && value >= 0.0 {
+                Ok(())
+            } else {
+                Err(ValueError::Negative { key, value })
+            }
+        };
+        non_negative("watch.settle_seconds", self.watch.settle_seconds)?;
+        non_negative("watch.incomplete_seconds", self.watch.incomplete_seconds)?;
         if self.clean.target_vertices < 100 {
-            return Err(format!(
-                "clean.target_vertices must be at least 100, not {}",
-                self.clean.target_vertices
-            ));
+            return Err(ValueError::TooSmall {
+                key: "clean.target_vertices",
+                least: 100,
+                value: self.clean.target_vertices,
+            });
         }
         if self
             .results
@@ -316,21 +395,23 @@ impl Config {
             .as_ref()
             .is_some_and(|d| d.as_os_str().is_empty())
         {
-            return Err("results.dir is empty (leave it out for no result files)".into());
+            return Err(ValueError::EmptyResultsDir);
         }
-        self.cp.validate().map_err(|e| format!("[cp] {e}"))?;
+        self.cp.validate().map_err(ValueError::Cp)?;
         if let Some(s) = &self.serial {
             if s.port.is_empty() {
-                return Err("serial.port is empty".into());
+                return Err(ValueError::EmptySerialPort);
             }
             if s.baud == 0 {
-                return Err("serial.baud must be positive".into());
+                return Err(ValueError::NoBaud);
             }
-            regex::Regex::new(&s.trigger)
-                .map_err(|e| format!("serial.trigger {:?} is not a valid regex: {e}", s.trigger))?;
+            regex::Regex::new(&s.trigger).map_err(|source| ValueError::Trigger {
+                pattern: s.trigger.clone(),
+                source,
+            })?;
         }
         if self.watch.ignore.iter().any(String::is_empty) {
-            return Err("watch.ignore contains an empty pattern".into());
+            return Err(ValueError::EmptyIgnorePattern);
         }
         self.http.validate()?;
         Ok(())
@@ -401,6 +482,52 @@ impl Config {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn values_the_checks_refuse_are_named_with_the_file() {
+        let message = |text: &str| match Config::parse(text, Path::new("m.toml")) {
+            Err(e @ ConfigError::Value { .. }) => e.to_string(),
+            other => panic!("{text}: {other:?}"),
+        };
+        let cases = [
+            (
+                "[watch]\nsettle_seconds = -1.0\n",
+                "m.toml: watch.settle_seconds must be a non-negative number, not -1",
+            ),
+            (
+                "[clean]\ntarget_vertices = 10\n",
+                "m.toml: clean.target_vertices must be at least 100, not 10",
+            ),
+            (
+                "[results]\ndir = \"\"\n",
+                "m.toml: results.dir is empty (leave it out for no result files)",
+            ),
+            (
+                "[serial]\nport = \"/dev/ttyS0\"\ntrigger = \"(\"\n",
+                "m.toml: serial.trigger \"(\" is not a valid regex: ",
+            ),
+            (
+                "[http]\nlisten = \"somewhere\"\n",
+                "m.toml: http.listen \"somewhere\" is not an address and port such as 127.0.0.1:8472",
+            ),
+            (
+                "[http]\nsession_hours = 0.0\n",
+                "m.toml: http.session_hours must be a positive number, not 0",
+            ),
+            (
+                "[http]\nmax_header_bytes = 100\n",
+                "m.toml: http.max_header_bytes must be at least 8192, not 100",
+            ),
+            (
+                "[http]\ntls_cert = \"c.pem\"\n",
+                "m.toml: http.tls_cert and http.tls_key go together (both or neither)",
+            ),
+        ];
+        for (text, expected) in cases {
+            let got = message(text);
+            assert!(got.starts_with(expected), "{text}: {got}");
+        }
+    }
 
     #[test]
     fn the_documented_example_parses() {

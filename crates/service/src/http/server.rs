@@ -52,8 +52,8 @@ pub(super) struct PeerAddr(pub SocketAddr);
 #[derive(Debug, thiserror::Error)]
 pub enum HttpError {
     /// `[http] listen` is not an address and port.
-    #[error("{0}")]
-    Listen(String),
+    #[error(transparent)]
+    Listen(crate::config::ValueError),
     /// A non-loopback address without any curator to log in.
     #[error(
         "refusing to serve on {addr}: an address other than loopback needs authentication; \
