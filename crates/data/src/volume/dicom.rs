@@ -99,13 +99,6 @@ fn name(p: &Path) -> String {
         .unwrap_or_default()
 }
 
-fn invalid(path: &Path, problem: String) -> VolumeError {
-    VolumeError::Invalid {
-        path: path.to_path_buf(),
-        problem,
-    }
-}
-
 /// The data set of the DICOM file `bytes` (of the file `path`, which
 /// names errors), up to (`header_only`) or including its pixel data, and
 /// its transfer syntax; a file that ends early is reported as truncated.
@@ -124,7 +117,7 @@ fn open_object(
             source,
         })?
         .ok_or_else(|| {
-            invalid(
+            VolumeError::invalid(
                 path,
                 "no DICOM file meta group with a transfer syntax (not a DICOM file, \
                  or its header is corrupt)"
@@ -138,14 +131,14 @@ fn open_object(
     };
     use dicom_transfer_syntax_registry::{TransferSyntaxIndex, TransferSyntaxRegistry};
     let ts = TransferSyntaxRegistry.get(data.encoding).ok_or_else(|| {
-        invalid(
+        VolumeError::invalid(
             path,
             format!("transfer syntax {} is not registered", data.encoding),
         )
     })?;
     let obj = InMemDicomObject::read_dataset_with_ts(body, ts).map_err(|source| {
         if ends_early(&source) {
-            invalid(
+            VolumeError::invalid(
                 path,
                 "the file ends before its data does (truncated file)".into(),
             )
@@ -186,7 +179,7 @@ fn read_file(path: &Path) -> Result<Vec<u8>, VolumeError> {
 /// endian (see [`NATIVE_SYNTAXES`]); the error says how to export instead.
 fn check_syntax(path: &Path, syntax: &str) -> Result<(), VolumeError> {
     if syntax == BIG_ENDIAN_SYNTAX {
-        return Err(invalid(
+        return Err(VolumeError::invalid(
             path,
             format!(
                 "transfer syntax Explicit VR Big Endian ({syntax}) is not read; \
@@ -195,7 +188,7 @@ fn check_syntax(path: &Path, syntax: &str) -> Result<(), VolumeError> {
         ));
     }
     if !NATIVE_SYNTAXES.contains(&syntax) {
-        return Err(invalid(
+        return Err(VolumeError::invalid(
             path,
             format!(
                 "compressed transfer syntax {} ({syntax}); export the series uncompressed \
@@ -214,14 +207,14 @@ fn read_header(path: &Path, bytes: &[u8]) -> Result<SliceHeader, VolumeError> {
     let obj: &InMemDicomObject = &file;
     let frames = int(obj, tags::NUMBER_OF_FRAMES).unwrap_or(1);
     if frames > 1 {
-        return Err(invalid(
+        return Err(VolumeError::invalid(
             path,
             format!("a multi-frame image ({frames} frames); one slice per file is needed"),
         ));
     }
     let samples = int(obj, tags::SAMPLES_PER_PIXEL).unwrap_or(1);
     if samples != 1 {
-        return Err(invalid(
+        return Err(VolumeError::invalid(
             path,
             format!("{samples} samples per pixel (colour); greyscale slices are needed"),
         ));
@@ -231,7 +224,7 @@ fn read_header(path: &Path, bytes: &[u8]) -> Result<SliceHeader, VolumeError> {
         None | Some("MONOCHROME2") => false,
         Some("MONOCHROME1") => true,
         Some(other) => {
-            return Err(invalid(
+            return Err(VolumeError::invalid(
                 path,
                 format!("photometric interpretation {other}; greyscale slices are needed"),
             ))
@@ -240,7 +233,7 @@ fn read_header(path: &Path, bytes: &[u8]) -> Result<SliceHeader, VolumeError> {
     let rows = int(obj, tags::ROWS).filter(|&r| r > 0);
     let columns = int(obj, tags::COLUMNS).filter(|&c| c > 0);
     let (Some(rows), Some(columns)) = (rows, columns) else {
-        return Err(invalid(
+        return Err(VolumeError::invalid(
             path,
             "no Rows/Columns: not an image (a report or index?)".into(),
         ));
@@ -248,7 +241,7 @@ fn read_header(path: &Path, bytes: &[u8]) -> Result<SliceHeader, VolumeError> {
     super::source::check_slice_size(path, columns as u64, rows as u64)?;
     let bits_allocated = int(obj, tags::BITS_ALLOCATED).unwrap_or(0);
     if bits_allocated != 8 && bits_allocated != 16 {
-        return Err(invalid(
+        return Err(VolumeError::invalid(
             path,
             format!("{bits_allocated} bits allocated per sample; 8 or 16 are read"),
         ));
@@ -344,14 +337,14 @@ fn order_slices(dir: &Path, headers: &[SliceHeader]) -> Result<Ordering, VolumeE
         for (k, &s) in steps.iter().enumerate() {
             if s <= 1e-6 * median.max(1e-3) {
                 let (a, b) = pair(k);
-                return Err(invalid(
+                return Err(VolumeError::invalid(
                     dir,
                     format!("{a} and {b} lie at the same position: a slice is duplicated"),
                 ));
             }
             if s > 1.5 * median {
                 let (a, b) = pair(k);
-                return Err(invalid(
+                return Err(VolumeError::invalid(
                     dir,
                     format!(
                         "slices missing between {a} and {b}: they lie {s:.4} mm apart, \
@@ -439,7 +432,7 @@ impl DicomSeries {
         let first = &headers[0];
         for h in &headers[1..] {
             if [h.columns, h.rows] != [first.columns, first.rows] {
-                return Err(invalid(
+                return Err(VolumeError::invalid(
                     &h.path,
                     format!(
                         "slice is {}×{}, the first slice ({}) is {}×{}: slices of unequal size",
@@ -456,7 +449,7 @@ impl DicomSeries {
                 (a, b) => a.is_some() != b.is_some(),
             };
             if turned {
-                return Err(invalid(
+                return Err(VolumeError::invalid(
                     &h.path,
                     format!(
                         "its orientation differs from the first slice's ({})",
@@ -519,7 +512,7 @@ fn check_one_series(dir: &Path, headers: &[SliceHeader]) -> Result<(), VolumeErr
             )
         })
         .collect();
-    Err(invalid(
+    Err(VolumeError::invalid(
         dir,
         format!(
             "{} DICOM series in one folder: {}; put each series in a folder of its own",
@@ -573,20 +566,20 @@ fn pixels(h: &SliceHeader, bytes: &[u8], out: &mut Vec<f32>) -> Result<(), Volum
     let value = match element(&file, tags::PIXEL_DATA).map(|e| e.value()) {
         Some(Value::Primitive(v)) => v,
         Some(_) => {
-            return Err(invalid(
+            return Err(VolumeError::invalid(
                 &h.path,
                 "the pixel data is encapsulated (compressed); \
                      export the series uncompressed to read it"
                     .into(),
             ))
         }
-        None => return Err(invalid(&h.path, "no pixel data".into())),
+        None => return Err(VolumeError::invalid(&h.path, "no pixel data".into())),
     };
     let mut raw = Vec::new();
     raw_samples(value, h.layout.bits_allocated, &mut raw);
     let n = h.rows * h.columns;
     if raw.len() < n {
-        return Err(invalid(
+        return Err(VolumeError::invalid(
             &h.path,
             format!(
                 "the pixel data holds {} of the {n} samples of a {}×{} slice (truncated file)",
@@ -633,7 +626,7 @@ impl SliceSource for DicomSeries {
         if let Some((_, each)) = &self.hashed {
             let first = each.iter().find(|(p, _)| *p == h.path).map(|(_, x)| x);
             if first != Some(&crate::hash::content_hash(&bytes)) {
-                return Err(invalid(
+                return Err(VolumeError::invalid(
                     &h.path,
                     "the file changed while the series was being read".into(),
                 ));

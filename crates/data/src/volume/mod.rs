@@ -147,6 +147,16 @@ pub enum VolumeError {
     },
 }
 
+impl VolumeError {
+    /// The error for an unusable file or folder `path`; `problem` says why.
+    pub(crate) fn invalid(path: &Path, problem: String) -> VolumeError {
+        VolumeError::Invalid {
+            path: path.to_path_buf(),
+            problem,
+        }
+    }
+}
+
 /// Whether `path` names a volume: a folder, or a `.nrrd`, `.nii`, `.nii.gz`.
 pub fn is_volume_path(path: &Path) -> bool {
     path.is_dir() || volume_file_format(path).is_some()

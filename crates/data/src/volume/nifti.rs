@@ -55,19 +55,11 @@ pub(crate) fn from_reader<R: BufRead + 'static>(
     RawSlices::new(info, path, kind, h.little, reader, hash)
 }
 
-/// The error for an unusable file `path`.
-fn invalid(path: &Path, problem: String) -> VolumeError {
-    VolumeError::Invalid {
-        path: path.to_path_buf(),
-        problem,
-    }
-}
-
 /// The error for `source`, met reading the header of `path` (or skipping
 /// to the data): an end of file there is a truncated file.
 fn header_read_error(path: &Path, source: std::io::Error) -> VolumeError {
     if source.kind() == std::io::ErrorKind::UnexpectedEof {
-        invalid(
+        VolumeError::invalid(
             path,
             "the file ends inside the header (truncated file)".into(),
         )
@@ -100,14 +92,14 @@ impl<'a> Header<'a> {
             (348, _) => true,
             (_, 348) => false,
             _ => {
-                return Err(invalid(
+                return Err(VolumeError::invalid(
                     path,
                     "not a NIfTI-1 file (sizeof_hdr is not 348)".into(),
                 ))
             }
         };
         if &h[344..347] != b"n+1" {
-            return Err(invalid(
+            return Err(VolumeError::invalid(
                 path,
                 "not a single-file NIfTI-1 (magic is not \"n+1\")".into(),
             ));
@@ -149,7 +141,7 @@ impl<'a> Header<'a> {
             || d[..3].iter().any(|&x| x < 1)
             || d[3..(ndim as usize)].iter().any(|&x| x > 1)
         {
-            return Err(invalid(
+            return Err(VolumeError::invalid(
                 self.path,
                 format!(
                     "dimensions {:?}: a single 3D volume is needed",
@@ -171,7 +163,12 @@ impl<'a> Header<'a> {
             256 => SampleType::I8,
             512 => SampleType::U16,
             768 => SampleType::U32,
-            t => return Err(invalid(self.path, format!("unsupported datatype code {t}"))),
+            t => {
+                return Err(VolumeError::invalid(
+                    self.path,
+                    format!("unsupported datatype code {t}"),
+                ))
+            }
         })
     }
 
@@ -203,7 +200,7 @@ impl<'a> Header<'a> {
     fn bytes_to_data(&self) -> Result<u64, VolumeError> {
         let offset = self.f32_at(108);
         if !(offset >= 348.0 && offset < (1u64 << 32) as f32) {
-            return Err(invalid(
+            return Err(VolumeError::invalid(
                 self.path,
                 format!("vox_offset {offset} lies inside the header"),
             ));

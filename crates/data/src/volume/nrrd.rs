@@ -47,10 +47,10 @@ pub(crate) fn from_reader<R: BufRead + 'static>(
     let header = read_header(path, &mut reader)?;
     let kind = header
         .kind
-        .ok_or_else(|| invalid(path, "no \"type\" field".into()))?;
+        .ok_or_else(|| VolumeError::invalid(path, "no \"type\" field".into()))?;
     let dims = header
         .dims
-        .ok_or_else(|| invalid(path, "no \"sizes\" field".into()))?;
+        .ok_or_else(|| VolumeError::invalid(path, "no \"sizes\" field".into()))?;
     let reader = decoded(path, reader, &header.encoding)?;
     let info = VolumeInfo {
         format: VolumeFormat::Nrrd,
@@ -60,14 +60,6 @@ pub(crate) fn from_reader<R: BufRead + 'static>(
         bits: (kind.bytes() * 8) as u16,
     };
     RawSlices::new(info, path, kind, header.little, reader, hash)
-}
-
-/// The error for an unusable file `path`.
-fn invalid(path: &Path, problem: String) -> VolumeError {
-    VolumeError::Invalid {
-        path: path.to_path_buf(),
-        problem,
-    }
 }
 
 /// What an NRRD header says about the data, as far as it has been read.
@@ -112,7 +104,10 @@ fn read_header<R: BufRead>(path: &Path, reader: &mut R) -> Result<Header, Volume
     let mut line = String::new();
     reader.read_line(&mut line).map_err(io)?;
     if !line.starts_with("NRRD000") {
-        return Err(invalid(path, "not an NRRD file (no NRRD000x magic)".into()));
+        return Err(VolumeError::invalid(
+            path,
+            "not an NRRD file (no NRRD000x magic)".into(),
+        ));
     }
     let mut header = Header::default();
     let mut header_bytes = line.len();
@@ -121,13 +116,16 @@ fn read_header<R: BufRead>(path: &Path, reader: &mut R) -> Result<Header, Volume
         let n = reader.read_line(&mut line).map_err(io)?;
         header_bytes += n;
         if n == 0 {
-            return Err(invalid(
+            return Err(VolumeError::invalid(
                 path,
                 "the header has no end (no blank line before the data)".into(),
             ));
         }
         if header_bytes > 1 << 20 {
-            return Err(invalid(path, "header longer than 1 MiB".into()));
+            return Err(VolumeError::invalid(
+                path,
+                "header longer than 1 MiB".into(),
+            ));
         }
         let l = line.trim_end_matches(['\n', '\r']);
         if l.is_empty() {
@@ -151,13 +149,12 @@ impl Header {
     fn take_field(&mut self, path: &Path, key: &str, value: &str) -> Result<(), VolumeError> {
         match key {
             "type" => {
-                self.kind = Some(
-                    sample_type(value)
-                        .ok_or_else(|| invalid(path, format!("unsupported type \"{value}\"")))?,
-                )
+                self.kind = Some(sample_type(value).ok_or_else(|| {
+                    VolumeError::invalid(path, format!("unsupported type \"{value}\""))
+                })?)
             }
             "dimension" if value != "3" => {
-                return Err(invalid(
+                return Err(VolumeError::invalid(
                     path,
                     format!("dimension {value}; a 3D volume is needed"),
                 ))
@@ -189,7 +186,7 @@ impl Header {
                 }
             }
             "data file" | "datafile" => {
-                return Err(invalid(
+                return Err(VolumeError::invalid(
                     path,
                     "detached data files are not supported; save as a single .nrrd".into(),
                 ))
@@ -206,11 +203,11 @@ fn sizes(path: &Path, value: &str) -> Result<[usize; 3], VolumeError> {
         .split_whitespace()
         .map(|t| {
             t.parse()
-                .map_err(|_| invalid(path, format!("bad sizes \"{value}\"")))
+                .map_err(|_| VolumeError::invalid(path, format!("bad sizes \"{value}\"")))
         })
         .collect::<Result<_, _>>()?;
     if s.len() != 3 || s.contains(&0) {
-        return Err(invalid(
+        return Err(VolumeError::invalid(
             path,
             format!("sizes \"{value}\": three positive sizes needed"),
         ));
@@ -247,7 +244,7 @@ fn decoded<R: BufRead + 'static>(
         "raw" => Box::new(reader),
         "gzip" | "gz" => Box::new(flate2::bufread::MultiGzDecoder::new(reader)),
         other => {
-            return Err(invalid(
+            return Err(VolumeError::invalid(
                 path,
                 format!("unsupported encoding \"{other}\" (raw or gzip)"),
             ))

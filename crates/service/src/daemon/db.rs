@@ -43,8 +43,8 @@ pub(super) struct Db {
     health: Health,
     /// The file at the path is another than the one recorded into (a
     /// replacement, or a new file after a deletion that could not be
-    /// undone), and the control loop has not yet listed the export folder
-    /// again for the files that the new one lacks.
+    /// undone), or it lacks a scan recorded into it; and the control loop
+    /// has not yet listed the export folder again for what it lacks.
     new_file: bool,
 }
 
