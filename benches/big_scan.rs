@@ -11,11 +11,11 @@
 use morphoid_data::mesh_io;
 use morphoid_synth::mesh::{self as synth, LibrarySpec, CROWN_GENERA};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 #[allow(dead_code)]
 #[path = "../tests/it/support/mod.rs"]
 mod support;
+use support::measured::run_measured;
 
 /// The `morphoid` binary of this build (`target/release/morphoid`).
 fn morphoid_binary() -> PathBuf {
@@ -31,26 +31,11 @@ fn morphoid_binary() -> PathBuf {
     p
 }
 
-/// Run `morphoid ARGS` under `/usr/bin/time`; (wall seconds, CPU
-/// seconds, peak RSS in MB).
-fn timed(bin: &Path, args: &[&str]) -> (f64, f64, f64) {
-    let out = Command::new("/usr/bin/time")
-        .args(["-f", "TIME %e %U %S %M"])
-        .arg(bin)
-        .args(args)
-        .output()
-        .expect("/usr/bin/time runs (Debian package `time`)");
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "morphoid {args:?} failed:\n{err}");
-    let line = err
-        .lines()
-        .rev()
-        .find(|l| l.starts_with("TIME "))
-        .expect("time's line");
-    let mut it = line.split_whitespace().skip(1);
-    let mut field = || -> f64 { it.next().and_then(|s| s.parse().ok()).expect("a number") };
-    let (wall, user, system, kb) = (field(), field(), field(), field());
-    (wall, user + system, kb / 1024.0)
+/// Run `morphoid ARGS` under GNU time (its figures in `figures`); (wall
+/// seconds, CPU seconds, peak RSS in MB).
+fn timed(bin: &Path, args: &[&str], figures: &Path) -> (f64, f64, f64) {
+    let (cost, _) = run_measured(bin, args, figures).unwrap_or_else(|e| panic!("{e:#}"));
+    (cost.wall, cost.cpu, cost.peak_rss_mb)
 }
 
 fn main() {
@@ -92,9 +77,10 @@ fn main() {
     )
     .expect("config");
     let config = config.to_string_lossy().into_owned();
+    let figures = tmp.path().join("time.txt");
     // Prepare the library once, so classify measures the scan, not the build.
-    timed(&bin, &["--config", &config, "library", "build"]);
-    let (t, cpu, rss) = timed(&bin, &["--config", &config, "inspect", &scan]);
+    timed(&bin, &["--config", &config, "library", "build"], &figures);
+    let (t, cpu, rss) = timed(&bin, &["--config", &config, "inspect", &scan], &figures);
     println!("inspect  {t:6.2} s  CPU {cpu:6.2} s  peak RSS {rss:6.0} MB");
     // Five identifications, each into a database of its own (the same
     // content twice in one database is a duplicate, not identified again).
@@ -108,7 +94,7 @@ fn main() {
         )
         .expect("config");
         let config = config.to_string_lossy().into_owned();
-        let (t, cpu, rss) = timed(&bin, &["--config", &config, "classify", &scan]);
+        let (t, cpu, rss) = timed(&bin, &["--config", &config, "classify", &scan], &figures);
         println!(
             "classify {t:6.2} s  CPU {cpu:6.2} s  peak RSS {rss:6.0} MB  (116 references from the cache)"
         );

@@ -21,8 +21,11 @@ use morphoid_synth::mesh::{
 };
 use morphoid_synth::volume::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::Instant;
+
+#[path = "../tests/it/support/measured.rs"]
+mod measured;
+use measured::{run_measured, Cost};
 
 /// The `morphoid` binary of this build (`target/release/morphoid`).
 fn morphoid_binary() -> PathBuf {
@@ -38,40 +41,10 @@ fn morphoid_binary() -> PathBuf {
     p
 }
 
-/// What `/usr/bin/time` measured of one process.
-struct Cost {
-    wall: f64,
-    cpu: f64,
-    rss_mb: f64,
-}
-
-/// Run `morphoid ARGS` under `/usr/bin/time`; its wall and CPU seconds
-/// and peak RSS, and its standard output.
-fn timed(bin: &Path, args: &[&str]) -> (Cost, String) {
-    let out = Command::new("/usr/bin/time")
-        .args(["-f", "TIME %e %U %S %M"])
-        .arg(bin)
-        .args(args)
-        .output()
-        .expect("/usr/bin/time runs (Debian package `time`)");
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "morphoid {args:?} failed:\n{err}");
-    let line = err
-        .lines()
-        .rev()
-        .find(|l| l.starts_with("TIME "))
-        .expect("time's line");
-    let v: Vec<f64> = line
-        .split_whitespace()
-        .skip(1)
-        .map(|s| s.parse().expect("a number"))
-        .collect();
-    let cost = Cost {
-        wall: v[0],
-        cpu: v[1] + v[2],
-        rss_mb: v[3] / 1024.0,
-    };
-    (cost, String::from_utf8_lossy(&out.stdout).into_owned())
+/// Run `morphoid ARGS` under GNU time (its figures in `figures`); what
+/// it cost and its standard output.
+fn timed(bin: &Path, args: &[&str], figures: &Path) -> (Cost, String) {
+    run_measured(bin, args, figures).unwrap_or_else(|e| panic!("{e:#}"))
 }
 
 /// `grid` centred in a cube of background (its first sample's value), so
@@ -116,7 +89,7 @@ fn report(what: &str, c: &Cost, json: &str) {
         "{what:<24} wall {:6.2} s  cpu {:6.2} s  peak RSS {:6.0} MB  genus {}",
         c.wall,
         c.cpu,
-        c.rss_mb,
+        c.peak_rss_mb,
         genus_of(json)
     );
 }
@@ -186,12 +159,17 @@ fn main() {
     )
     .expect("config");
     let config = config.to_string_lossy().into_owned();
+    let figures = root.join("time.txt");
     // Prepare the library once, so classify measures the scan, not the build.
-    timed(&bin, &["--config", &config, "library", "build"]);
+    timed(&bin, &["--config", &config, "library", "build"], &figures);
 
     let run = |what: &str, path: &Path| {
         let p = path.to_string_lossy().into_owned();
-        let (c, out) = timed(&bin, &["--config", &config, "classify", "--json", &p]);
+        let (c, out) = timed(
+            &bin,
+            &["--config", &config, "classify", "--json", &p],
+            &figures,
+        );
         report(what, &c, &out);
         c
     };
@@ -203,6 +181,6 @@ fn main() {
         cube.dims[0],
         s.wall - m.wall,
         s.cpu - m.cpu,
-        b.rss_mb
+        b.peak_rss_mb
     );
 }

@@ -65,8 +65,8 @@ use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::Instant;
+use support::measured::{run_measured, Cost, GNU_TIME};
 
 #[allow(dead_code)]
 #[path = "../tests/it/support/mod.rs"]
@@ -265,9 +265,6 @@ fn measure_library(run: &LibraryRun, scans: &[Scan]) -> Result<Vec<Row>> {
     }
     Ok(rows)
 }
-
-/// GNU time, which measures each morphoid process.
-const GNU_TIME: &str = "/usr/bin/time";
 
 /// The sizes of `MORPHOID_BENCH_SIZES` (default [`DEFAULT_SIZES`]),
 /// ascending, each once.
@@ -772,63 +769,6 @@ fn write_config(path: &Path, lib: &Path, cache: &Path, db: &Path) -> Result<()> 
     std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
 }
 
-/// What GNU time measured of one morphoid process.
-#[derive(Debug, Clone, Copy)]
-struct Cost {
-    /// Wall seconds.
-    wall: f64,
-    /// CPU seconds, user and system.
-    cpu: f64,
-    /// Peak resident memory, MB (2^20 bytes).
-    peak_rss_mb: f64,
-}
-
-/// Run `morphoid ARGS` under GNU time (its figures written to a file in
-/// `work`, apart from morphoid's own output); what it cost and its
-/// standard output. An error, with morphoid's standard error, when it
-/// fails.
-fn run_measured(bin: &Path, args: &[&OsStr], work: &Path) -> Result<(Cost, String)> {
-    let figures = work.join("time.txt");
-    let out = Command::new(GNU_TIME)
-        .arg("-o")
-        .arg(&figures)
-        .args(["-f", "%e %U %S %M"])
-        .arg(bin)
-        .args(args)
-        .output()
-        .with_context(|| format!("running {GNU_TIME} {}", bin.display()))?;
-    let shown = args
-        .iter()
-        .map(|a| a.to_string_lossy())
-        .collect::<Vec<_>>()
-        .join(" ");
-    ensure!(
-        out.status.success(),
-        "morphoid {shown} failed ({}):\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = std::fs::read_to_string(&figures)
-        .with_context(|| format!("reading GNU time's figures in {}", figures.display()))?;
-    let numbers: Vec<f64> = text
-        .lines()
-        .last()
-        .unwrap_or("")
-        .split_whitespace()
-        .map(str::parse)
-        .collect::<Result<_, _>>()
-        .with_context(|| format!("GNU time's figures for morphoid {shown}: {text:?}"))?;
-    let &[wall, user, system, peak_kb] = numbers.as_slice() else {
-        bail!("GNU time's figures for morphoid {shown}: {text:?}, not four numbers");
-    };
-    let cost = Cost {
-        wall,
-        cpu: user + system,
-        peak_rss_mb: peak_kb / 1024.0,
-    };
-    Ok((cost, String::from_utf8_lossy(&out.stdout).into_owned()))
-}
-
 /// One `morphoid library build`: its cost, how many references it
 /// prepared and how many failed, and its summary line.
 #[derive(Debug, Clone)]
@@ -852,7 +792,7 @@ fn prepare_library(bin: &Path, config: &Path, work: &Path) -> Result<Preparation
         OsStr::new("library"),
         OsStr::new("build"),
     ];
-    let (cost, stdout) = run_measured(bin, &args, work)?;
+    let (cost, stdout) = run_measured(bin, &args, &work.join("time.txt"))?;
     let summary = stdout
         .lines()
         .find(|l| l.contains(" references ("))
@@ -906,7 +846,7 @@ fn identify_scan(bin: &Path, config: &Path, scan: &Path, work: &Path) -> Result<
         OsStr::new("--json"),
         scan.as_os_str(),
     ];
-    let (cost, stdout) = run_measured(bin, &args, work)?;
+    let (cost, stdout) = run_measured(bin, &args, &work.join("time.txt"))?;
     let line = stdout
         .lines()
         .find(|l| l.starts_with('{'))

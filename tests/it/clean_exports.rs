@@ -149,7 +149,15 @@ fn run_kind(kind: Kind, step: usize, through_binary: bool) -> Option<Run> {
             let s = 2f64.powf(((seed * 7919) % 200) as f64 / 100.0 - 1.0);
             let moved = |x: &Mesh| m.apply(&scale(x, s));
             let path = out_dir.join(format!("{name}.ply"));
-            morphoid_data::mesh_io::write_ply(&path, &moved(&tooth.mesh)).unwrap();
+            // MORPHOID_EXPORT_IDEAL_CUT=1: the export cut at the true crop
+            // line instead, so that only the surface's resolution differs
+            // from the crop (what a perfect margin finder would reach).
+            let surface = if std::env::var_os("MORPHOID_EXPORT_IDEAL_CUT").is_some() {
+                tooth.cut_at_crop_line()
+            } else {
+                tooth.mesh.clone()
+            };
+            morphoid_data::mesh_io::write_ply(&path, &moved(&surface)).unwrap();
             if std::env::var_os("MORPHOID_EXPORT_DIR").is_some() {
                 // Kept beside the export, for `clean_exports_from_dir`.
                 let crop = out_dir.join(format!("{name}.crop.ply"));

@@ -98,6 +98,35 @@ pub(crate) struct ExportedTooth {
     pub rows: [[f64; 3]; 3],
     /// Origin of the tooth frame in the crown's coordinates.
     pub centre: [f64; 3],
+    /// The tooth's frame and the crop line's height in each polar bin:
+    /// where the crown was cropped, for [`ExportedTooth::cut_at_crop_line`].
+    crop_frame: Frame,
+    crop_height: Vec<f64>,
+}
+
+impl ExportedTooth {
+    /// The faces of the isosurface above the crop line the crown was
+    /// built on (by their centroids): the crown a perfect margin finder
+    /// would cut, to tell the loss from the cut's place from the loss from
+    /// the surface's resolution.
+    #[allow(dead_code)] // an experiment's knob (clean_exports.rs)
+    pub(crate) fn cut_at_crop_line(&self) -> Mesh {
+        let faces: Vec<[u32; 3]> = self
+            .mesh
+            .faces
+            .iter()
+            .copied()
+            .filter(|f| {
+                let c = f.iter().fold([0.0; 3], |a, &v| {
+                    let p = self.mesh.vertices[v as usize];
+                    [a[0] + p[0] / 3.0, a[1] + p[1] / 3.0, a[2] + p[2] / 3.0]
+                });
+                let l = self.crop_frame.local(c);
+                l[2] > self.crop_height[bin_of(l[1].atan2(l[0]))]
+            })
+            .collect();
+        Mesh::new(self.mesh.vertices.clone(), faces)
+    }
 }
 
 /// The tooth's frame: centre of the crop line, mesiodistal, buccolingual
@@ -616,6 +645,8 @@ pub(crate) fn exported_tooth(crown: &Mesh, form: &ToothForm) -> Option<ExportedT
         grid,
         rows,
         centre: frame.centre,
+        crop_height: rim.height,
+        crop_frame: frame,
     })
 }
 

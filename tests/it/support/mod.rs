@@ -11,6 +11,8 @@ pub(crate) mod fuzz_seeds;
 pub(crate) mod http;
 pub(crate) mod library;
 pub(crate) mod lm;
+#[allow(dead_code)] // used by the benches, which include this module
+pub(crate) mod measured;
 pub(crate) mod mounting;
 pub(crate) mod store;
 

@@ -1,0 +1,77 @@
+//! A morphoid process measured as a whole by GNU time (`/usr/bin/time`,
+//! Debian package `time`), for the benches that time commands: a child
+//! forked from `time` carries none of the bench's own peak memory into
+//! its `ru_maxrss`, as one forked from the bench would across `exec`.
+
+use anyhow::{bail, ensure, Context, Result};
+use std::ffi::OsStr;
+use std::path::Path;
+use std::process::Command;
+
+/// GNU time, which measures each morphoid process.
+pub(crate) const GNU_TIME: &str = "/usr/bin/time";
+
+/// What GNU time measured of one process.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Cost {
+    /// Wall seconds.
+    pub wall: f64,
+    /// CPU seconds, user and system.
+    pub cpu: f64,
+    /// Peak resident memory, MB (2^20 bytes).
+    pub peak_rss_mb: f64,
+}
+
+/// Run `bin ARGS` under GNU time, its figures written to `figures` (apart
+/// from the program's own output); what it cost and its standard output.
+/// An error, with the program's standard error, when it fails.
+pub(crate) fn run_measured<A: AsRef<OsStr>>(
+    bin: &Path,
+    args: &[A],
+    figures: &Path,
+) -> Result<(Cost, String)> {
+    let out = Command::new(GNU_TIME)
+        .arg("-o")
+        .arg(figures)
+        .args(["-f", "%e %U %S %M"])
+        .arg(bin)
+        .args(args)
+        .output()
+        .with_context(|| {
+            format!(
+                "running {GNU_TIME} {} (Debian package `time`)",
+                bin.display()
+            )
+        })?;
+    let shown = args
+        .iter()
+        .map(|a| a.as_ref().to_string_lossy())
+        .collect::<Vec<_>>()
+        .join(" ");
+    ensure!(
+        out.status.success(),
+        "{} {shown} failed ({}):\n{}",
+        bin.display(),
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(figures)
+        .with_context(|| format!("reading GNU time's figures in {}", figures.display()))?;
+    let numbers: Vec<f64> = text
+        .lines()
+        .last()
+        .unwrap_or("")
+        .split_whitespace()
+        .map(str::parse)
+        .collect::<Result<_, _>>()
+        .with_context(|| format!("GNU time's figures for {shown}: {text:?}"))?;
+    let &[wall, user, system, peak_kb] = numbers.as_slice() else {
+        bail!("GNU time's figures for {shown}: {text:?}, not four numbers");
+    };
+    let cost = Cost {
+        wall,
+        cpu: user + system,
+        peak_rss_mb: peak_kb / 1024.0,
+    };
+    Ok((cost, String::from_utf8_lossy(&out.stdout).into_owned()))
+}
