@@ -10,26 +10,12 @@
 
 use morphoid_data::mesh_io;
 use morphoid_synth::mesh::{self as synth, LibrarySpec, CROWN_GENERA};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 #[allow(dead_code)]
 #[path = "../tests/it/support/mod.rs"]
 mod support;
-use support::measured::run_measured;
-
-/// The `morphoid` binary of this build (`target/release/morphoid`).
-fn morphoid_binary() -> PathBuf {
-    let mut p = std::env::current_exe().expect("bench path");
-    p.pop(); // the bench's own file name
-    p.pop(); // deps
-    p.push("morphoid");
-    assert!(
-        p.is_file(),
-        "{} not found: run `cargo build --release` first",
-        p.display()
-    );
-    p
-}
+use support::measured::{morphoid_binary, run_measured};
 
 /// Run `morphoid ARGS` under GNU time (its figures in `figures`); (wall
 /// seconds, CPU seconds, peak RSS in MB).

@@ -20,26 +20,12 @@ use morphoid_synth::mesh::{
     self as synth, whole_tooth, LibrarySpec, WholeToothParams, CROWN_GENERA,
 };
 use morphoid_synth::volume::{phantom, write_volume, PhantomParams, StackSpec, SynthFormat};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 #[path = "../tests/it/support/measured.rs"]
 mod measured;
-use measured::{run_measured, Cost};
-
-/// The `morphoid` binary of this build (`target/release/morphoid`).
-fn morphoid_binary() -> PathBuf {
-    let mut p = std::env::current_exe().expect("bench path");
-    p.pop(); // the bench's own file name
-    p.pop(); // deps
-    p.push("morphoid");
-    assert!(
-        p.is_file(),
-        "{} not found: run `cargo build --release` first",
-        p.display()
-    );
-    p
-}
+use measured::{morphoid_binary, run_measured, Cost};
 
 /// Run `morphoid ARGS` under GNU time (its figures in `figures`); what
 /// it cost and its standard output.

@@ -84,32 +84,6 @@ fn keep_or_remove(path: &Path) {
     }
 }
 
-/// The mounts of `count` teeth scanned together, varied by `seed`, at
-/// `across` voxels across each crown: one scan of one kind of mount (the
-/// same foam and tube material, offset, noise and rings for every tooth),
-/// each mount its own size, foam level, tilt and orientation.
-fn batch_mounts(seed: u64, across: usize, count: usize) -> Vec<Mount> {
-    let first = Mount::varied(seed, across);
-    (0..count)
-        .map(|i| {
-            let mut m = Mount::varied(seed + 17 * i as u64, across);
-            if let (Some(f), Some(f0)) = (&mut m.foam, &first.foam) {
-                f.grey = f0.grey;
-                f.texture = f0.texture;
-                f.grain = f0.grain;
-            }
-            if let (Some(t), Some(t0)) = (&mut m.tube, &first.tube) {
-                t.grey = t0.grey;
-            }
-            m.offset = first.offset;
-            m.noise = first.noise;
-            m.rings = first.rings;
-            m.cupping = first.cupping.min(0.08);
-            m
-        })
-        .collect()
-}
-
 fn centre(points: &[[f64; 3]]) -> [f64; 3] {
     let n = points.len().max(1) as f64;
     [0, 1, 2].map(|a| points.iter().map(|p| p[a]).sum::<f64>() / n)

@@ -5,7 +5,7 @@
 
 use anyhow::{bail, ensure, Context, Result};
 use std::ffi::OsStr;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// GNU time, which measures each morphoid process.
@@ -74,4 +74,19 @@ pub(crate) fn run_measured<A: AsRef<OsStr>>(
         peak_rss_mb: peak_kb / 1024.0,
     };
     Ok((cost, String::from_utf8_lossy(&out.stdout).into_owned()))
+}
+
+/// The `morphoid` binary of this build (`target/release/morphoid`), beside
+/// the running bench's own folder (`target/release/deps`).
+pub(crate) fn morphoid_binary() -> PathBuf {
+    let mut p = std::env::current_exe().expect("the bench's own path");
+    p.pop(); // the bench's own file name
+    p.pop(); // deps
+    p.push("morphoid");
+    assert!(
+        p.is_file(),
+        "{} not found: run `cargo build --release` first",
+        p.display()
+    );
+    p
 }

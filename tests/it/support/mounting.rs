@@ -503,6 +503,17 @@ pub(crate) fn write_mounted(crown: &Mesh, mount: &Mount, path: &Path) -> Mounted
 /// the bottom, in one stack of 16-bit TIFF slices at `path`. Returns each
 /// tooth's crown in the stack's voxel coordinates, in order along x.
 pub(crate) fn write_batch(teeth: &[(&Mesh, Mount)], gap: i64, path: &Path) -> Vec<Mounted> {
+    write_batch_in(teeth, gap, [0; 3], path)
+}
+
+/// [`write_batch`] into a stack of at least `min_dims` voxels: the row of
+/// mounts centred in x and y, air around it and above it.
+pub(crate) fn write_batch_in(
+    teeth: &[(&Mesh, Mount)],
+    gap: i64,
+    min_dims: [usize; 3],
+    path: &Path,
+) -> Vec<Mounted> {
     let parts: Vec<(Grid, Mounted)> = teeth
         .iter()
         .map(|(crown, mount)| mounted_grid(crown, mount))
@@ -510,15 +521,25 @@ pub(crate) fn write_batch(teeth: &[(&Mesh, Mount)], gap: i64, path: &Path) -> Ve
     let width: i64 =
         parts.iter().map(|(g, _)| g.dims[0] as i64).sum::<i64>() + gap * (parts.len() as i64 - 1);
     let dims = [
-        width.max(1) as usize,
-        parts.iter().map(|(g, _)| g.dims[1]).max().unwrap_or(1),
-        parts.iter().map(|(g, _)| g.dims[2]).max().unwrap_or(1),
+        (width.max(1) as usize).max(min_dims[0]),
+        parts
+            .iter()
+            .map(|(g, _)| g.dims[1])
+            .max()
+            .unwrap_or(1)
+            .max(min_dims[1]),
+        parts
+            .iter()
+            .map(|(g, _)| g.dims[2])
+            .max()
+            .unwrap_or(1)
+            .max(min_dims[2]),
     ];
     // Air of the first mount's scan everywhere no mount reaches.
     let air = parts.first().map_or(AIR, |(g, _)| g.values[0]);
     let mut values = vec![f32::MIN; dims[0] * dims[1] * dims[2]];
     let mut out = Vec::new();
-    let mut x0: i64 = 0;
+    let mut x0: i64 = (dims[0] as i64 - width).max(0) / 2;
     for (g, mounted) in parts {
         let y0 = (dims[1] - g.dims[1]) / 2;
         for z in 0..g.dims[2] {
@@ -914,4 +935,30 @@ fn mounted_grid(crown: &Mesh, mount: &Mount) -> (Grid, Mounted) {
 fn root_scale(u: f64) -> f64 {
     let neck = 0.95 - 0.1 * (u / 0.12).clamp(0.0, 1.0).powi(2);
     neck * (1.0 - 0.55 * u.clamp(0.0, 1.0).powf(1.3))
+}
+
+/// The mounts of `count` teeth scanned together, varied by `seed`, at
+/// `across` voxels across each crown: one scan of one kind of mount (the
+/// same foam and tube material, offset, noise and rings for every tooth),
+/// each mount its own size, foam level, tilt and orientation.
+pub(crate) fn batch_mounts(seed: u64, across: usize, count: usize) -> Vec<Mount> {
+    let first = Mount::varied(seed, across);
+    (0..count)
+        .map(|i| {
+            let mut m = Mount::varied(seed + 17 * i as u64, across);
+            if let (Some(f), Some(f0)) = (&mut m.foam, &first.foam) {
+                f.grey = f0.grey;
+                f.texture = f0.texture;
+                f.grain = f0.grain;
+            }
+            if let (Some(t), Some(t0)) = (&mut m.tube, &first.tube) {
+                t.grey = t0.grey;
+            }
+            m.offset = first.offset;
+            m.noise = first.noise;
+            m.rings = first.rings;
+            m.cupping = first.cupping.min(0.08);
+            m
+        })
+        .collect()
 }
