@@ -9,8 +9,9 @@
 //! count, a step across the half-plane `angle = π` moving one copy up or
 //! down), and a winding loop through a vertex `s` is a shortest path from
 //! `s`'s copy at winding 0 to its copy at winding 1. Paths are searched from
-//! every vertex next to that half-plane (in parallel), each search cut off
-//! at the best loop found so far, so most of them stop after a few steps.
+//! the vertices where an edge crosses that half-plane forwards (in
+//! parallel, each from both its ends), each search cut off at the best
+//! loop found so far, so most of them stop after a few steps.
 
 use crate::mesh::HeapItem;
 use rayon::prelude::*;
@@ -26,9 +27,12 @@ const LAYERS: usize = 4;
 const START: usize = 1;
 
 /// The surface's edge graph for the search: per vertex, its neighbours with
-/// the step's cost and its change of winding count.
+/// the step's cost and its change of winding count, all vertices' lists
+/// in one array (the searches read them millions of times).
 pub(super) struct WindingGraph {
-    neighbours: Vec<Vec<(u32, f64, i8)>>,
+    /// Where each vertex's list starts in `steps`; one more entry at the end.
+    offsets: Vec<u32>,
+    steps: Vec<(u32, f64, i8)>,
 }
 
 impl WindingGraph {
@@ -36,23 +40,47 @@ impl WindingGraph {
     /// positive) over vertices at `angles` about the axis (radians in
     /// (−π, π]). Only edges between two `allowed` vertices are kept.
     pub(super) fn new(angles: &[f64], edges: &[(u32, u32, f64)], allowed: &[bool]) -> Self {
-        let mut neighbours = vec![Vec::new(); angles.len()];
-        for &(a, b, cost) in edges {
-            if !(allowed[a as usize] && allowed[b as usize] && cost > 0.0 && cost.is_finite()) {
-                continue;
-            }
-            let w = winding_step(angles[a as usize], angles[b as usize]);
-            neighbours[a as usize].push((b, cost, w));
-            neighbours[b as usize].push((a, cost, -w));
+        let kept = |&&(a, b, cost): &&(u32, u32, f64)| {
+            allowed[a as usize] && allowed[b as usize] && cost > 0.0 && cost.is_finite()
+        };
+        let mut offsets = vec![0u32; angles.len() + 1];
+        for &(a, b, _) in edges.iter().filter(kept) {
+            offsets[a as usize + 1] += 1;
+            offsets[b as usize + 1] += 1;
         }
-        Self { neighbours }
+        for v in 0..angles.len() {
+            offsets[v + 1] += offsets[v];
+        }
+        // Each list in the order of `edges`.
+        let mut fill: Vec<u32> = offsets[..angles.len()].to_vec();
+        let mut steps = vec![(0u32, 0.0f64, 0i8); offsets[angles.len()] as usize];
+        let mut put = |v: u32, step: (u32, f64, i8)| {
+            steps[fill[v as usize] as usize] = step;
+            fill[v as usize] += 1;
+        };
+        for &(a, b, cost) in edges.iter().filter(kept) {
+            let w = winding_step(angles[a as usize], angles[b as usize]);
+            put(a, (b, cost, w));
+            put(b, (a, cost, -w));
+        }
+        Self { offsets, steps }
+    }
+
+    /// Number of vertices.
+    fn len(&self) -> usize {
+        self.offsets.len() - 1
+    }
+
+    /// The neighbours of `v`: (vertex, cost, change of winding count).
+    fn neighbours(&self, v: usize) -> &[(u32, f64, i8)] {
+        &self.steps[self.offsets[v] as usize..self.offsets[v + 1] as usize]
     }
 
     /// Vertices with an edge across the half-plane `angle = π`: every
     /// winding loop passes through one of them.
     pub(super) fn seam_vertices(&self) -> Vec<u32> {
-        (0..self.neighbours.len())
-            .filter(|&v| self.neighbours[v].iter().any(|n| n.2 != 0))
+        (0..self.len())
+            .filter(|&v| self.neighbours(v).iter().any(|n| n.2 != 0))
             .map(|v| v as u32)
             .collect()
     }
@@ -89,8 +117,9 @@ impl WindingGraph {
     /// every source over the whole surface (minutes on a 400k-face
     /// isosurface).
     fn sources_with_winding_loop(&self, sources: &[u32]) -> Vec<u32> {
-        let mut uf = crate::clean::union_find::UnionFind::new(self.neighbours.len() * LAYERS);
-        for (v, list) in self.neighbours.iter().enumerate() {
+        let mut uf = crate::clean::union_find::UnionFind::new(self.len() * LAYERS);
+        for v in 0..self.len() {
+            let list = self.neighbours(v);
             // Each edge is listed from both ends: one of them is enough.
             for &(w, _, step) in list.iter().filter(|n| n.0 as usize > v) {
                 for layer in 0..LAYERS as i64 {
@@ -131,13 +160,23 @@ pub(super) fn cheapest_winding_cycle(
 ) -> Option<WindingCycle> {
     let all = sources.len();
     let sources = graph.sources_with_winding_loop(sources);
-    let n = graph.neighbours.len();
+    // Every loop that winds once steps forward across the half-plane
+    // somewhere, and the step's tail is on it: the searches from those
+    // tails alone (about half the sources) find the cheapest loop. Each
+    // keeps its position among all the sources for the order of ties.
+    let tails: Vec<(usize, u32)> = sources
+        .iter()
+        .copied()
+        .enumerate()
+        .filter(|&(_, s)| graph.crosses_forward(s))
+        .collect();
+    let n = graph.len();
     let popped = AtomicUsize::new(0);
     // The best loop so far and its source's position.
     let best: Mutex<Option<(usize, WindingCycle)>> = Mutex::new(None);
-    sources.par_iter().enumerate().for_each_init(
+    tails.par_iter().for_each_init(
         || Scratch::new(n),
-        |scratch, (position, &s)| {
+        |scratch, &(position, s)| {
             let bound = best
                 .lock()
                 .unwrap_or_else(|p| p.into_inner())
@@ -160,34 +199,124 @@ pub(super) fn cheapest_winding_cycle(
         vertices = n,
         sources = all,
         winding = sources.len(),
+        searched = tails.len(),
         popped = popped.into_inner(),
         "winding loop search"
     );
     best.into_inner()
         .unwrap_or_else(|p| p.into_inner())
-        .map(|(_, cycle)| cycle)
+        .map(|(at, cycle)| graph.started_as_searched_in_order(cycle, at, &sources))
 }
 
-/// One search's distances and predecessors in the cover, reset between
-/// searches by the entries it touched.
+impl WindingGraph {
+    /// Whether `v` has an edge that crosses the half-plane `angle = π`
+    /// counter-clockwise (winding +1).
+    fn crosses_forward(&self, v: u32) -> bool {
+        self.neighbours(v as usize).iter().any(|n| n.2 > 0)
+    }
+
+    /// The cost of the edge from `a` to `b`, if there is one.
+    fn edge_cost(&self, a: u32, b: u32) -> Option<f64> {
+        self.neighbours(a as usize)
+            .iter()
+            .find(|n| n.0 == b)
+            .map(|n| n.1)
+    }
+
+    /// `cycle`, found from `sources[at]`, started at the vertex a search
+    /// from every source in order would have returned it from: of its
+    /// vertices among `sources`, the one from which its edges' costs,
+    /// added up in order round the loop, are least, then the earliest.
+    /// (The searches from every source find this loop from each of its
+    /// vertices, each summing the same costs in its own order.)
+    fn started_as_searched_in_order(
+        &self,
+        cycle: WindingCycle,
+        at: usize,
+        sources: &[u32],
+    ) -> WindingCycle {
+        // The loop's vertices from its start: `ring[i] → ring[i + 1]`.
+        let k = cycle.vertices.len();
+        if k == 0 {
+            return cycle;
+        }
+        let ring: Vec<u32> = (0..k).map(|i| cycle.vertices[(i + k - 1) % k]).collect();
+        let Some(costs) = (0..k)
+            .map(|i| self.edge_cost(ring[i], ring[(i + 1) % k]))
+            .collect::<Option<Vec<f64>>>()
+        else {
+            return cycle;
+        };
+        let position: std::collections::HashMap<u32, usize> =
+            sources.iter().enumerate().map(|(p, &s)| (s, p)).collect();
+        let mut chosen = (cycle.cost, at, 0);
+        for (j, v) in ring.iter().enumerate() {
+            let Some(&p) = position.get(v) else {
+                continue;
+            };
+            let cost = (0..k).fold(0.0, |sum, i| sum + costs[(j + i) % k]);
+            if (cost, p) < (chosen.0, chosen.1) {
+                chosen = (cost, p, j);
+            }
+        }
+        let (cost, _, j) = chosen;
+        if j == 0 {
+            return cycle;
+        }
+        WindingCycle {
+            vertices: (1..=k).map(|i| ring[(j + i) % k]).collect(),
+            cost,
+        }
+    }
+}
+
+/// One search's distances and predecessors in the cover, from the start
+/// (side 0) and from the target (side 1), reset between searches by the
+/// entries it touched.
 struct Scratch {
-    dist: Vec<f64>,
-    prev: Vec<u32>,
+    /// Per node, its distance from each side (side by side in memory: a
+    /// step reads both).
+    dist: Vec<[f64; 2]>,
+    prev: Vec<[u32; 2]>,
     touched: Vec<usize>,
+}
+
+/// The cheapest join of the two sides found so far: its cost and the
+/// edge's ends, reached from the start and from the target.
+#[derive(Clone, Copy)]
+struct Meeting {
+    cost: f64,
+    from_start: usize,
+    from_target: usize,
 }
 
 impl Scratch {
     fn new(vertices: usize) -> Self {
+        let nodes = vertices * LAYERS;
         Scratch {
-            dist: vec![f64::INFINITY; vertices * LAYERS],
-            prev: vec![u32::MAX; vertices * LAYERS],
+            dist: vec![[f64::INFINITY; 2]; nodes],
+            prev: vec![[u32::MAX; 2]; nodes],
             touched: Vec::new(),
         }
+    }
+
+    fn reset(&mut self) {
+        for &i in &self.touched {
+            self.dist[i] = [f64::INFINITY; 2];
+            self.prev[i] = [u32::MAX; 2];
+        }
+        self.touched.clear();
     }
 
     /// The cheapest loop through `s` that winds once, if it beats `bound`
     /// (the best loop's cost and its source's position; a tie beats it
     /// when `position` comes first), and the nodes popped.
+    ///
+    /// The path from `s`'s copy at winding 0 to its copy at winding 1 is
+    /// searched from both ends at once (the cover's edges go both ways at
+    /// the same cost), each side reaching about half the loop's cost out
+    /// instead of one side all of it; the loop's cost is then summed
+    /// along it from `s`, as a search from one end adds it up.
     fn cheapest_loop_through(
         &mut self,
         graph: &WindingGraph,
@@ -195,62 +324,129 @@ impl Scratch {
         bound: Option<(f64, usize)>,
         position: usize,
     ) -> (Option<WindingCycle>, usize) {
-        for &i in &self.touched {
-            self.dist[i] = f64::INFINITY;
-            self.prev[i] = u32::MAX;
-        }
-        self.touched.clear();
+        self.reset();
         let cut_off = |d: f64| match bound {
             None => false,
             Some((cost, at)) if position < at => d > cost,
             Some((cost, _)) => d >= cost,
         };
         let s = s as usize;
-        let start = s * LAYERS + START;
-        let target = s * LAYERS + START + 1;
-        self.dist[start] = 0.0;
-        self.touched.push(start);
-        let mut heap = BinaryHeap::new();
-        heap.push(HeapItem(0.0, start as u32));
+        let ends = [s * LAYERS + START, s * LAYERS + START + 1];
+        let mut heaps = [BinaryHeap::new(), BinaryHeap::new()];
+        for side in 0..2 {
+            self.dist[ends[side]][side] = 0.0;
+            heaps[side].push(HeapItem(0.0, ends[side] as u32));
+        }
+        self.touched.extend(ends);
+        let mut meeting: Option<Meeting> = None;
         let mut popped = 0usize;
-        while let Some(HeapItem(d, node)) = heap.pop() {
-            popped += 1;
-            let node = node as usize;
-            if d > self.dist[node] {
-                continue;
-            }
-            if cut_off(d) {
+        loop {
+            let top = |h: &BinaryHeap<HeapItem>| h.peek().map_or(f64::INFINITY, |i| i.0);
+            let (top0, top1) = (top(&heaps[0]), top(&heaps[1]));
+            // No path not yet seen is cheaper than the two sides' nearest
+            // unsettled nodes together.
+            let unseen = top0 + top1;
+            if meeting.is_some_and(|m| unseen >= m.cost) {
                 break;
             }
-            if node == target {
-                let mut vertices = Vec::new();
-                let mut at = target;
-                while at != start {
-                    vertices.push((at / LAYERS) as u32);
-                    at = self.prev[at] as usize;
-                }
-                vertices.reverse();
-                return (Some(WindingCycle { vertices, cost: d }), popped);
+            if cut_off(unseen) && meeting.is_none_or(|m| cut_off(m.cost)) {
+                return (None, popped);
             }
-            let (v, layer) = (node / LAYERS, node % LAYERS);
-            for &(w, cost, step) in &graph.neighbours[v] {
-                let l = layer as i64 + step as i64;
-                if !(0..LAYERS as i64).contains(&l) {
-                    continue;
+            let side = usize::from(top1 < top0);
+            let Some(HeapItem(d, node)) = heaps[side].pop() else {
+                break;
+            };
+            popped += 1;
+            let node = node as usize;
+            if d > self.dist[node][side] {
+                continue;
+            }
+            self.relax(graph, side, node, d, &mut heaps[side], &mut meeting);
+        }
+        let Some(m) = meeting else {
+            return (None, popped);
+        };
+        let found = self.joined_loop(graph, ends, m);
+        if found.as_ref().is_none_or(|c| cut_off(c.cost)) {
+            return (None, popped);
+        }
+        (found, popped)
+    }
+
+    /// Relax the edges out of `node` (settled at `d` on `side`), noting the
+    /// cheapest join with the other side.
+    fn relax(
+        &mut self,
+        graph: &WindingGraph,
+        side: usize,
+        node: usize,
+        d: f64,
+        heap: &mut BinaryHeap<HeapItem>,
+        meeting: &mut Option<Meeting>,
+    ) {
+        let (v, layer) = (node / LAYERS, node % LAYERS);
+        for &(w, cost, step) in graph.neighbours(v) {
+            let l = layer as i64 + step as i64;
+            if !(0..LAYERS as i64).contains(&l) {
+                continue;
+            }
+            let next = w as usize * LAYERS + l as usize;
+            let nd = d + cost;
+            let known = self.dist[next];
+            let through = nd + known[1 - side];
+            if through < meeting.map_or(f64::INFINITY, |m| m.cost) {
+                let (from_start, from_target) = if side == 0 {
+                    (node, next)
+                } else {
+                    (next, node)
+                };
+                *meeting = Some(Meeting {
+                    cost: through,
+                    from_start,
+                    from_target,
+                });
+            }
+            if nd < known[side] {
+                if known[0].is_infinite() && known[1].is_infinite() {
+                    self.touched.push(next);
                 }
-                let next = w as usize * LAYERS + l as usize;
-                let nd = d + cost;
-                if nd < self.dist[next] {
-                    if self.dist[next].is_infinite() {
-                        self.touched.push(next);
-                    }
-                    self.dist[next] = nd;
-                    self.prev[next] = node as u32;
-                    heap.push(HeapItem(nd, next as u32));
-                }
+                self.dist[next][side] = nd;
+                self.prev[next][side] = node as u32;
+                heap.push(HeapItem(nd, next as u32));
             }
         }
-        (None, popped)
+    }
+
+    /// The loop through the join `m`: the start's side's path to it, the
+    /// edge, the target's side's path back; `None` if an edge is missing
+    /// (it cannot be).
+    fn joined_loop(
+        &self,
+        graph: &WindingGraph,
+        [start, target]: [usize; 2],
+        m: Meeting,
+    ) -> Option<WindingCycle> {
+        let mut nodes = Vec::new();
+        let mut at = m.from_start;
+        while at != start {
+            nodes.push(at);
+            at = self.prev[at][0] as usize;
+        }
+        nodes.reverse();
+        let mut at = m.from_target;
+        nodes.push(at);
+        while at != target {
+            at = self.prev[at][1] as usize;
+            nodes.push(at);
+        }
+        let vertices: Vec<u32> = nodes.iter().map(|&n| (n / LAYERS) as u32).collect();
+        let mut cost = 0.0;
+        let mut from = (start / LAYERS) as u32;
+        for &v in &vertices {
+            cost += graph.edge_cost(from, v)?;
+            from = v;
+        }
+        Some(WindingCycle { vertices, cost })
     }
 }
 
@@ -318,6 +514,75 @@ mod tests {
                 "not the ring of the first source ({ring}): {:?}",
                 cycle.vertices
             );
+        }
+    }
+
+    /// The cheapest loop through each source by a plain one-sided search
+    /// in the cover, the least (cost, position) of them: what a search
+    /// from every source in order gives.
+    fn searched_in_order(graph: &WindingGraph, sources: &[u32]) -> Option<WindingCycle> {
+        let mut best: Option<WindingCycle> = None;
+        for &s in sources {
+            let n = graph.len() * LAYERS;
+            let (mut dist, mut prev) = (vec![f64::INFINITY; n], vec![usize::MAX; n]);
+            let (start, target) = (s as usize * LAYERS + START, s as usize * LAYERS + START + 1);
+            dist[start] = 0.0;
+            let mut heap = BinaryHeap::from([HeapItem(0.0, start as u32)]);
+            while let Some(HeapItem(d, node)) = heap.pop() {
+                let node = node as usize;
+                if d > dist[node] || node == target {
+                    continue;
+                }
+                for &(w, cost, step) in graph.neighbours(node / LAYERS) {
+                    let l = (node % LAYERS) as i64 + i64::from(step);
+                    let next = w as usize * LAYERS + l as usize;
+                    if (0..LAYERS as i64).contains(&l) && d + cost < dist[next] {
+                        dist[next] = d + cost;
+                        prev[next] = node;
+                        heap.push(HeapItem(d + cost, next as u32));
+                    }
+                }
+            }
+            if best.as_ref().is_some_and(|b| b.cost <= dist[target]) || dist[target].is_infinite() {
+                continue;
+            }
+            let mut vertices = Vec::new();
+            let mut at = target;
+            while at != start {
+                vertices.push((at / LAYERS) as u32);
+                at = prev[at];
+            }
+            vertices.reverse();
+            best = Some(WindingCycle {
+                vertices,
+                cost: dist[target],
+            });
+        }
+        best
+    }
+
+    #[test]
+    fn the_two_sided_searches_find_the_loop_a_search_from_every_source_finds() {
+        let (m, rings) = (30, 12);
+        let (angles, mut edges) = cylinder(m, rings, rings);
+        // Costs of no pattern (a fixed linear congruential sequence).
+        let mut x = 12345u64;
+        for e in &mut edges {
+            x = x
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            e.2 *= 0.05 + (x >> 11) as f64 / (1u64 << 53) as f64;
+        }
+        let graph = WindingGraph::new(&angles, &edges, &vec![true; angles.len()]);
+        for reverse in [false, true] {
+            let mut sources = graph.seam_vertices();
+            if reverse {
+                sources.reverse();
+            }
+            let found = cheapest_winding_cycle(&graph, &sources).unwrap();
+            let expected = searched_in_order(&graph, &sources).unwrap();
+            assert_eq!(found.cost.to_bits(), expected.cost.to_bits());
+            assert_eq!(found.vertices, expected.vertices);
         }
     }
 

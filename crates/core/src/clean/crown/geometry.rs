@@ -3,6 +3,7 @@
 //! principal axes and cylindrical coordinates about an axis.
 
 use crate::mesh::{cross, dot, norm, sub, triangle_normal2, EdgeMap, Mesh};
+use rayon::prelude::*;
 
 /// Per-face and per-edge geometry of a closed, consistently oriented mesh.
 pub(super) struct SurfaceGeometry {
@@ -149,24 +150,32 @@ pub(super) fn taubin_smoothed(mesh: &Mesh, iterations: usize) -> Vec<[f64; 3]> {
     const MU: f64 = -0.53;
     let adjacency = crate::mesh::vertex_adjacency(mesh);
     let mut points = mesh.vertices.clone();
+    // Each vertex's new position reads the old ones only: the vertices are
+    // moved in parallel, with the same result, into a second buffer (a
+    // million-vertex export is smoothed sixty times).
+    let mut moved = points.clone();
     for _ in 0..iterations {
         for factor in [LAMBDA, MU] {
-            points = points
-                .iter()
-                .zip(&adjacency)
-                .map(|(&p, near)| {
-                    if near.is_empty() {
-                        return p;
-                    }
-                    let n = near.len() as f64;
-                    let mean = near.iter().fold([0.0; 3], |acc, &q| {
-                        let q = points[q as usize];
-                        [acc[0] + q[0], acc[1] + q[1], acc[2] + q[2]]
-                    });
-                    [0, 1, 2].map(|d| p[d] + factor * (mean[d] / n - p[d]))
-                })
-                .collect();
+            moved
+                .par_iter_mut()
+                .zip(points.par_iter().zip(adjacency.par_iter()))
+                .for_each(|(out, (&p, near))| *out = taubin_step(&points, p, near, factor));
+            std::mem::swap(&mut points, &mut moved);
         }
     }
     points
+}
+
+/// `p` moved by `factor` towards the mean of its neighbours `near` (their
+/// positions in `points`); unmoved without neighbours.
+fn taubin_step(points: &[[f64; 3]], p: [f64; 3], near: &[u32], factor: f64) -> [f64; 3] {
+    if near.is_empty() {
+        return p;
+    }
+    let n = near.len() as f64;
+    let mean = near.iter().fold([0.0; 3], |acc, &q| {
+        let q = points[q as usize];
+        [acc[0] + q[0], acc[1] + q[1], acc[2] + q[2]]
+    });
+    [0, 1, 2].map(|d| p[d] + factor * (mean[d] / n - p[d]))
 }
