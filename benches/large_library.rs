@@ -353,7 +353,7 @@ fn read_real_teeth(dir: &Path) -> Result<RealTeeth> {
     let mut records = csv_text::rows(&text, false);
     let header = match records.next() {
         Some(Ok(row)) => row.fields,
-        Some(Err((line, e))) => bail!("{}:{line}: {e}", labels_path.display()),
+        Some(Err(e)) => bail!("{}:{}: {e}", labels_path.display(), e.line),
         None => bail!("{}: empty", labels_path.display()),
     };
     ensure!(
@@ -365,7 +365,7 @@ fn read_real_teeth(dir: &Path) -> Result<RealTeeth> {
     let mut rows = BTreeMap::new();
     for record in records {
         let row =
-            record.map_err(|(line, e)| anyhow::anyhow!("{}:{line}: {e}", labels_path.display()))?;
+            record.map_err(|e| anyhow::anyhow!("{}:{}: {e}", labels_path.display(), e.line))?;
         rows.insert(row.fields[0].clone(), row.fields);
     }
     let teeth = library

@@ -279,6 +279,19 @@ pub enum ClassifyError {
     /// The library has no usable reference.
     #[error("the reference library has no prepared reference")]
     EmptyLibrary,
+    /// The scan was read without the content hash asked for (a fault of
+    /// the reader: what was identified would not be known).
+    #[error("{}: read without its content hash", shown(.path))]
+    Unhashed {
+        /// The scan file or folder.
+        path: PathBuf,
+    },
+}
+
+/// A path as a one-line message shows it (control characters escaped, as
+/// the mesh readers' messages do).
+fn shown(path: &Path) -> String {
+    path.display().to_string().escape_debug().to_string()
 }
 
 impl Classifier {
@@ -526,12 +539,9 @@ impl Classifier {
             Some(content) if content.hash == expected => {}
             Some(content) => return Ok(Read::Other(content)),
             None => {
-                return Err(ClassifyError::Pipeline(PipelineError::Load(
-                    morphoid_data::mesh_io::LoadError::Invalid {
-                        path: path.to_path_buf(),
-                        message: "read without its content hash".into(),
-                    },
-                )))
+                return Err(ClassifyError::Unhashed {
+                    path: path.to_path_buf(),
+                })
             }
         }
         if loaded.specimens.len() == 1 {
@@ -562,7 +572,7 @@ impl Classifier {
                         let outcome = self.compare_prepared(&name, &surface, load_ms);
                         (outcome, surface)
                     })
-                    .map_err(|e| e.to_string());
+                    .map_err(Arc::new);
                 (position, result)
             })
             .collect();
@@ -581,14 +591,12 @@ impl Classifier {
         n: u32,
     ) -> Result<(PreparedSurface, morphoid_data::hash::Content), ClassifyError> {
         let loaded = pipeline::load_hashed(path, &self.settings)?;
-        let content = loaded.content.clone().ok_or_else(|| {
-            ClassifyError::Pipeline(PipelineError::Load(
-                morphoid_data::mesh_io::LoadError::Invalid {
-                    path: path.to_path_buf(),
-                    message: "read without its content hash".into(),
-                },
-            ))
-        })?;
+        let content = loaded
+            .content
+            .clone()
+            .ok_or_else(|| ClassifyError::Unhashed {
+                path: path.to_path_buf(),
+            })?;
         let count = loaded.specimens.len();
         let found = pipeline::prepare_specimens(loaded, path, &self.settings)
             .into_iter()
@@ -884,7 +892,7 @@ impl Classifier {
 /// identification with the prepared specimen, or why it has none.
 type SpecimenRead = (
     pipeline::Position,
-    Result<(ScanOutcome, PreparedSurface), String>,
+    Result<(ScanOutcome, PreparedSurface), Arc<PipelineError>>,
 );
 
 /// What [`Classifier::identify_content`] read.

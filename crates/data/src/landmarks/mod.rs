@@ -192,6 +192,16 @@ pub enum LandmarkError {
         /// What is wrong.
         message: String,
     },
+    /// A record the CSV reader cannot read.
+    #[error("{path}:{line}: {source}")]
+    Csv {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number of the record.
+        line: usize,
+        /// The reader's error.
+        source: crate::table::csv_text::RowError,
+    },
     /// A coordinate (or a line of `x y z`) that cannot be read, at a line.
     #[error("{path}:{line}: {source}")]
     Coordinate {
@@ -532,6 +542,16 @@ pub enum CoordinateError {
         /// The number of values on the line.
         found: usize,
     },
+}
+
+/// The error for a record of the file `path` that the CSV reader cannot
+/// read.
+fn csv_error(path: &Path, source: crate::table::csv_text::RowError) -> LandmarkError {
+    LandmarkError::Csv {
+        path: path.to_path_buf(),
+        line: source.line,
+        source,
+    }
 }
 
 /// The error for the coordinate error `source` at line `line` (1-based)

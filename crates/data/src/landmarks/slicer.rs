@@ -2,7 +2,7 @@
 //! (`.mrk.json`). Points are converted to LPS on reading (see the module
 //! documentation of [`super`]); the writers declare LPS.
 
-use super::{coordinate_error, parse_coordinate, LandmarkError, Landmarks};
+use super::{coordinate_error, csv_error, parse_coordinate, LandmarkError, Landmarks};
 use crate::table::csv_text::{rows, CsvString, Row};
 use serde_json::{json, Value};
 use std::path::Path;
@@ -64,7 +64,7 @@ pub(super) fn parse_fcsv(text: &str, path: &Path) -> Result<Landmarks, LandmarkE
     let mut lm = Landmarks::default();
     let mut data = rows(text, true);
     loop {
-        let row = data.next().transpose().map_err(|(line, m)| err(line, m))?;
+        let row = data.next().transpose().map_err(|e| csv_error(path, e))?;
         // Header lines above this record (all that remain after the last).
         let until = row.as_ref().map_or(usize::MAX, |r| r.line);
         while let Some((line, key, value)) = next_header.take_if(|(l, _, _)| *l < until) {

@@ -5,7 +5,7 @@
 //! without commas is split at whitespace (`x y z`). Files are written with
 //! commas.
 
-use super::{coordinate_error, parse_coordinate, LandmarkError, Landmarks};
+use super::{coordinate_error, csv_error, parse_coordinate, LandmarkError, Landmarks};
 use crate::table::csv_text::{rows, CsvString, Row};
 use std::path::Path;
 
@@ -39,7 +39,7 @@ pub(super) fn parse_csv(text: &str, path: &Path) -> Result<Landmarks, LandmarkEr
     let mut layout: Option<Layout> = None;
     let mut lm = Landmarks::default();
     for row in rows(text, true) {
-        let Row { line, fields } = row.map_err(|(line, m)| err(line, m))?;
+        let Row { line, fields } = row.map_err(|e| csv_error(path, e))?;
         if fields
             .first()
             .is_some_and(|f| f.trim_start().starts_with('#'))

@@ -11,6 +11,7 @@
 //! vertices: ASCII STL loads as a triangle soup, which cleaning welds;
 //! binary STL shares bit-identical corners as it is read.
 
+mod error;
 mod obj;
 mod off;
 mod ply;
@@ -18,6 +19,7 @@ mod stl;
 mod text;
 mod write;
 
+pub use error::{Location, ParseError, PlyHeaderProblem, StlSize};
 pub use write::{encode, save, save_as, write_ply};
 pub use write::{write_stl, write_stl_ascii, EncodeError, Encoding, SaveError};
 
@@ -80,12 +82,22 @@ pub struct LoadedMesh {
 #[derive(Debug, thiserror::Error)]
 pub enum LoadError {
     /// The file content is malformed or unusable.
-    #[error("{}: {message}", shown(.path))]
+    #[error("{}: {source}", shown(.path))]
     Invalid {
         /// The file.
         path: PathBuf,
         /// What is wrong (and where, line or byte offset).
-        message: String,
+        source: ParseError,
+    },
+    /// The file is larger than the readers take; it was not read.
+    #[error("{}: file is {size} bytes, more than the limit of {limit}", shown(.path))]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Its size (bytes).
+        size: u64,
+        /// The largest file taken (bytes).
+        limit: u64,
     },
     /// The file could not be opened or read.
     #[error("{}: cannot read: {source}", shown(.path))]
@@ -111,6 +123,7 @@ impl LoadError {
     pub fn path(&self) -> &Path {
         match self {
             LoadError::Invalid { path, .. }
+            | LoadError::TooLarge { path, .. }
             | LoadError::Io { path, .. }
             | LoadError::UnknownFormat { path } => path,
         }
@@ -123,7 +136,7 @@ pub(crate) fn shown(path: &Path) -> String {
 }
 
 /// A parse failure inside one reader, before the file name is attached.
-pub(crate) type ParseResult<T> = Result<T, String>;
+pub(crate) type ParseResult<T> = Result<T, ParseError>;
 
 /// Read a mesh, choosing the reader from the file extension
 /// (case-insensitive: `.obj`, `.ply`, `.stl`, `.off`).
@@ -155,9 +168,10 @@ fn load_from(path: &Path, hash: Option<&SharedHash>) -> Result<LoadedMesh, LoadE
     let file = std::fs::File::open(path).map_err(io_err)?;
     let size = file.metadata().map_err(io_err)?.len();
     if size > MAX_FILE_BYTES {
-        return Err(LoadError::Invalid {
+        return Err(LoadError::TooLarge {
             path: path.to_path_buf(),
-            message: format!("file is {size} bytes, more than the limit of {MAX_FILE_BYTES}"),
+            size,
+            limit: MAX_FILE_BYTES,
         });
     }
     let hashing = HashingReader::maybe(file, hash.cloned());
@@ -170,9 +184,9 @@ fn load_from(path: &Path, hash: Option<&SharedHash>) -> Result<LoadedMesh, LoadE
             // Big exports are binary STL: read record by record.
             let mesh = stl::read_binary_records(&mut reader, n).map_err(|e| match e {
                 stl::BinaryFileError::Io(source) => io_err(source),
-                stl::BinaryFileError::Invalid(message) => LoadError::Invalid {
+                stl::BinaryFileError::Invalid(source) => LoadError::Invalid {
                     path: path.to_path_buf(),
-                    message,
+                    source,
                 },
             })?;
             // Anything after the records is read (and hashed) too: a file
@@ -181,9 +195,9 @@ fn load_from(path: &Path, hash: Option<&SharedHash>) -> Result<LoadedMesh, LoadE
             if rest > 0 {
                 return Err(io_err(changed_while_read()));
             }
-            let mesh = validate(mesh).map_err(|message| LoadError::Invalid {
+            let mesh = validate(mesh).map_err(|source| LoadError::Invalid {
                 path: path.to_path_buf(),
-                message,
+                source,
             })?;
             return Ok(LoadedMesh { mesh, format });
         }
@@ -207,7 +221,7 @@ pub fn load_bytes(bytes: &[u8], format: Format, name: &Path) -> Result<LoadedMes
     // Text-only formats may start with a UTF-8 byte-order mark.
     let text = bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(bytes);
     let parsed = if bytes.is_empty() {
-        Err("file is empty".to_string())
+        Err(ParseError::Empty)
     } else {
         match format {
             Format::Obj => obj::read_obj(text),
@@ -216,11 +230,12 @@ pub fn load_bytes(bytes: &[u8], format: Format, name: &Path) -> Result<LoadedMes
             Format::Off => off::read_off(text),
         }
     };
+    // The messages are one line each (see `error`).
     let mesh = parsed
         .and_then(validate)
-        .map_err(|message| LoadError::Invalid {
+        .map_err(|source| LoadError::Invalid {
             path: name.to_path_buf(),
-            message: message.replace(['\n', '\r'], " "),
+            source,
         })?;
     Ok(LoadedMesh { mesh, format })
 }
@@ -229,16 +244,17 @@ pub fn load_bytes(bytes: &[u8], format: Format, name: &Path) -> Result<LoadedMes
 /// is finite and every face index is in range.
 fn validate(mesh: Mesh) -> ParseResult<Mesh> {
     if mesh.vertices.is_empty() {
-        return Err("file contains no vertices".into());
+        return Err(ParseError::NoVertices);
     }
-    if let Some(i) = mesh.first_non_finite_vertex() {
-        return Err(format!("vertex {i} has a non-finite coordinate"));
+    if let Some(vertex) = mesh.first_non_finite_vertex() {
+        return Err(ParseError::NonFiniteVertex { vertex });
     }
-    if let Some((fi, bad)) = mesh.first_face_out_of_range() {
-        let n = mesh.vertices.len();
-        return Err(format!(
-            "face {fi} refers to vertex {bad}, but there are only {n} vertices"
-        ));
+    if let Some((face, vertex)) = mesh.first_face_out_of_range() {
+        return Err(ParseError::FaceOutOfRange {
+            face,
+            vertex,
+            vertices: mesh.vertices.len(),
+        });
     }
     Ok(mesh)
 }
@@ -254,9 +270,11 @@ pub(crate) fn check_count(
     let needed = count.checked_mul(min_row_bytes.max(1));
     match needed {
         Some(b) if b <= remaining as u64 && count <= u32::MAX as u64 => Ok(count as usize),
-        _ => Err(format!(
-            "header claims {count} {what}, which cannot fit in the remaining {remaining} bytes"
-        )),
+        _ => Err(ParseError::CountTooLarge {
+            what: what.to_string(),
+            count,
+            remaining,
+        }),
     }
 }
 

@@ -5,7 +5,7 @@
 //! skipped. `#` starts a comment. The keyword line may be absent.
 
 use super::text::{shorten, Tokens};
-use super::{check_count, push_fan, ParseResult};
+use super::{check_count, push_fan, ParseError, ParseResult};
 use morphoid_core::mesh::Mesh;
 
 /// Largest polygon accepted (corners).
@@ -15,23 +15,21 @@ const MAX_POLYGON: u64 = 1 << 16;
 pub(crate) fn read_off(bytes: &[u8]) -> ParseResult<Mesh> {
     let first_line = bytes.split(|&b| b == b'\n').next().unwrap_or(&[]);
     if first_line.windows(6).any(|w| w == b"BINARY") {
-        return Err("binary OFF is not supported".into());
+        return Err(ParseError::BinaryOff);
     }
     let mut t = Tokens::new(bytes, 1, true);
     let keyword = t.expect("'OFF'")?;
     let counts_follow_keyword = keyword.ends_with("OFF");
     if counts_follow_keyword {
         if keyword.starts_with('4') || keyword.starts_with('n') {
-            return Err(format!(
-                "line 1: '{}' is not a 3-D OFF file",
-                shorten(keyword)
-            ));
+            return Err(ParseError::NotThreeDimensionalOff {
+                keyword: shorten(keyword),
+            });
         }
     } else if keyword.parse::<u64>().is_err() {
-        return Err(format!(
-            "not an OFF file (it starts with '{}', not 'OFF')",
-            shorten(keyword)
-        ));
+        return Err(ParseError::NotOff {
+            start: shorten(keyword),
+        });
     }
     let nv = if counts_follow_keyword {
         t.expect_u64("the vertex count")?
@@ -59,19 +57,23 @@ pub(crate) fn read_off(bytes: &[u8]) -> ParseResult<Mesh> {
     for fi in 0..nf_usize {
         let n = t.expect_u64("a face's corner count")?;
         if !(3..=MAX_POLYGON).contains(&n) {
-            return Err(format!(
-                "line {}: face {fi} has {n} corners (3 to {MAX_POLYGON} allowed)",
-                t.line()
-            ));
+            return Err(ParseError::OffPolygonSize {
+                line: t.line(),
+                face: fi,
+                corners: n,
+                max: MAX_POLYGON,
+            });
         }
         poly.clear();
         for _ in 0..n {
             let v = t.expect_u64("a vertex index")?;
             if v >= nv as u64 {
-                return Err(format!(
-                    "line {}: face {fi} refers to vertex {v}, but there are only {nv} vertices",
-                    t.line()
-                ));
+                return Err(ParseError::OffFaceOutOfRange {
+                    line: t.line(),
+                    face: fi,
+                    vertex: v,
+                    vertices: nv,
+                });
             }
             poly.push(v as u32);
         }
@@ -108,7 +110,10 @@ mod tests {
         assert!(read_off(b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n").is_err());
         assert!(read_off(b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1\n").is_err());
         let e = read_off(b"OFF\n4000000000 1 0\n0 0 0\n").unwrap_err();
-        assert!(e.contains("4000000000"), "{e}");
+        assert_eq!(
+            e.to_string(),
+            "header claims 4000000000 vertices, which cannot fit in the remaining 6 bytes"
+        );
         assert!(read_off(b"PLY\n").is_err());
     }
 }

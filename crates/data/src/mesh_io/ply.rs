@@ -6,7 +6,7 @@
 //! fan-triangulated. Other elements are skipped.
 
 use super::text::{shorten, Tokens};
-use super::{check_count, push_fan, ParseResult};
+use super::{check_count, push_fan, Location, ParseError, ParseResult, PlyHeaderProblem};
 use morphoid_core::mesh::Mesh;
 
 /// Longest header accepted (bytes).
@@ -107,10 +107,10 @@ pub(crate) fn read_ply(bytes: &[u8]) -> ParseResult<Mesh> {
         .iter()
         .find(|e| e.name == "vertex")
         .map(|e| e.count)
-        .ok_or("PLY header has no 'vertex' element")?;
+        .ok_or(ParseError::PlyNoVertexElement)?;
     if header.elements.iter().any(|e| e.name == "tristrips") {
         // Skipping them would silently turn the surface into a point cloud.
-        return Err("PLY triangle strips ('tristrips') are not supported".into());
+        return Err(ParseError::PlyTriangleStrips);
     }
     let body = bytes.get(header.body..).unwrap_or(&[]);
     let mut reader = match header.storage {
@@ -148,7 +148,7 @@ pub(crate) fn read_ply(bytes: &[u8]) -> ParseResult<Mesh> {
             }
             "face" if roles.contains(&Role::FaceIndices) => {
                 if !mesh.faces.is_empty() {
-                    return Err("PLY file has more than one 'face' element".into());
+                    return Err(ParseError::PlyFaceElements);
                 }
                 mesh.faces = read_faces(&mut reader, element, &roles, count, vertex_count)?;
             }
@@ -169,9 +169,9 @@ fn roles_of(element: &Element) -> ParseResult<Vec<Role>> {
                     .properties
                     .iter()
                     .position(|p| p.name == *name)
-                    .ok_or_else(|| format!("PLY vertex element has no property '{name}'"))?;
+                    .ok_or(ParseError::PlyNoCoordinate { axis: name })?;
                 if !matches!(element.properties[i].kind, PropertyKind::Scalar(_)) {
-                    return Err(format!("PLY vertex property '{name}' is a list"));
+                    return Err(ParseError::PlyCoordinateList { axis: name });
                 }
                 roles[i] = Role::Coordinate(axis);
             }
@@ -186,17 +186,16 @@ fn roles_of(element: &Element) -> ParseResult<Vec<Role>> {
                     return Ok(roles);
                 }
                 // Skipping the faces would silently give a point cloud.
-                return Err("PLY face element has no 'vertex_indices' list".into());
+                return Err(ParseError::PlyNoFaceIndices);
             };
             match element.properties[i].kind {
                 PropertyKind::List { count, item } if count.is_integer() && item.is_integer() => {
                     roles[i] = Role::FaceIndices
                 }
                 _ => {
-                    return Err(format!(
-                        "PLY face property '{}' is not a list of integers",
-                        element.properties[i].name
-                    ))
+                    return Err(ParseError::PlyFaceIndicesType {
+                        property: element.properties[i].name.clone(),
+                    })
                 }
             }
         }
@@ -219,11 +218,11 @@ fn read_vertices(
                 (PropertyKind::Scalar(t), Role::Coordinate(axis)) => {
                     let v = reader.scalar(t, "vertex coordinate")?;
                     if !v.is_finite() {
-                        return Err(format!(
-                            "vertex {vi} has a non-finite coordinate ({}){}",
-                            v,
-                            reader.location()
-                        ));
+                        return Err(ParseError::PlyNonFiniteVertex {
+                            vertex: vi,
+                            value: v,
+                            at: reader.location(),
+                        });
                     }
                     p[*axis] = v;
                 }
@@ -253,20 +252,23 @@ fn read_faces(
                 (PropertyKind::List { count, item }, Role::FaceIndices) => {
                     let n = reader.list_count(count, &prop.name)?;
                     if !(3..=MAX_POLYGON).contains(&n) {
-                        return Err(format!(
-                            "face {fi} has {n} corners (3 to {MAX_POLYGON} allowed){}",
-                            reader.location()
-                        ));
+                        return Err(ParseError::PlyPolygonSize {
+                            face: fi,
+                            corners: n,
+                            max: MAX_POLYGON,
+                            at: reader.location(),
+                        });
                     }
                     poly.clear();
                     for _ in 0..n {
                         let v = reader.scalar(item, "vertex index")?;
                         if !(v >= 0.0 && v < vertex_count as f64) {
-                            return Err(format!(
-                                "face {fi} refers to vertex {v}, but there are only \
-                                 {vertex_count} vertices{}",
-                                reader.location()
-                            ));
+                            return Err(ParseError::PlyFaceOutOfRange {
+                                face: fi,
+                                vertex: v,
+                                vertices: vertex_count,
+                                at: reader.location(),
+                            });
                         }
                         poly.push(v as u32);
                     }
@@ -295,10 +297,9 @@ fn skip_rows(reader: &mut Body, element: &Element, count: usize) -> ParseResult<
     if let (Body::Binary { data, pos, .. }, Some(row)) = (&mut *reader, fixed) {
         let n = row.saturating_mul(count);
         if data.len().saturating_sub(*pos) < n {
-            return Err(format!(
-                "file is truncated inside element '{}'",
-                element.name
-            ));
+            return Err(ParseError::TruncatedElement {
+                element: element.name.clone(),
+            });
         }
         *pos += n;
         return Ok(());
@@ -336,11 +337,11 @@ impl Body<'_> {
         }
     }
 
-    /// ", line N" or ", byte offset N" for messages.
-    fn location(&self) -> String {
+    /// Where the value read last is, for messages.
+    fn location(&self) -> Location {
         match self {
-            Body::Ascii(t) => format!(" (line {})", t.line()),
-            Body::Binary { base, last, .. } => format!(" (byte offset {})", base + last),
+            Body::Ascii(t) => Location::Line(t.line()),
+            Body::Binary { base, last, .. } => Location::ByteOffset(base + last),
         }
     }
 
@@ -379,12 +380,10 @@ impl Body<'_> {
                 } else {
                     tok.parse::<f64>().ok()
                 };
-                v.ok_or_else(|| {
-                    format!(
-                        "line {}: expected {what}, found '{}'",
-                        tokens.line(),
-                        shorten(tok)
-                    )
+                v.ok_or_else(|| ParseError::Expected {
+                    line: tokens.line(),
+                    expected: what.to_string(),
+                    found: shorten(tok),
                 })
             }
             Body::Binary {
@@ -395,12 +394,12 @@ impl Body<'_> {
                 big_endian,
             } => {
                 let size = t.size();
-                let b = data.get(*pos..*pos + size).ok_or_else(|| {
-                    format!(
-                        "file is truncated at byte offset {} (reading {what})",
-                        *base + *pos
-                    )
-                })?;
+                let b = data
+                    .get(*pos..*pos + size)
+                    .ok_or_else(|| ParseError::TruncatedAt {
+                        offset: *base + *pos,
+                        reading: what.to_string(),
+                    })?;
                 *last = *pos;
                 *pos += size;
                 Ok(decode(t, b, *big_endian))
@@ -418,10 +417,11 @@ impl Body<'_> {
         if n >= 0.0 && n.fract() == 0.0 {
             Ok(n as u64)
         } else {
-            Err(format!(
-                "negative length {n} of list '{name}'{}",
-                self.location()
-            ))
+            Err(ParseError::PlyListLength {
+                length: n,
+                list: name.to_string(),
+                at: self.location(),
+            })
         }
     }
 
@@ -430,7 +430,9 @@ impl Body<'_> {
         if let Body::Binary { data, pos, .. } = self {
             let bytes = n.saturating_mul(item.size() as u64);
             if (data.len().saturating_sub(*pos) as u64) < bytes {
-                return Err(format!("file is truncated inside list '{name}'"));
+                return Err(ParseError::TruncatedList {
+                    list: name.to_string(),
+                });
             }
             *pos += bytes as usize;
             return Ok(());
@@ -469,7 +471,7 @@ fn decode(t: Scalar, b: &[u8], big_endian: bool) -> f64 {
 
 fn parse_header(bytes: &[u8]) -> ParseResult<Header> {
     if !bytes.starts_with(b"ply") {
-        return Err("not a PLY file (it does not start with 'ply')".into());
+        return Err(ParseError::NotPly);
     }
     let mut storage = None;
     let mut elements: Vec<Element> = Vec::new();
@@ -478,9 +480,11 @@ fn parse_header(bytes: &[u8]) -> ParseResult<Header> {
     loop {
         if pos >= bytes.len().min(MAX_HEADER_BYTES) {
             return Err(if bytes.len() > MAX_HEADER_BYTES {
-                format!("PLY header has no 'end_header' in its first {MAX_HEADER_BYTES} bytes")
+                ParseError::PlyHeaderTooLong {
+                    limit: MAX_HEADER_BYTES,
+                }
             } else {
-                "PLY header is truncated (no 'end_header')".into()
+                ParseError::PlyHeaderTruncated
             });
         }
         let rest = &bytes[pos..];
@@ -488,12 +492,16 @@ fn parse_header(bytes: &[u8]) -> ParseResult<Header> {
         let raw = &rest[..len.unwrap_or(rest.len())];
         pos += raw.len() + 1;
         line_no += 1;
-        let line = std::str::from_utf8(raw)
-            .map_err(|_| format!("PLY header line {line_no} is not text"))?;
+        let line =
+            std::str::from_utf8(raw).map_err(|_| ParseError::PlyHeaderNotText { line: line_no })?;
         let mut words = line.split_ascii_whitespace();
         let keyword = words.next().unwrap_or("");
         let words: Vec<&str> = words.collect();
-        let bad = |what: &str| format!("PLY header line {line_no}: {what}: '{}'", shorten(line));
+        let bad = |problem| ParseError::PlyHeaderLine {
+            line: line_no,
+            problem,
+            text: shorten(line),
+        };
         match keyword {
             "ply" if line_no == 1 => {}
             "" | "comment" | "obj_info" => {}
@@ -502,16 +510,16 @@ fn parse_header(bytes: &[u8]) -> ParseResult<Header> {
                     ["ascii", _] => Storage::Ascii,
                     ["binary_little_endian", _] => Storage::BinaryLe,
                     ["binary_big_endian", _] => Storage::BinaryBe,
-                    _ => return Err(bad("unknown format")),
+                    _ => return Err(bad(PlyHeaderProblem::UnknownFormat)),
                 });
             }
             "element" => {
                 let [name, count] = words.as_slice() else {
-                    return Err(bad("malformed element"));
+                    return Err(bad(PlyHeaderProblem::MalformedElement));
                 };
                 let count = count
                     .parse::<u64>()
-                    .map_err(|_| bad("element count is not a non-negative integer"))?;
+                    .map_err(|_| bad(PlyHeaderProblem::ElementCount))?;
                 elements.push(Element {
                     name: name.to_string(),
                     count,
@@ -521,19 +529,21 @@ fn parse_header(bytes: &[u8]) -> ParseResult<Header> {
             "property" => {
                 let element = elements
                     .last_mut()
-                    .ok_or_else(|| bad("property before any element"))?;
+                    .ok_or_else(|| bad(PlyHeaderProblem::PropertyFirst))?;
                 let (kind, name) = match words.as_slice() {
                     ["list", c, i, name] => match (Scalar::parse(c), Scalar::parse(i)) {
                         (Some(count), Some(item)) if count.is_integer() => {
                             (PropertyKind::List { count, item }, name)
                         }
-                        _ => return Err(bad("unknown list types")),
+                        _ => return Err(bad(PlyHeaderProblem::UnknownListTypes)),
                     },
                     [t, name] => (
-                        PropertyKind::Scalar(Scalar::parse(t).ok_or_else(|| bad("unknown type"))?),
+                        PropertyKind::Scalar(
+                            Scalar::parse(t).ok_or_else(|| bad(PlyHeaderProblem::UnknownType))?,
+                        ),
                         name,
                     ),
-                    _ => return Err(bad("malformed property")),
+                    _ => return Err(bad(PlyHeaderProblem::MalformedProperty)),
                 };
                 element.properties.push(Property {
                     name: name.to_string(),
@@ -543,7 +553,7 @@ fn parse_header(bytes: &[u8]) -> ParseResult<Header> {
             "end_header" => {
                 // A '\r\n' line end leaves '\r' in `line`, already trimmed
                 // by the whitespace split; the body starts after '\n'.
-                let storage = storage.ok_or("PLY header has no 'format' line")?;
+                let storage = storage.ok_or(ParseError::PlyNoFormat)?;
                 return Ok(Header {
                     storage,
                     elements,
@@ -551,7 +561,7 @@ fn parse_header(bytes: &[u8]) -> ParseResult<Header> {
                     lines: line_no,
                 });
             }
-            _ => return Err(bad("unknown keyword")),
+            _ => return Err(bad(PlyHeaderProblem::UnknownKeyword)),
         }
     }
 }
@@ -579,7 +589,11 @@ mod tests {
         let text = "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\n\
                     property float x\nproperty float y\nproperty float z\nend_header\n";
         let err = read_ply(text.as_bytes()).unwrap_err();
-        assert!(err.contains("4000000000"), "{err}");
+        assert_eq!(
+            err.to_string(),
+            "header claims 4000000000 'vertex' elements, which cannot fit in the remaining 0 \
+             bytes"
+        );
     }
 
     #[test]
@@ -589,7 +603,19 @@ mod tests {
                     property list uchar int vertex_indices\nend_header\n\
                     0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n";
         let err = read_ply(text.as_bytes()).unwrap_err();
-        assert!(err.contains("vertex 3") && err.contains("line 13"), "{err}");
+        assert_eq!(
+            err,
+            ParseError::PlyFaceOutOfRange {
+                face: 0,
+                vertex: 3.0,
+                vertices: 3,
+                at: Location::Line(13),
+            }
+        );
+        assert_eq!(
+            err.to_string(),
+            "face 0 refers to vertex 3, but there are only 3 vertices (line 13)"
+        );
     }
 
     #[test]
@@ -599,7 +625,11 @@ mod tests {
                     property list uchar int corners\nend_header\n\
                     0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
         let err = read_ply(text.as_bytes()).unwrap_err();
-        assert!(err.contains("vertex_indices"), "{err}");
+        assert_eq!(err, ParseError::PlyNoFaceIndices);
+        assert_eq!(
+            err.to_string(),
+            "PLY face element has no 'vertex_indices' list"
+        );
         let strips = text.replace("element face 1", "element tristrips 1");
         assert!(read_ply(strips.as_bytes()).is_err());
     }

@@ -9,7 +9,7 @@
 //! 0x09090909 triangles, far more than the size limit allows.
 
 use super::text::{shorten, Tokens};
-use super::{push_fan, ParseResult};
+use super::{push_fan, ParseError, ParseResult, StlSize};
 use morphoid_core::mesh::Mesh;
 use rustc_hash::FxHashMap as HashMap;
 
@@ -25,31 +25,23 @@ pub(crate) fn read_stl(bytes: &[u8]) -> ParseResult<Mesh> {
     let begins_solid = bytes
         .get(start..start + 5)
         .is_some_and(|w| w.eq_ignore_ascii_case(b"solid"));
-    let size_mismatch = bytes.get(80..84).map(|c| {
-        let n = u32::from_le_bytes([c[0], c[1], c[2], c[3]]) as u64;
-        format!(
-            "{} bytes do not match a binary STL of {n} triangles ({} bytes)",
-            bytes.len(),
-            84 + 50 * n
-        )
+    let size_mismatch = bytes.get(80..84).map(|c| StlSize {
+        bytes: bytes.len(),
+        triangles: u32::from_le_bytes([c[0], c[1], c[2], c[3]]),
     });
     if begins_solid {
         return read_ascii(bytes).map_err(|e| {
             // A binary file whose header happens to start with "solid".
             let binary = bytes.iter().take(4096).any(|&b| b == 0 || b >= 0x80);
-            match (binary, &size_mismatch) {
-                (true, Some(m)) => format!("not an STL file: binary data after 'solid', and {m}"),
+            match (binary, size_mismatch) {
+                (true, Some(size)) => ParseError::StlBinaryAfterSolid { size },
                 _ => e,
             }
         });
     }
     Err(match size_mismatch {
-        Some(m) => format!("not an STL file: {m}, and the file does not start with 'solid'"),
-        None => format!(
-            "not an STL file: {} bytes is too short for binary STL, and the file does \
-             not start with 'solid'",
-            bytes.len()
-        ),
+        Some(size) => ParseError::NotStl { size },
+        None => ParseError::StlTooShort { size: bytes.len() },
     })
 }
 
@@ -83,7 +75,7 @@ pub(crate) fn binary_count(header: &[u8; 84], size: u64) -> Option<usize> {
 /// Read the `n` triangle records that follow a binary STL's header from
 /// `reader`, one at a time, without holding the file in memory (a µCT
 /// export can be hundreds of megabytes). `Err` carries the I/O error or
-/// the message of a bad record, with the file name attached by the caller.
+/// what is wrong with a bad record; the caller attaches the file name.
 pub(crate) fn read_binary_records<R: std::io::Read>(
     reader: &mut R,
     n: usize,
@@ -108,7 +100,7 @@ pub(crate) enum BinaryFileError {
     /// Reading failed (or the file shrank while it was read).
     Io(std::io::Error),
     /// A record is unusable.
-    Invalid(String),
+    Invalid(ParseError),
 }
 
 /// A binary STL's triangles as they are read: corners with bit-identical
@@ -145,10 +137,10 @@ impl SharedCorners {
                 let v =
                     f32::from_le_bytes([record[o], record[o + 1], record[o + 2], record[o + 3]]);
                 if !v.is_finite() {
-                    return Err(format!(
-                        "triangle {t} has a non-finite coordinate (byte offset {})",
-                        84 + RECORD * t + o
-                    ));
+                    return Err(ParseError::StlNonFinite {
+                        triangle: t,
+                        offset: 84 + RECORD * t + o,
+                    });
                 }
                 // -0.0 and 0.0 are the same position.
                 *value = if v == 0.0 { 0.0 } else { v };
@@ -174,11 +166,11 @@ fn keyword(t: &mut Tokens, want: &str) -> ParseResult<()> {
     if got.eq_ignore_ascii_case(want) {
         Ok(())
     } else {
-        Err(format!(
-            "line {}: expected '{want}', found '{}'",
-            t.line(),
-            shorten(got)
-        ))
+        Err(ParseError::Expected {
+            line: t.line(),
+            expected: format!("'{want}'"),
+            found: shorten(got),
+        })
     }
 }
 
@@ -190,7 +182,7 @@ fn read_ascii(bytes: &[u8]) -> ParseResult<Mesh> {
     let mut poly: Vec<u32> = Vec::new();
     loop {
         let Some(word) = t.next_token() else {
-            return Err("ASCII STL ends without 'endsolid' (is the file truncated?)".into());
+            return Err(ParseError::StlNoEndsolid);
         };
         if word.eq_ignore_ascii_case("endsolid") {
             t.skip_line();
@@ -202,31 +194,30 @@ fn read_ascii(bytes: &[u8]) -> ParseResult<Mesh> {
                     continue;
                 }
                 Some(w) => {
-                    return Err(format!(
-                        "line {}: unexpected '{}' after 'endsolid'",
-                        t.line(),
-                        shorten(w)
-                    ))
+                    return Err(ParseError::StlAfterEndsolid {
+                        line: t.line(),
+                        found: shorten(w),
+                    })
                 }
             }
         }
         if !word.eq_ignore_ascii_case("facet") {
-            return Err(format!(
-                "line {}: expected 'facet' or 'endsolid', found '{}'",
-                t.line(),
-                shorten(word)
-            ));
+            return Err(ParseError::Expected {
+                line: t.line(),
+                expected: "'facet' or 'endsolid'".into(),
+                found: shorten(word),
+            });
         }
         keyword(&mut t, "normal")?;
         for _ in 0..3 {
             // The stored normal is not used, and may be anything numeric.
             let w = t.expect("a normal component")?;
             if w.parse::<f64>().is_err() {
-                return Err(format!(
-                    "line {}: expected a normal component, found '{}'",
-                    t.line(),
-                    shorten(w)
-                ));
+                return Err(ParseError::Expected {
+                    line: t.line(),
+                    expected: "a normal component".into(),
+                    found: shorten(w),
+                });
             }
         }
         keyword(&mut t, "outer")?;
@@ -238,28 +229,27 @@ fn read_ascii(bytes: &[u8]) -> ParseResult<Mesh> {
                 break;
             }
             if !w.eq_ignore_ascii_case("vertex") {
-                return Err(format!(
-                    "line {}: expected 'vertex' or 'endloop', found '{}'",
-                    t.line(),
-                    shorten(w)
-                ));
+                return Err(ParseError::Expected {
+                    line: t.line(),
+                    expected: "'vertex' or 'endloop'".into(),
+                    found: shorten(w),
+                });
             }
             let mut p = [0.0; 3];
             for c in &mut p {
                 *c = t.expect_f64("a vertex coordinate")?;
             }
             if mesh.vertices.len() >= u32::MAX as usize {
-                return Err(format!("line {}: too many vertices", t.line()));
+                return Err(ParseError::TooManyVertices { line: t.line() });
             }
             poly.push(mesh.vertices.len() as u32);
             mesh.vertices.push(p);
         }
         if poly.len() < 3 {
-            return Err(format!(
-                "line {}: facet has {} vertices, at least 3 are needed",
-                t.line(),
-                poly.len()
-            ));
+            return Err(ParseError::StlFewVertices {
+                line: t.line(),
+                vertices: poly.len(),
+            });
         }
         push_fan(&mut mesh.faces, &poly);
         keyword(&mut t, "endfacet")?;
@@ -285,6 +275,11 @@ mod tests {
     fn truncated_ascii_is_an_error() {
         let cut = &ASCII[..ASCII.len() - 30];
         assert!(read_stl(cut.as_bytes()).is_err());
+        assert_eq!(read_stl(b"solid x\n"), Err(ParseError::StlNoEndsolid));
+        assert_eq!(
+            ParseError::StlNoEndsolid.to_string(),
+            "ASCII STL ends without 'endsolid' (is the file truncated?)"
+        );
     }
 
     #[test]

@@ -1,6 +1,6 @@
 //! A whitespace tokenizer over ASCII mesh data that tracks line numbers.
 
-use super::ParseResult;
+use super::{ParseError, ParseResult};
 
 /// Tokens of an ASCII body, with optional `#` comments to the end of a line.
 pub(crate) struct Tokens<'a> {
@@ -78,34 +78,30 @@ impl<'a> Tokens<'a> {
     pub(crate) fn expect(&mut self, what: &str) -> ParseResult<&'a str> {
         match self.next_token() {
             Some(t) => Ok(t),
-            None => Err(format!(
-                "unexpected end of file after line {} (expected {what})",
-                self.cursor_line
-            )),
+            None => Err(ParseError::UnexpectedEnd {
+                line: self.cursor_line,
+                expected: what.to_string(),
+            }),
         }
     }
 
     /// The next token as a number.
     pub(crate) fn expect_f64(&mut self, what: &str) -> ParseResult<f64> {
         let t = self.expect(what)?;
-        parse_f64(t).ok_or_else(|| {
-            format!(
-                "line {}: expected {what}, found '{}'",
-                self.token_line,
-                shorten(t)
-            )
+        parse_f64(t).ok_or_else(|| ParseError::Expected {
+            line: self.token_line,
+            expected: what.to_string(),
+            found: shorten(t),
         })
     }
 
     /// The next token as a non-negative integer.
     pub(crate) fn expect_u64(&mut self, what: &str) -> ParseResult<u64> {
         let t = self.expect(what)?;
-        t.parse::<u64>().map_err(|_| {
-            format!(
-                "line {}: expected {what} (a non-negative integer), found '{}'",
-                self.token_line,
-                shorten(t)
-            )
+        t.parse::<u64>().map_err(|_| ParseError::ExpectedInteger {
+            line: self.token_line,
+            expected: what.to_string(),
+            found: shorten(t),
         })
     }
 }

@@ -21,6 +21,16 @@ pub enum TableError {
     /// The file could not be replaced.
     #[error(transparent)]
     Write(#[from] crate::atomic_write::AtomicWriteError),
+    /// A record the CSV reader cannot read.
+    #[error("{path}:{line}: {source}")]
+    Csv {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number of the record.
+        line: usize,
+        /// The reader's error.
+        source: RowError,
+    },
     /// The content is malformed.
     #[error("{path}:{line}: {message}")]
     Format {
@@ -84,10 +94,21 @@ pub struct Row {
     pub fields: Vec<String>,
 }
 
+/// A record the CSV reader cannot read ([`rows`]). Its message is the
+/// reader's: the caller, which knows the file, names the file and line.
+#[derive(Debug, thiserror::Error)]
+#[error("{source}")]
+pub struct RowError {
+    /// The 1-based line the record starts on.
+    pub line: usize,
+    /// The reader's error.
+    pub source: csv::Error,
+}
+
 /// The records of `text` in order, each with its line; blank lines (also
 /// ones of spaces only) are skipped. With `comments`, so are lines whose
-/// first non-blank character is `#`. An `Err` holds the line and the reason.
-pub fn rows(text: &str, comments: bool) -> impl Iterator<Item = Result<Row, (usize, String)>> {
+/// first non-blank character is `#`.
+pub fn rows(text: &str, comments: bool) -> impl Iterator<Item = Result<Row, RowError>> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     // Comment lines are emptied rather than left to the reader's comment
     // option: that one does not count them as lines, and a quote in a
@@ -147,7 +168,10 @@ pub fn rows(text: &str, comments: bool) -> impl Iterator<Item = Result<Row, (usi
                 let blank = fields.iter().all(|f| f.trim().is_empty());
                 (!blank).then_some(Ok(Row { line, fields }))
             }
-            Err(e) => Some(Err((line_of(e.position()), e.to_string()))),
+            Err(source) => Some(Err(RowError {
+                line: line_of(source.position()),
+                source,
+            })),
         })
 }
 
@@ -164,11 +188,16 @@ pub(crate) fn header_and_rows<'a>(
     text: &'a str,
     path: &'a Path,
 ) -> Result<(Row, impl Iterator<Item = Result<Row, TableError>> + 'a), TableError> {
-    let err = move |(line, message): (usize, String)| format_error(path, line, message);
-    let mut rows = rows(text, false).map(move |r| r.map_err(err));
+    let mut rows = rows(text, false).map(move |r| {
+        r.map_err(|source| TableError::Csv {
+            path: path.to_path_buf(),
+            line: source.line,
+            source,
+        })
+    });
     let header = rows
         .next()
-        .unwrap_or_else(|| Err(err((1, "empty file".into()))))?;
+        .unwrap_or_else(|| Err(format_error(path, 1, "empty file".into())))?;
     Ok((header, rows))
 }
 

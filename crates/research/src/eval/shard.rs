@@ -24,7 +24,7 @@
 use morphoid_core::cp::{compare, CompareParams, Prepared};
 use morphoid_data::atomic_write::{write_atomic, AtomicWriteError};
 pub use morphoid_data::shard::Shard;
-use morphoid_data::table::csv_text::{rows, trimmed, CsvString, Row};
+use morphoid_data::table::csv_text::{rows, trimmed, CsvString, Row, RowError};
 use morphoid_data::table::DistanceMatrix;
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -120,6 +120,16 @@ pub enum ShardError {
         /// What is wrong.
         message: String,
     },
+    /// A record of a shard file that the CSV reader cannot read.
+    #[error("{}:{line}: {source}", path.display())]
+    Csv {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line of the record.
+        line: usize,
+        /// The reader's error.
+        source: RowError,
+    },
     /// The first two lines of a shard file do not name the shard and the
     /// content hashes.
     #[error("{}:{line}: {source}", path.display())]
@@ -214,7 +224,13 @@ impl ShardFile {
         let rest = rest.strip_prefix(' ').unwrap_or(rest);
         // An empty name list leaves no record on the names line.
         let names_empty = rest.starts_with(['\n', '\r']);
-        let mut rows = rows(rest, false).map(|r| r.map_err(|(l, m)| err(file_line(l), m)));
+        let mut rows = rows(rest, false).map(|r| {
+            r.map_err(|source| ShardError::Csv {
+                path: path.to_path_buf(),
+                line: file_line(source.line),
+                source,
+            })
+        });
         let names: Vec<String> = if names_empty {
             Vec::new()
         } else {

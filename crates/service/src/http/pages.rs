@@ -357,7 +357,7 @@ pub(super) async fn scan_page(
     } else {
         match state.pictures.scene(state.live.classifier(), &record).await {
             Ok(scene) => report_html(&record, Some(&scene), None),
-            Err(why) => report_html(&record, None, Some(&why)),
+            Err(why) => report_html(&record, None, Some(&why.to_string())),
         }
     };
     // The report links its specimens' pages by file name; here they are

@@ -61,7 +61,7 @@ pub(super) fn scan_query(
                     bad("a status is pending, running, ok, error, duplicate or superseded")
                 })?)
             }
-            "rank" => rank = Some(known_rank(&value, ranks).map_err(|w| bad(&w))?),
+            "rank" => rank = Some(known_rank(&value, ranks).map_err(|w| bad(&w.to_string()))?),
             "taxon" => taxon = Some(value.clone()),
             "no_close_match" => {
                 q.no_close_match = Some(flag(&value).ok_or_else(|| bad("true or false"))?)
@@ -119,21 +119,33 @@ pub(super) fn scan_query(
 /// What a time value may be.
 const TIME: &str = "a UTC day YYYY-MM-DD or Unix milliseconds";
 
+/// Why a name is not a rank a filter takes.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+enum RankError<'a> {
+    /// Not a plain name (letters, digits, `_`, `-`; at most 64 bytes), or
+    /// the key of another filter.
+    #[error("{0:?} is not a rank")]
+    NotAName(&'a str),
+    /// A plain name, but not one of the library's ranks (which it lists).
+    #[error("not a rank of the library ({})", .0.join(", "))]
+    NotInLibrary(&'a [String]),
+}
+
 /// `name` if it is one of `ranks` (or any plain name when `ranks` is
 /// empty).
-fn known_rank(name: &str, ranks: &[String]) -> Result<String, String> {
+fn known_rank<'a>(name: &'a str, ranks: &'a [String]) -> Result<String, RankError<'a>> {
     let plain = !name.is_empty()
         && name.len() <= 64
         && name
             .chars()
             .all(|c| c.is_alphanumeric() || c == '_' || c == '-');
     if !plain || KEYS.contains(&name) {
-        return Err(format!("{name:?} is not a rank"));
+        return Err(RankError::NotAName(name));
     }
     if ranks.is_empty() || ranks.iter().any(|r| r == name) {
         Ok(name.to_string())
     } else {
-        Err(format!("not a rank of the library ({})", ranks.join(", ")))
+        Err(RankError::NotInLibrary(ranks))
     }
 }
 
@@ -242,5 +254,29 @@ mod tests {
             );
         }
         assert!(scan_query(Some("view=rows"), &ranks, &["view"]).is_ok());
+    }
+
+    #[test]
+    fn a_refused_rank_says_why() {
+        let ranks = vec!["order".to_string(), "genus".to_string()];
+        let refusal = |raw| match scan_query(Some(raw), &ranks, &[]) {
+            Err(ApiError::BadRequest(why)) => why,
+            other => panic!("{raw}: {other:?}"),
+        };
+        assert_eq!(
+            refusal("rank=family"),
+            "rank=\"family\": not a rank of the library (order, genus)"
+        );
+        assert_eq!(refusal("rank=a+b"), "rank=\"a b\": \"a b\" is not a rank");
+        assert_eq!(
+            refusal("rank=limit"),
+            "rank=\"limit\": \"limit\" is not a rank"
+        );
+        assert_eq!(
+            refusal("family=X"),
+            "unknown query parameter \"family\" (filters: status, rank, taxon, \
+             no_close_match, reviewed, since, until, name, limit, offset, cursor, or a rank: \
+             order, genus)"
+        );
     }
 }

@@ -1,9 +1,11 @@
 //! Nearest-neighbour identification at each rank, and the plain data an
 //! identification produces ([`ScanOutcome`]), which the store records.
 
+use morphoid_data::pipeline::PipelineError;
 use morphoid_data::table::Labels;
 use serde::Serialize;
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 /// Nearest taxon at one rank.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -111,17 +113,18 @@ pub struct ScanOutcome {
 
 /// One specimen of a scan of several: where it lies and its
 /// identification, or why it has none.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct SpecimenOutcome {
     /// Where it lies in the scan.
     pub position: morphoid_data::pipeline::Position,
-    /// Its identification, or the message of why it could not be made.
-    pub result: Result<ScanOutcome, String>,
+    /// Its identification, or why it could not be made (shared: an
+    /// outcome is cloned to be recorded).
+    pub result: Result<ScanOutcome, Arc<PipelineError>>,
 }
 
 /// Everything the identification of a scan of several specimens produced,
 /// recorded by the store in one transaction (`Store::complete_specimens`).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct SpecimensOutcome {
     /// The specimens, in their documented order (along the scan's longest
     /// axis).

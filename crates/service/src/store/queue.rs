@@ -497,7 +497,7 @@ fn insert_specimen(
             Some(to_json("scan.cleaning", &o.cleaning)?),
             o.calibrating,
         ),
-        Err(e) => ("error", Some(e.clone()), None, None, false),
+        Err(e) => ("error", Some(e.to_string()), None, None, false),
     };
     conn.execute(
         "INSERT INTO scan (path, content_hash, size, status, error, attempts, created_at,

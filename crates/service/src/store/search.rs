@@ -253,7 +253,8 @@ mod tests {
         Confidence, DistanceRow, RankResult, ScanOutcome, SpecimenOutcome, SpecimensOutcome,
     };
     use crate::store::Labels;
-    use morphoid_data::pipeline::Position;
+    use morphoid_core::clean::CleanError;
+    use morphoid_data::pipeline::{PipelineError, Position};
 
     /// An identification as `genus` of `family`, flagged "no close match"
     /// or not.
@@ -326,13 +327,27 @@ mod tests {
                 },
                 SpecimenOutcome {
                     position,
-                    result: Err("too small".into()),
+                    result: Err(std::sync::Arc::new(PipelineError::Clean {
+                        path: "pair.nrrd".into(),
+                        source: CleanError::TooFewFaces(3),
+                    })),
                 },
             ],
             segmentation: serde_json::json!({}),
             timings_ms: Default::default(),
         };
         store.complete_specimens(pair, &specimens).unwrap();
+        // A specimen's failure is recorded as its error's message.
+        let recorded = store.scan(pair, 1).unwrap().unwrap();
+        let errors: Vec<Option<&str>> = recorded
+            .specimens
+            .iter()
+            .map(|s| s.error.as_deref())
+            .collect();
+        assert_eq!(
+            errors,
+            [None, Some("pair.nrrd: too few faces (3) to form a surface")]
+        );
         let pair_copy = store
             .enqueue("copy/pair.nrrd", "h-pair", 10)
             .unwrap()
