@@ -21,7 +21,7 @@ use std::path::PathBuf;
 #[allow(dead_code)]
 #[path = "../tests/it/support/mod.rs"]
 mod support;
-use support::measured::{morphoid_binary, run_measured};
+use support::measured::{library_config, morphoid_binary, run_measured};
 use support::mounting::{batch_mounts, write_batch_in};
 
 /// Identifications measured.
@@ -74,19 +74,9 @@ fn main() {
         dims[2],
         (dims[0] * dims[1] * dims[2]) as f64 / 1e6
     );
-    let lib = library.to_string_lossy().into_owned();
-    let cache = tmp.path().join("cache").to_string_lossy().into_owned();
+    let cache = tmp.path().join("cache");
     let figures = tmp.path().join("time.txt");
-    let config = |run: usize| {
-        let db = tmp.path().join(format!("scans-{run}.db"));
-        let path = tmp.path().join(format!("morphoid-{run}.toml"));
-        std::fs::write(
-            &path,
-            format!("[database]\npath = {db:?}\n[library]\ndir = {lib:?}\ncache = {cache:?}\n"),
-        )
-        .expect("config");
-        path.to_string_lossy().into_owned()
-    };
+    let config = |run: usize| library_config(tmp.path(), &run.to_string(), &library, &cache);
     // Prepare the library once, so classify measures the scan, not the build.
     let build = config(0);
     run_measured(&bin, &["--config", &build, "library", "build"], &figures)

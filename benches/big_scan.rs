@@ -15,7 +15,7 @@ use std::path::Path;
 #[allow(dead_code)]
 #[path = "../tests/it/support/mod.rs"]
 mod support;
-use support::measured::{morphoid_binary, run_measured};
+use support::measured::{library_config, morphoid_binary, run_measured};
 
 /// Run `morphoid ARGS` under GNU time (its figures in `figures`); (wall
 /// seconds, CPU seconds, peak RSS in MB).
@@ -53,16 +53,8 @@ fn main() {
         );
     }
     let scan = scan.to_string_lossy().into_owned();
-    let lib = library.to_string_lossy().into_owned();
-    let cache = tmp.path().join("cache").to_string_lossy().into_owned();
-    let db = tmp.path().join("scans.db").to_string_lossy().into_owned();
-    let config = tmp.path().join("morphoid.toml");
-    std::fs::write(
-        &config,
-        format!("[database]\npath = {db:?}\n[library]\ndir = {lib:?}\ncache = {cache:?}\n"),
-    )
-    .expect("config");
-    let config = config.to_string_lossy().into_owned();
+    let cache = tmp.path().join("cache");
+    let config = library_config(tmp.path(), "build", &library, &cache);
     let figures = tmp.path().join("time.txt");
     // Prepare the library once, so classify measures the scan, not the build.
     timed(&bin, &["--config", &config, "library", "build"], &figures);
@@ -72,14 +64,7 @@ fn main() {
     // content twice in one database is a duplicate, not identified again).
     let mut walls = Vec::new();
     for run in 0..RUNS {
-        let db = tmp.path().join(format!("scans-{run}.db"));
-        let config = tmp.path().join(format!("morphoid-{run}.toml"));
-        std::fs::write(
-            &config,
-            format!("[database]\npath = {db:?}\n[library]\ndir = {lib:?}\ncache = {cache:?}\n"),
-        )
-        .expect("config");
-        let config = config.to_string_lossy().into_owned();
+        let config = library_config(tmp.path(), &run.to_string(), &library, &cache);
         let (t, cpu, rss) = timed(&bin, &["--config", &config, "classify", &scan], &figures);
         println!(
             "classify {t:6.2} s  CPU {cpu:6.2} s  peak RSS {rss:6.0} MB  (116 references from the cache)"

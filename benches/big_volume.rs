@@ -23,6 +23,7 @@ use morphoid_synth::volume::{phantom, write_volume, PhantomParams, StackSpec, Sy
 use std::path::Path;
 use std::time::Instant;
 
+#[allow(dead_code)] // library_config: big_volume writes its own
 #[path = "../tests/it/support/measured.rs"]
 mod measured;
 use measured::{morphoid_binary, run_measured, Cost};

@@ -90,3 +90,18 @@ pub(crate) fn morphoid_binary() -> PathBuf {
     );
     p
 }
+
+/// A configuration file `morphoid-TAG.toml` in `dir` for the library
+/// `lib` with its cache `cache` and a database `scans-TAG.db` of its own
+/// (the same content twice in one database is a duplicate, not
+/// identified again); its path.
+pub(crate) fn library_config(dir: &Path, tag: &str, lib: &Path, cache: &Path) -> String {
+    let db = dir.join(format!("scans-{tag}.db"));
+    let path = dir.join(format!("morphoid-{tag}.toml"));
+    std::fs::write(
+        &path,
+        format!("[database]\npath = {db:?}\n[library]\ndir = {lib:?}\ncache = {cache:?}\n"),
+    )
+    .unwrap_or_else(|e| panic!("writing {}: {e}", path.display()));
+    path.to_string_lossy().into_owned()
+}
