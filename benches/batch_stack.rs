@@ -21,7 +21,7 @@ use std::path::PathBuf;
 #[allow(dead_code)]
 #[path = "../tests/it/support/mod.rs"]
 mod support;
-use support::measured::{library_config, morphoid_binary, run_measured};
+use support::measured::{library_config, morphoid_binary, run_measured, wall_summary};
 use support::mounting::{batch_mounts, write_batch_in};
 
 /// Identifications measured.
@@ -98,11 +98,5 @@ fn main() {
         }
         walls.push(cost.wall);
     }
-    walls.sort_by(f64::total_cmp);
-    println!(
-        "classify wall: median {:.2} s, {:.2}-{:.2} s over {RUNS} runs",
-        walls[RUNS / 2],
-        walls[0],
-        walls[RUNS - 1]
-    );
+    println!("classify wall: {}", wall_summary(&walls));
 }

@@ -15,7 +15,7 @@ use std::path::Path;
 #[allow(dead_code)]
 #[path = "../tests/it/support/mod.rs"]
 mod support;
-use support::measured::{library_config, morphoid_binary, run_measured};
+use support::measured::{library_config, morphoid_binary, run_measured, wall_summary};
 
 /// Run `morphoid ARGS` under GNU time (its figures in `figures`); (wall
 /// seconds, CPU seconds, peak RSS in MB).
@@ -71,13 +71,7 @@ fn main() {
         );
         walls.push(t);
     }
-    walls.sort_by(f64::total_cmp);
-    println!(
-        "classify wall: median {:.2} s, {:.2}-{:.2} s over {RUNS} runs",
-        walls[RUNS / 2],
-        walls[0],
-        walls[RUNS - 1]
-    );
+    println!("classify wall: {}", wall_summary(&walls));
 }
 
 /// How many times the scan is identified.

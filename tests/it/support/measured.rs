@@ -105,3 +105,18 @@ pub(crate) fn library_config(dir: &Path, tag: &str, lib: &Path, cache: &Path) ->
     .unwrap_or_else(|e| panic!("writing {}: {e}", path.display()));
     path.to_string_lossy().into_owned()
 }
+
+/// Wall times of repeated runs as the benches print them: `median M s,
+/// LO-HI s over N runs`.
+pub(crate) fn wall_summary(walls: &[f64]) -> String {
+    let mut w = walls.to_vec();
+    w.sort_by(f64::total_cmp);
+    match (w.first(), w.last()) {
+        (Some(lo), Some(hi)) => format!(
+            "median {:.2} s, {lo:.2}-{hi:.2} s over {} runs",
+            w[w.len() / 2],
+            w.len()
+        ),
+        _ => "no runs".into(),
+    }
+}

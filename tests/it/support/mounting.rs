@@ -520,20 +520,14 @@ pub(crate) fn write_batch_in(
         .collect();
     let width: i64 =
         parts.iter().map(|(g, _)| g.dims[0] as i64).sum::<i64>() + gap * (parts.len() as i64 - 1);
+    let tallest = |a: usize| {
+        let part = parts.iter().map(|(g, _)| g.dims[a]).max().unwrap_or(1);
+        part.max(min_dims[a])
+    };
     let dims = [
         (width.max(1) as usize).max(min_dims[0]),
-        parts
-            .iter()
-            .map(|(g, _)| g.dims[1])
-            .max()
-            .unwrap_or(1)
-            .max(min_dims[1]),
-        parts
-            .iter()
-            .map(|(g, _)| g.dims[2])
-            .max()
-            .unwrap_or(1)
-            .max(min_dims[2]),
+        tallest(1),
+        tallest(2),
     ];
     // Air of the first mount's scan everywhere no mount reaches.
     let air = parts.first().map_or(AIR, |(g, _)| g.values[0]);
