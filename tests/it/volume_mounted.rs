@@ -195,12 +195,13 @@ fn foam_alone_and_an_empty_tube_are_no_specimen() {
     let config = tmp.path().join("morphoid.toml");
     std::fs::write(&config, "").unwrap();
     // No wax either: a blob of wax alone is a dense large object, taken
-    // for a specimen and then refused by the crown extraction.
+    // for a specimen and then refused by the crown extraction. 100 voxels
+    // across: nothing here depends on the stack's size.
     let foam_only = Mount {
         tooth: false,
         wax_blobs: 0,
         pin: false,
-        ..Mount::varied(21, 150)
+        ..Mount::varied(21, 100)
     };
     let empty_tube = Mount {
         foam: None,
