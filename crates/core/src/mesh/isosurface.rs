@@ -31,15 +31,22 @@ pub fn isosurface(grid: &Grid, iso: f32) -> Mesh {
         total: (px * py * pz) as u64,
     };
     let mut faces: Vec<[u32; 3]> = Vec::new();
+    // Most cubes of a scan lie in air: a row of cubes is only visited
+    // when one of its four rows of samples holds a sample inside. (Every
+    // row holds outside samples, its padding.)
+    let holds_inside = field.rows_holding_inside();
+    let row = |y: usize, z: usize| holds_inside[y + py * z];
     for z in 0..pz - 1 {
         for y in 0..py - 1 {
+            if !(row(y, z) || row(y + 1, z) || row(y, z + 1) || row(y + 1, z + 1)) {
+                continue;
+            }
             for x in 0..px - 1 {
                 let cube = field.cube([x, y, z]);
                 if cube.inside == 0 || cube.inside == 8 {
                     continue;
                 }
-                let pending = cube_triangles(&field, &cube, &mut edges);
-                push_facing_out(&edges.vertices, pending, &mut faces);
+                cube_triangles(&field, &cube, &mut edges, &mut faces);
             }
         }
     }
@@ -80,6 +87,19 @@ impl<'a> PaddedField<'a> {
             dims: [nx + 2, ny + 2, nz + 2],
             low: grid.values.iter().copied().fold(iso, f32::min) - 1.0,
         }
+    }
+
+    /// Whether each row of the padded grid along x holds a sample above
+    /// the level, by `y + py·z`.
+    fn rows_holding_inside(&self) -> Vec<bool> {
+        let [px, py, pz] = self.dims;
+        let mut out = Vec::with_capacity(py * pz);
+        for z in 0..pz {
+            for y in 0..py {
+                out.push((0..px).any(|x| self.value(x, y, z) > self.iso));
+            }
+        }
+        out
     }
 
     /// The value at padded sample (x, y, z).
@@ -173,51 +193,93 @@ impl EdgeVertices {
     }
 }
 
-/// The triangles of one cube, tetrahedron by tetrahedron, each with the
+/// Append the triangles of one cube to `faces`, tetrahedron by
+/// tetrahedron, each turned so that its normal does not point against the
 /// direction from its tetrahedron's inside corners to its outside ones.
 fn cube_triangles(
     field: &PaddedField,
     cube: &Cube,
     edges: &mut EdgeVertices,
-) -> Vec<([u32; 3], [f64; 3])> {
+    faces: &mut Vec<[u32; 3]>,
+) {
     let iso = field.iso;
-    let mut pending: Vec<([u32; 3], [f64; 3])> = Vec::new();
     for tet in KUHN {
-        let ins: Vec<usize> = tet.iter().copied().filter(|&c| cube.val[c] > iso).collect();
-        let out: Vec<usize> = tet
-            .iter()
-            .copied()
-            .filter(|&c| cube.val[c] <= iso)
-            .collect();
-        let tris = tetrahedron_triangles(&ins, &out, |a, b| edges.on_edge(field, cube, a, b));
+        let (mut ins, mut out) = (Corners::default(), Corners::default());
+        for c in tet {
+            if cube.val[c] > iso {
+                ins.push(c);
+            } else {
+                out.push(c);
+            }
+        }
+        let (ins, out) = (ins.as_slice(), out.as_slice());
+        let (tris, count) =
+            tetrahedron_triangles(ins, out, |a, b| edges.on_edge(field, cube, a, b));
         let outward = sub(
-            field.corner_centroid(cube, &out),
-            field.corner_centroid(cube, &ins),
+            field.corner_centroid(cube, out),
+            field.corner_centroid(cube, ins),
         );
-        pending.extend(tris.into_iter().map(|t| (t, outward)));
+        for t in &tris[..count] {
+            let [a, b, c] = t.map(|v| edges.vertices[v as usize]);
+            let n = cross(sub(b, a), sub(c, a));
+            faces.push(if dot(n, outward) >= 0.0 {
+                *t
+            } else {
+                [t[0], t[2], t[1]]
+            });
+        }
     }
-    pending
 }
 
-/// The triangles where the surface crosses a tetrahedron whose corners
-/// `ins` are inside and `out` outside; `vertex(a, b)` is the vertex on the
-/// edge between corners `a` and `b`.
+/// Up to four corner numbers of a cube, without allocating.
+#[derive(Default)]
+struct Corners {
+    list: [usize; 4],
+    len: usize,
+}
+
+impl Corners {
+    fn push(&mut self, c: usize) {
+        self.list[self.len] = c;
+        self.len += 1;
+    }
+
+    fn as_slice(&self) -> &[usize] {
+        &self.list[..self.len]
+    }
+}
+
+/// The triangles (the first `count` of the pair) where the surface crosses
+/// a tetrahedron whose corners `ins` are inside and `out` outside;
+/// `vertex(a, b)` is the vertex on the edge between corners `a` and `b`.
 fn tetrahedron_triangles(
     ins: &[usize],
     out: &[usize],
     mut vertex: impl FnMut(usize, usize) -> u32,
-) -> Vec<[u32; 3]> {
+) -> ([[u32; 3]; 2], usize) {
     match (ins.len(), out.len()) {
-        (1, 3) => vec![[
-            vertex(ins[0], out[0]),
-            vertex(ins[0], out[1]),
-            vertex(ins[0], out[2]),
-        ]],
-        (3, 1) => vec![[
-            vertex(ins[0], out[0]),
-            vertex(ins[1], out[0]),
-            vertex(ins[2], out[0]),
-        ]],
+        (1, 3) => (
+            [
+                [
+                    vertex(ins[0], out[0]),
+                    vertex(ins[0], out[1]),
+                    vertex(ins[0], out[2]),
+                ],
+                [0; 3],
+            ],
+            1,
+        ),
+        (3, 1) => (
+            [
+                [
+                    vertex(ins[0], out[0]),
+                    vertex(ins[1], out[0]),
+                    vertex(ins[2], out[0]),
+                ],
+                [0; 3],
+            ],
+            1,
+        ),
         (2, 2) => {
             let q = [
                 vertex(ins[0], out[0]),
@@ -225,27 +287,9 @@ fn tetrahedron_triangles(
                 vertex(ins[1], out[1]),
                 vertex(ins[1], out[0]),
             ];
-            vec![[q[0], q[1], q[2]], [q[0], q[2], q[3]]]
+            ([[q[0], q[1], q[2]], [q[0], q[2], q[3]]], 2)
         }
-        _ => Vec::new(),
-    }
-}
-
-/// Append the `pending` triangles to `faces`, each turned so that its
-/// normal does not point against its outward direction.
-fn push_facing_out(
-    vertices: &[[f64; 3]],
-    pending: Vec<([u32; 3], [f64; 3])>,
-    faces: &mut Vec<[u32; 3]>,
-) {
-    for (t, outward) in pending {
-        let [a, b, c] = t.map(|v| vertices[v as usize]);
-        let n = cross(sub(b, a), sub(c, a));
-        faces.push(if dot(n, outward) >= 0.0 {
-            t
-        } else {
-            [t[0], t[2], t[1]]
-        });
+        _ => ([[0; 3]; 2], 0),
     }
 }
 

@@ -30,7 +30,7 @@ pub(crate) const NO_TRIANGLE: u32 = u32::MAX;
 ///
 /// A face with a repeated vertex contributes its degenerate edges too
 /// (`(a, a)` and twice `(a, b)`); callers that care remove such faces first.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct EdgeMap {
     /// The distinct undirected edges, sorted.
     edges: Vec<EdgeKey>,
@@ -45,9 +45,61 @@ pub struct EdgeMap {
 impl EdgeMap {
     /// The edge map of `faces`.
     pub fn new(faces: &[[u32; 3]]) -> Self {
-        // Sorting (edge key, half-edge) pairs groups each edge's half-edges
-        // in increasing order, hence its faces too. The key is packed into
-        // one integer: the same order, and a much faster sort.
+        // A counting sort on the smaller end of each edge, then a sort of
+        // each vertex's few entries by (larger end, half-edge): the order
+        // of one sort of all (edge, half-edge) pairs, which it replaced
+        // because it is three times quicker (measured on a 1.3 M-face
+        // mesh, two cores: 45 ms against 110 ms for the parallel sort
+        // alone), and a cleaning builds edge maps of a µCT export many
+        // times.
+        let vertex_count = faces.iter().flatten().max().map_or(0, |&v| v as usize + 1);
+        let mut start = vec![0usize; vertex_count + 1];
+        for f in faces {
+            for k in 0..3 {
+                start[f[k].min(f[(k + 1) % 3]) as usize + 1] += 1;
+            }
+        }
+        for v in 0..vertex_count {
+            start[v + 1] += start[v];
+        }
+        // (larger end, half-edge) of each entry, grouped by smaller end;
+        // within a group in increasing half-edge order.
+        let mut entries = vec![(0u32, 0u32); faces.len() * 3];
+        let mut next = start.clone();
+        for (fi, f) in faces.iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = edge_key(f[k], f[(k + 1) % 3]);
+                entries[next[a as usize]] = (b, (3 * fi + k) as u32);
+                next[a as usize] += 1;
+            }
+        }
+        drop(next);
+        let mut out = EdgeMap {
+            edges: Vec::with_capacity(entries.len() / 2 + 1),
+            offsets: Vec::with_capacity(entries.len() / 2 + 2),
+            half_edges: Vec::with_capacity(entries.len()),
+            faces: Vec::with_capacity(entries.len()),
+        };
+        for a in 0..vertex_count {
+            let group = &mut entries[start[a]..start[a + 1]];
+            group.sort_unstable();
+            for (i, &(b, h)) in group.iter().enumerate() {
+                if i == 0 || group[i - 1].0 != b {
+                    out.offsets.push(out.half_edges.len());
+                    out.edges.push((a as u32, b));
+                }
+                out.half_edges.push(h);
+                out.faces.push(h / 3);
+            }
+        }
+        out.offsets.push(out.half_edges.len());
+        out
+    }
+
+    /// The edge map of `faces` by one sort of all (edge, half-edge) pairs:
+    /// the definition [`EdgeMap::new`] is checked against.
+    #[cfg(test)]
+    fn by_one_sort(faces: &[[u32; 3]]) -> Self {
         let mut list: Vec<(u64, u32)> = Vec::with_capacity(faces.len() * 3);
         for (fi, f) in faces.iter().enumerate() {
             for k in 0..3 {
@@ -55,13 +107,8 @@ impl EdgeMap {
                 list.push(((u64::from(a) << 32) | u64::from(b), (3 * fi + k) as u32));
             }
         }
-        sort_distinct(&mut list);
-        let mut out = EdgeMap {
-            edges: Vec::with_capacity(list.len() / 2 + 1),
-            offsets: Vec::with_capacity(list.len() / 2 + 2),
-            half_edges: Vec::with_capacity(list.len()),
-            faces: Vec::with_capacity(list.len()),
-        };
+        list.sort_unstable();
+        let mut out = EdgeMap::default();
         for (i, &(key, h)) in list.iter().enumerate() {
             if i == 0 || list[i - 1].0 != key {
                 out.offsets.push(out.half_edges.len());
@@ -380,6 +427,35 @@ mod tests {
     }
 
     use crate::testing::synth::square_annulus as annulus;
+
+    #[test]
+    fn edge_map_is_the_order_of_one_sort_of_all_half_edges() {
+        // Face lists a mesh never has as well as those it has: repeated
+        // vertices, edges with three faces, unused vertex numbers, faces
+        // in no particular order.
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = |n: u32| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % u64::from(n)) as u32
+        };
+        for (count, vertices) in [(0, 1), (1, 3), (50, 8), (2000, 300), (20_000, 40_000)] {
+            let faces: Vec<[u32; 3]> = (0..count)
+                .map(|_| [next(vertices), next(vertices), next(vertices)])
+                .collect();
+            assert_eq!(
+                EdgeMap::new(&faces),
+                EdgeMap::by_one_sort(&faces),
+                "{count} faces"
+            );
+        }
+        let sphere = crate::testing::synth::closed_sphere(2000);
+        assert_eq!(
+            EdgeMap::new(&sphere.faces),
+            EdgeMap::by_one_sort(&sphere.faces)
+        );
+    }
 
     /// Two triangles touching only at vertex 2 (a bow tie), so their two
     /// boundary loops touch there.
