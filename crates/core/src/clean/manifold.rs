@@ -16,6 +16,10 @@ pub(super) fn repair_nonmanifold_edges(mesh: &Mesh) -> (Mesh, usize) {
     let mut removed = vec![false; mesh.faces.len()];
     let mut repaired = 0;
     for e in 0..ef.len() {
+        // Nearly every edge has two faces or fewer: no list is made for it.
+        if ef.faces_of(e).len() <= 2 {
+            continue;
+        }
         let live: Vec<u32> = ef
             .faces_of(e)
             .iter()
