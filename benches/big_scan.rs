@@ -6,6 +6,14 @@
 //! time (user + system) and peak RSS of each. Without the real teeth, a synthetic crown and a
 //! synthetic library stand in.
 //!
+//! With the real teeth, then the exports the crown-extraction targets
+//! name: two-rooted marching-cubes isosurfaces at 300 voxels across the
+//! whole tooth (`support::exports`, as `clean_exports_two_rooted_300_all`
+//! builds them), of the teeth whose export has 2 M faces or more (P30,
+//! j14, ah14, k01, j18; `MORPHOID_BENCH_EXPORTS=NAME,…` names others),
+//! each written as binary PLY and identified by `morphoid classify`
+//! three times.
+//!
 //! `cargo build --release && cargo bench --bench big_scan`
 
 use morphoid_data::mesh_io;
@@ -72,7 +80,61 @@ fn main() {
         walls.push(t);
     }
     println!("classify wall: {}", wall_summary(&walls));
+    if support::data::teeth_dir_if_present().is_some() {
+        big_exports(&bin, tmp.path(), &library, &cache, &figures);
+    }
 }
+
+/// Build the two-rooted 300-voxel exports of the named real teeth and
+/// identify each [`EXPORT_RUNS`] times.
+fn big_exports(bin: &Path, tmp: &Path, library: &Path, cache: &Path, figures: &Path) {
+    use support::exports::{export_seed, exported_tooth, form_for, Placement};
+    let names = support::cp::tooth_names(library);
+    let wanted = std::env::var("MORPHOID_BENCH_EXPORTS")
+        .unwrap_or_else(|_| "P30,j14,ah14,k01,j18".to_string());
+    let mut medians = Vec::new();
+    for name in wanted.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+        let Some(index) = names.iter().position(|n| n == name) else {
+            eprintln!("{name}: not in the library, skipped");
+            continue;
+        };
+        let crown = support::cp::load_tooth(library, name);
+        let seed = export_seed(index);
+        let form = form_for(seed, Some(2), None, 300);
+        let Some(tooth) = exported_tooth(&crown, &form) else {
+            eprintln!("{name}: no whole tooth could be built, skipped");
+            continue;
+        };
+        let placement = Placement::for_seed(seed, morphoid_core::mesh::bbox_diagonal(&crown));
+        let path = tmp.join(format!("{name}.ply"));
+        mesh_io::write_ply(&path, &placement.apply(&tooth.mesh)).expect("write the export");
+        let scan = path.to_string_lossy().into_owned();
+        let mut walls = Vec::new();
+        for run in 0..EXPORT_RUNS {
+            let config = library_config(tmp, &format!("{name}-{run}"), library, cache);
+            let (t, cpu, rss) = timed(bin, &["--config", &config, "classify", &scan], figures);
+            println!(
+                "two-rooted export {name} ({:.2} M faces): classify {t:6.2} s  CPU {cpu:6.2} s  peak RSS {rss:6.0} MB",
+                tooth.mesh.faces.len() as f64 / 1e6
+            );
+            walls.push(t);
+        }
+        let summary = wall_summary(&walls);
+        walls.sort_by(f64::total_cmp);
+        medians.push(walls[walls.len() / 2]);
+        println!("two-rooted export {name}: classify wall {summary}");
+    }
+    medians.sort_by(f64::total_cmp);
+    if let (Some(lo), Some(hi)) = (medians.first(), medians.last()) {
+        println!(
+            "two-rooted exports: medians {lo:.2}-{hi:.2} s over {} exports",
+            medians.len()
+        );
+    }
+}
+
+/// How many times each two-rooted export is identified.
+const EXPORT_RUNS: usize = 3;
 
 /// How many times the scan is identified.
 const RUNS: usize = 5;

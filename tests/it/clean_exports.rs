@@ -6,9 +6,8 @@
 //! whole teeth are identified against the other crowns.
 
 use crate::support::clean::mean_max_distance;
-use crate::support::exports::{exported_tooth, Junction, ToothForm};
+use crate::support::exports::{export_seed, exported_tooth, form_for, Junction, Placement};
 use morphoid_core::mesh::{bbox_diagonal, surface_area, Mesh};
-use morphoid_synth::mesh::{scale, RigidMotion};
 use std::time::Instant;
 
 /// A kind of export: roots, junction and resolution.
@@ -43,21 +42,6 @@ const MIXED: Kind = Kind {
     junction: None,
     voxels: 0,
 };
-
-fn form_for(kind: Kind, seed: u64) -> ToothForm {
-    // Mixed so that neighbouring seeds differ in every respect.
-    let k = (seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40) as usize;
-    let roots = kind.roots.unwrap_or(1 + k % 3);
-    let junction = kind
-        .junction
-        .unwrap_or([Junction::Smooth, Junction::Kinked, Junction::Ledge][(k / 3) % 3]);
-    let voxels = if kind.voxels > 0 {
-        kind.voxels
-    } else {
-        [140, 200, 300][(k / 2) % 3]
-    };
-    ToothForm::random(seed, roots, junction, voxels)
-}
 
 /// How close an extracted crown is to the crop it was built on.
 struct Fit {
@@ -142,12 +126,11 @@ fn run_kind(kind: Kind, step: usize, through_binary: bool) -> Option<Run> {
         .par_iter()
         .map(|&(i, name)| {
             let original = crate::support::cp::load_tooth(&dir, name);
-            let seed = 9100 + i as u64;
-            let form = form_for(kind, seed);
+            let seed = export_seed(i);
+            let form = form_for(seed, kind.roots, kind.junction, kind.voxels);
             let tooth = exported_tooth(&original, &form).expect("a whole tooth is built");
-            let m = RigidMotion::random(seed, 3.0 * bbox_diagonal(&original));
-            let s = 2f64.powf(((seed * 7919) % 200) as f64 / 100.0 - 1.0);
-            let moved = |x: &Mesh| m.apply(&scale(x, s));
+            let placement = Placement::for_seed(seed, bbox_diagonal(&original));
+            let moved = |x: &Mesh| placement.apply(x);
             let path = out_dir.join(format!("{name}.ply"));
             // MORPHOID_EXPORT_IDEAL_CUT=1: the export cut at the true crop
             // line instead, so that only the surface's resolution differs

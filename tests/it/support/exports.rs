@@ -15,6 +15,7 @@
 
 use morphoid_core::mesh::{cross, dot, longest_boundary_loop, norm, sub, Mesh};
 use morphoid_core::mesh::{isosurface, Grid};
+use morphoid_synth::mesh::{scale, RigidMotion};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;
@@ -83,6 +84,57 @@ impl ToothForm {
             pulp: rng.gen_bool(0.5),
             seed,
         }
+    }
+}
+
+/// The seed of the export of the tooth at `index` in the library's
+/// order: every test and bench that builds exports of the real teeth
+/// builds the same ones.
+pub(crate) fn export_seed(index: usize) -> u64 {
+    9100 + index as u64
+}
+
+/// The form of the export with `seed`: `roots` and `junction` when given,
+/// else drawn from the seed (mixed so that neighbouring seeds differ in
+/// every respect); `voxels` when above 0, else 140, 200 or 300.
+pub(crate) fn form_for(
+    seed: u64,
+    roots: Option<usize>,
+    junction: Option<Junction>,
+    voxels: usize,
+) -> ToothForm {
+    let k = (seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40) as usize;
+    let roots = roots.unwrap_or(1 + k % 3);
+    let junction =
+        junction.unwrap_or([Junction::Smooth, Junction::Kinked, Junction::Ledge][(k / 3) % 3]);
+    let voxels = if voxels > 0 {
+        voxels
+    } else {
+        [140, 200, 300][(k / 2) % 3]
+    };
+    ToothForm::random(seed, roots, junction, voxels)
+}
+
+/// Where the export with `seed` of a crown of bounding-box diagonal
+/// `diagonal` lies in the scanner's frame: scaled by 0.5–2 and moved at
+/// random. The same placement moves the crown it was built on.
+pub(crate) struct Placement {
+    motion: RigidMotion,
+    scale: f64,
+}
+
+impl Placement {
+    /// The placement of the export with `seed`.
+    pub(crate) fn for_seed(seed: u64, diagonal: f64) -> Placement {
+        Placement {
+            motion: RigidMotion::random(seed, 3.0 * diagonal),
+            scale: 2f64.powf(((seed * 7919) % 200) as f64 / 100.0 - 1.0),
+        }
+    }
+
+    /// `mesh` placed.
+    pub(crate) fn apply(&self, mesh: &Mesh) -> Mesh {
+        self.motion.apply(&scale(mesh, self.scale))
     }
 }
 

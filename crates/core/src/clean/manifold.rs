@@ -1,7 +1,7 @@
 //! Repair of non-manifold edges and vertices.
 
 use super::union_find::UnionFind;
-use crate::mesh::{edge_face_map, has_directed_edge, Mesh};
+use crate::mesh::{has_directed_edge, HalfEdges, Mesh};
 use rustc_hash::FxHashMap;
 
 /// Make every edge have at most two faces. On an edge with more, the first
@@ -12,25 +12,22 @@ use rustc_hash::FxHashMap;
 ///
 /// Returns the mesh and the number of non-manifold edges repaired.
 pub(super) fn repair_nonmanifold_edges(mesh: &Mesh) -> (Mesh, usize) {
-    let ef = edge_face_map(mesh);
     let mut removed = vec![false; mesh.faces.len()];
     let mut repaired = 0;
-    for e in 0..ef.len() {
+    HalfEdges::new(&mesh.faces).for_each_edge(|(a, b), half_edges| {
         // Nearly every edge has two faces or fewer: no list is made for it.
-        if ef.faces_of(e).len() <= 2 {
-            continue;
+        if half_edges.len() <= 2 {
+            return;
         }
-        let live: Vec<u32> = ef
-            .faces_of(e)
+        let live: Vec<u32> = half_edges
             .iter()
-            .copied()
+            .map(|&(_, h)| h / 3)
             .filter(|&f| !removed[f as usize])
             .collect();
         if live.len() <= 2 {
-            continue;
+            return;
         }
         repaired += 1;
-        let (a, b) = ef.edge(e);
         let first = live[0];
         let dir = has_directed_edge(mesh.faces[first as usize], a, b);
         let partner = live[1..]
@@ -43,7 +40,7 @@ pub(super) fn repair_nonmanifold_edges(mesh: &Mesh) -> (Mesh, usize) {
                 removed[g as usize] = true;
             }
         }
-    }
+    });
     let faces = mesh
         .faces
         .iter()
@@ -60,25 +57,23 @@ pub(super) fn repair_nonmanifold_edges(mesh: &Mesh) -> (Mesh, usize) {
 ///
 /// Returns the mesh and the number of vertices that were split.
 pub(super) fn split_nonmanifold_vertices(mesh: &Mesh) -> (Mesh, usize) {
-    let ef = edge_face_map(mesh);
     // Corner c = 3·face + k.
     let corner = |f: u32, v: u32| -> Option<u32> {
         let fc = mesh.faces[f as usize];
         (0..3).find(|&k| fc[k] == v).map(|k| 3 * f + k as u32)
     };
     let mut uf = UnionFind::new(mesh.faces.len() * 3);
-    for e in 0..ef.len() {
-        let fs = ef.faces_of(e);
-        if fs.len() != 2 {
-            continue;
-        }
-        let (a, b) = ef.edge(e);
+    HalfEdges::new(&mesh.faces).for_each_edge(|(a, b), half_edges| {
+        let &[(_, h0), (_, h1)] = half_edges else {
+            return;
+        };
+        let (f0, f1) = (h0 / 3, h1 / 3);
         for v in [a, b] {
-            if let (Some(c0), Some(c1)) = (corner(fs[0], v), corner(fs[1], v)) {
+            if let (Some(c0), Some(c1)) = (corner(f0, v), corner(f1, v)) {
                 uf.union(c0, c1);
             }
         }
-    }
+    });
     let mut vertices = mesh.vertices.clone();
     let mut faces = mesh.faces.clone();
     // The fan root that owns each vertex; corners are visited in order.

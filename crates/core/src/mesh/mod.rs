@@ -37,7 +37,7 @@ pub use topology::{
 };
 pub(crate) use topology::{
     boundary_loops_by_length, edge_key, sort_distinct, triangle_adjacency, vertex_adjacency,
-    EdgeKey, EdgeMap, NO_TRIANGLE,
+    EdgeKey, EdgeMap, HalfEdges, NO_TRIANGLE,
 };
 pub(crate) use topology::{half_edge_ends, has_directed_edge};
 

@@ -45,53 +45,20 @@ pub struct EdgeMap {
 impl EdgeMap {
     /// The edge map of `faces`.
     pub fn new(faces: &[[u32; 3]]) -> Self {
-        // A counting sort on the smaller end of each edge, then a sort of
-        // each vertex's few entries by (larger end, half-edge): the order
-        // of one sort of all (edge, half-edge) pairs, which it replaced
-        // because it is three times quicker (measured on a 1.3 M-face
-        // mesh, two cores: 45 ms against 110 ms for the parallel sort
-        // alone), and a cleaning builds edge maps of a µCT export many
-        // times.
-        let vertex_count = faces.iter().flatten().max().map_or(0, |&v| v as usize + 1);
-        let mut start = vec![0usize; vertex_count + 1];
-        for f in faces {
-            for k in 0..3 {
-                start[f[k].min(f[(k + 1) % 3]) as usize + 1] += 1;
-            }
-        }
-        for v in 0..vertex_count {
-            start[v + 1] += start[v];
-        }
-        // (larger end, half-edge) of each entry, grouped by smaller end;
-        // within a group in increasing half-edge order.
-        let mut entries = vec![(0u32, 0u32); faces.len() * 3];
-        let mut next = start.clone();
-        for (fi, f) in faces.iter().enumerate() {
-            for k in 0..3 {
-                let (a, b) = edge_key(f[k], f[(k + 1) % 3]);
-                entries[next[a as usize]] = (b, (3 * fi + k) as u32);
-                next[a as usize] += 1;
-            }
-        }
-        drop(next);
+        let grouped = HalfEdges::new(faces);
+        let count = grouped.entries.len();
         let mut out = EdgeMap {
-            edges: Vec::with_capacity(entries.len() / 2 + 1),
-            offsets: Vec::with_capacity(entries.len() / 2 + 2),
-            half_edges: Vec::with_capacity(entries.len()),
-            faces: Vec::with_capacity(entries.len()),
+            edges: Vec::with_capacity(count / 2 + 1),
+            offsets: Vec::with_capacity(count / 2 + 2),
+            half_edges: Vec::with_capacity(count),
+            faces: Vec::with_capacity(count),
         };
-        for a in 0..vertex_count {
-            let group = &mut entries[start[a]..start[a + 1]];
-            group.sort_unstable();
-            for (i, &(b, h)) in group.iter().enumerate() {
-                if i == 0 || group[i - 1].0 != b {
-                    out.offsets.push(out.half_edges.len());
-                    out.edges.push((a as u32, b));
-                }
-                out.half_edges.push(h);
-                out.faces.push(h / 3);
-            }
-        }
+        grouped.for_each_edge(|edge, half_edges| {
+            out.offsets.push(out.half_edges.len());
+            out.edges.push(edge);
+            out.half_edges.extend(half_edges.iter().map(|&(_, h)| h));
+            out.faces.extend(half_edges.iter().map(|&(_, h)| h / 3));
+        });
         out.offsets.push(out.half_edges.len());
         out
     }
@@ -167,6 +134,76 @@ impl EdgeMap {
     }
 }
 
+/// The half-edges of a list of faces grouped by undirected edge, edges in
+/// sorted order and each edge's half-edges in increasing order: what an
+/// [`EdgeMap`] holds, in half its memory, for the passes that visit each
+/// edge once (a 2.5 M-face export's edge map takes 120 MB).
+pub(crate) struct HalfEdges {
+    /// `entries[start[a]..start[a + 1]]` are those whose smaller end is
+    /// `a`.
+    start: Vec<usize>,
+    /// (larger end, half-edge `3f + k`), sorted within each smaller end.
+    entries: Vec<(u32, u32)>,
+}
+
+impl HalfEdges {
+    /// The half-edges of `faces`, grouped.
+    pub(crate) fn new(faces: &[[u32; 3]]) -> Self {
+        // A counting sort on the smaller end of each edge, then a sort of
+        // each vertex's few entries: the order of one sort of all (edge,
+        // half-edge) pairs, which it replaced because it is three times
+        // quicker (measured on a 1.3 M-face mesh, two cores: 45 ms
+        // against 110 ms for the parallel sort alone), and a cleaning
+        // visits the edges of a µCT export many times.
+        let vertex_count = faces.iter().flatten().max().map_or(0, |&v| v as usize + 1);
+        let mut start = vec![0usize; vertex_count + 1];
+        for f in faces {
+            for k in 0..3 {
+                start[f[k].min(f[(k + 1) % 3]) as usize + 1] += 1;
+            }
+        }
+        for v in 0..vertex_count {
+            start[v + 1] += start[v];
+        }
+        let mut entries = vec![(0u32, 0u32); faces.len() * 3];
+        let mut next = start.clone();
+        for (fi, f) in faces.iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = edge_key(f[k], f[(k + 1) % 3]);
+                entries[next[a as usize]] = (b, (3 * fi + k) as u32);
+                next[a as usize] += 1;
+            }
+        }
+        drop(next);
+        for a in 0..vertex_count {
+            entries[start[a]..start[a + 1]].sort_unstable();
+        }
+        HalfEdges { start, entries }
+    }
+
+    /// Call `visit(edge, half_edges)` for every edge in sorted order, with
+    /// its (larger end, half-edge) entries in increasing half-edge order.
+    pub(crate) fn for_each_edge(&self, mut visit: impl FnMut(EdgeKey, &[(u32, u32)])) {
+        for a in 0..self.start.len().saturating_sub(1) {
+            let group = &self.entries[self.start[a]..self.start[a + 1]];
+            let mut first = 0;
+            while first < group.len() {
+                let b = group[first].0;
+                let end = first + group[first..].partition_point(|e| e.0 == b);
+                visit((a as u32, b), &group[first..end]);
+                first = end;
+            }
+        }
+    }
+
+    /// The number of distinct edges.
+    pub(crate) fn edge_count(&self) -> usize {
+        let mut count = 0;
+        self.for_each_edge(|_, _| count += 1);
+        count
+    }
+}
+
 /// The edge map of a mesh (see [`EdgeMap`]).
 pub fn edge_face_map(mesh: &Mesh) -> EdgeMap {
     EdgeMap::new(&mesh.faces)
@@ -187,13 +224,13 @@ pub(crate) fn has_directed_edge(f: [u32; 3], a: u32, b: u32) -> bool {
 
 /// The boundary half-edges `(from, to)` (those whose edge has one face),
 /// sorted.
-fn boundary_half_edges(faces: &[[u32; 3]], edges: &EdgeMap) -> Vec<(u32, u32)> {
-    let mut half: Vec<(u32, u32)> = (0..edges.len())
-        .filter_map(|e| match edges.half_edges_of(e) {
-            [h] => Some(half_edge_ends(faces, *h)),
-            _ => None,
-        })
-        .collect();
+fn boundary_half_edges(faces: &[[u32; 3]]) -> Vec<(u32, u32)> {
+    let mut half: Vec<(u32, u32)> = Vec::new();
+    HalfEdges::new(faces).for_each_edge(|_, half_edges| {
+        if let &[(_, h)] = half_edges {
+            half.push(half_edge_ends(faces, h));
+        }
+    });
     sort_distinct(&mut half);
     half
 }
@@ -239,7 +276,7 @@ pub fn boundary_vertices(mesh: &Mesh) -> Vec<bool> {
 /// boundary half-edge leaves; that open chain is returned as walked, up to
 /// that vertex.
 pub fn boundary_loops(mesh: &Mesh) -> Vec<Vec<u32>> {
-    let half = boundary_half_edges(&mesh.faces, &edge_face_map(mesh));
+    let half = boundary_half_edges(&mesh.faces);
     let vertex_count = half.iter().map(|&(a, b)| a.max(b) as usize + 1).max();
     // Position of each vertex on the current path (u32::MAX = not on it).
     let mut position = vec![u32::MAX; vertex_count.unwrap_or(0)];
@@ -359,7 +396,7 @@ pub fn euler_characteristic(mesh: &Mesh) -> i64 {
         }
     }
     let v = used.iter().filter(|&&u| u).count() as i64;
-    let e = edge_face_map(mesh).len() as i64;
+    let e = HalfEdges::new(&mesh.faces).edge_count() as i64;
     v - e + mesh.faces.len() as i64
 }
 
@@ -394,16 +431,15 @@ pub(crate) fn vertex_adjacency(mesh: &Mesh) -> Vec<Vec<u32>> {
 /// `f`, or is [`NO_TRIANGLE`] when that edge is on the boundary or is
 /// shared by more than two triangles.
 pub(crate) fn triangle_adjacency(faces: &[[u32; 3]]) -> Vec<[u32; 3]> {
-    let edges = EdgeMap::new(faces);
     let mut adjacency = vec![[NO_TRIANGLE; 3]; faces.len()];
-    for e in 0..edges.len() {
-        if let &[h, i] = edges.half_edges_of(e) {
+    HalfEdges::new(faces).for_each_edge(|_, half_edges| {
+        if let &[(_, h), (_, i)] = half_edges {
             // Half-edge 3f + k is opposite corner k + 2 of face f.
             let ((f, k), (g, l)) = ((h / 3, (h + 2) % 3), (i / 3, (i + 2) % 3));
             adjacency[f as usize][k as usize] = g;
             adjacency[g as usize][l as usize] = f;
         }
-    }
+    });
     adjacency
 }
 
