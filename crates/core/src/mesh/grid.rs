@@ -85,12 +85,7 @@ impl Grid {
         if sigma.is_nan() || sigma <= 0.0 {
             return;
         }
-        let r = (3.0 * sigma).ceil() as i64;
-        let kernel: Vec<f64> = (-r..=r)
-            .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp())
-            .collect();
-        let sum: f64 = kernel.iter().sum();
-        let kernel: Vec<f64> = kernel.iter().map(|k| k / sum).collect();
+        let kernel = gaussian_kernel(sigma);
         if self.values.is_empty() {
             return;
         }
@@ -103,6 +98,17 @@ impl Grid {
         blur_lines(&mut self.values, nx, self.dims[1], &kernel);
         blur_lines(&mut self.values, nx * ny, self.dims[2], &kernel);
     }
+}
+
+/// The Gaussian of standard deviation `sigma` sampled at the integers
+/// within 3σ (rounded up) of 0, normalized to sum 1.
+fn gaussian_kernel(sigma: f64) -> Vec<f64> {
+    let r = (3.0 * sigma).ceil() as i64;
+    let kernel: Vec<f64> = (-r..=r)
+        .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp())
+        .collect();
+    let sum: f64 = kernel.iter().sum();
+    kernel.iter().map(|k| k / sum).collect()
 }
 
 /// Convolve `values`, seen as blocks of `n` rows of `inner` samples, with
@@ -298,12 +304,8 @@ mod tests {
 
     /// The blur by its definition, one sample at a time.
     fn blurred_by_definition(grid: &Grid, sigma: f64) -> Vec<f32> {
-        let r = (3.0 * sigma).ceil() as i64;
-        let kernel: Vec<f64> = (-r..=r)
-            .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp())
-            .collect();
-        let sum: f64 = kernel.iter().sum();
-        let kernel: Vec<f64> = kernel.iter().map(|k| k / sum).collect();
+        let kernel = gaussian_kernel(sigma);
+        let r = (kernel.len() / 2) as i64;
         let dims = grid.dims;
         let strides = [1, dims[0], dims[0] * dims[1]];
         let mut values = grid.values.clone();
