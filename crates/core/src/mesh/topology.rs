@@ -236,8 +236,8 @@ fn boundary_half_edges(faces: &[[u32; 3]]) -> Vec<(u32, u32)> {
 }
 
 /// Sort `items`, which are all distinct (so that any sort gives the same
-/// order), on all cores when there are many: the edge lists of a
-/// million-face export take a large share of its cleaning.
+/// order), on all cores when there are many: the boundary and face lists
+/// of a million-face export.
 pub(crate) fn sort_distinct<T: Ord + Send>(items: &mut [T]) {
     use rayon::slice::ParallelSliceMut as _;
     if items.len() > 1 << 16 {
