@@ -86,7 +86,7 @@ fn crop_line_heights(whole: &Mesh, crop: &Mesh, axis: [f64; 3]) -> (f64, f64) {
 
 /// What one run found.
 struct Run {
-    prepared: Vec<morphoid_core::cp::Prepared>,
+    prepared: Vec<morphoid_data::pipeline::PreparedSurface>,
     refused: Vec<String>,
     off_target: Vec<String>,
     total: usize,
@@ -183,6 +183,11 @@ fn run_kind(kind: Kind, step: usize, through_binary: bool) -> Option<Run> {
             let seconds = started.elapsed().as_secs_f64();
             match out {
                 Ok(out) => {
+                    if std::env::var_os("MORPHOID_EXPORT_DIR").is_some() {
+                        // The crown cut, for experiments on the cut's place.
+                        let cleaned = out_dir.join(format!("{name}.cleaned.ply"));
+                        morphoid_data::mesh_io::write_ply(&cleaned, &out.cleaned).unwrap();
+                    }
                     let f = fit(&out.cleaned, &moved(&original));
                     let crown = out.cleaning.crown.clone();
                     let truth = crown
@@ -196,7 +201,7 @@ fn run_kind(kind: Kind, step: usize, through_binary: bool) -> Option<Run> {
                         crown.map(|c| (c.method, c.cut_height_min, c.cut_height_max)),
                         truth
                     );
-                    Ok((name.clone(), f, Some(out.prepared)))
+                    Ok((name.clone(), f, Some(out)))
                 }
                 Err(e) => {
                     println!("{}: REFUSED {e}", line(seconds));
@@ -234,8 +239,7 @@ fn identify(run: &Run) -> Vec<morphoid_research::eval::RankScore> {
     let names = crate::support::cp::tooth_names(&dir);
     let params = morphoid_core::cp::CpParams::default();
     let originals = crate::support::cp::prepare_teeth(&dir, &names, &params);
-    let scores =
-        crate::support::cp::heldout_scores(&dir, &run.prepared, &originals, &params.compare);
+    let scores = crate::support::cp::heldout_scores_classified(&dir, &run.prepared, &originals);
     for s in &scores {
         println!(
             "held out, {}: {}/{} ({} refused, not counted)",
@@ -305,7 +309,11 @@ fn clean_exports_from_dir() {
     names.sort();
     let settings = morphoid_data::pipeline::Settings::default();
     use rayon::prelude::*;
-    let results: Vec<(String, Option<Fit>)> = names
+    let results: Vec<(
+        String,
+        Option<Fit>,
+        Option<morphoid_data::pipeline::PreparedSurface>,
+    )> = names
         .par_iter()
         .map(|name| {
             let crop = morphoid_data::mesh_io::load(&dir.join(format!("{name}.crop.ply")))
@@ -324,19 +332,19 @@ fn clean_exports_from_dir() {
                         started.elapsed().as_secs_f64(),
                         c.map(|c| (c.method, c.cut_height_min, c.cut_height_max, c.neck_bulge))
                     );
-                    (name.clone(), Some(f))
+                    (name.clone(), Some(f), Some(out))
                 }
                 Err(e) => {
                     println!("{name}: REFUSED {e}");
-                    (name.clone(), None)
+                    (name.clone(), None, None)
                 }
             }
         })
         .collect();
-    let refused = results.iter().filter(|(_, f)| f.is_none()).count();
+    let refused = results.iter().filter(|(_, f, _)| f.is_none()).count();
     let on = results
         .iter()
-        .filter(|(_, f)| {
+        .filter(|(_, f, _)| {
             f.as_ref()
                 .is_some_and(|f| f.mean < 0.01 && (0.9..1.1).contains(&f.area_ratio))
         })
@@ -345,4 +353,14 @@ fn clean_exports_from_dir() {
         "{} exports: {on} on target, {refused} refused",
         results.len()
     );
+    // MORPHOID_EXPORT_IDENTIFY=1: identified held out too, as `classify`
+    // does (the crowns cut again along the nearest references' lines).
+    if std::env::var_os("MORPHOID_EXPORT_IDENTIFY").is_some() {
+        let teeth = crate::support::data::teeth_dir().unwrap();
+        let all = crate::support::cp::tooth_names(&teeth);
+        let params = morphoid_core::cp::CpParams::default();
+        let originals = crate::support::cp::prepare_teeth(&teeth, &all, &params);
+        let surfaces: Vec<_> = results.into_iter().filter_map(|(_, _, s)| s).collect();
+        crate::support::cp::heldout_scores_classified(&teeth, &surfaces, &originals);
+    }
 }

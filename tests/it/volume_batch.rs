@@ -278,22 +278,22 @@ fn all_teeth_in_batches_of_three_are_identified() {
         .count();
     // Each specimen named after the tooth its box holds, in x order: the
     // batch's teeth stand in the order they were given.
-    let mut prepared: Vec<morphoid_core::cp::Prepared> = Vec::new();
+    let mut prepared: Vec<morphoid_data::pipeline::PreparedSurface> = Vec::new();
     for b in batches
         .iter()
         .filter(|b| b.specimens.len() == b.names.len())
     {
         for (name, (p, _, _)) in b.names.iter().zip(&b.specimens) {
             if let Ok(p) = p {
-                let mut q = p.prepared.clone();
-                q.set_name(name);
+                let mut q = p.clone();
+                q.prepared.set_name(name);
                 prepared.push(q);
             }
         }
     }
     let params = morphoid_core::cp::CpParams::default();
     let originals = cps::prepare_teeth(&dir, &all, &params);
-    let s = cps::heldout_scores(&dir, &prepared, &originals, &params.compare);
+    let s = cps::heldout_scores_classified(&dir, &prepared, &originals);
     let genus = s
         .iter()
         .find(|r| r.rank == "genus")

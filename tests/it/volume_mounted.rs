@@ -338,12 +338,12 @@ fn identify_mounted(names: &[String], across: Option<usize>) -> (usize, usize, u
     );
     let params = morphoid_core::cp::CpParams::default();
     let originals = cps::prepare_teeth(&dir, &all, &params);
-    let stacks: Vec<morphoid_core::cp::Prepared> = kept
+    let stacks: Vec<morphoid_data::pipeline::PreparedSurface> = kept
         .iter()
-        .map(|o| o.prepared.as_ref().unwrap().prepared.clone())
+        .map(|o| o.prepared.as_ref().unwrap().clone())
         .collect();
     println!("mounted stacks:");
-    let s = cps::heldout_scores(&dir, &stacks, &originals, &params.compare);
+    let s = cps::heldout_scores_classified(&dir, &stacks, &originals);
     let crops: Vec<morphoid_core::cp::Prepared> = originals
         .iter()
         .filter(|p| names.iter().any(|n| n == p.name()))

@@ -34,6 +34,32 @@ pub const NEAREST: usize = store::DEFAULT_NEAREST;
 /// How many nearest references a report draws beside the scan.
 const REPORT_NEAREST: usize = 3;
 
+/// Rounds of cutting a crown again along a reference's crop line: the
+/// second cut is aligned without the neck the first removed (on a crown
+/// given a neck, the first leaves a third of it, the second none).
+const RECUT_ROUNDS: usize = 2;
+
+/// A reference whose crop line a crown found on a whole tooth was cut
+/// along again, and its distance before and after (the result's
+/// `cleaning.recut`).
+#[derive(Debug, Clone, serde::Serialize)]
+struct Recut {
+    reference: String,
+    before: f64,
+    after: f64,
+}
+
+/// The distance row of reference `name` from comparison `c`.
+fn distance_row(name: &str, c: &cp::Comparison) -> DistanceRow {
+    DistanceRow {
+        reference: name.to_string(),
+        forward: c.forward.distance,
+        backward: c.backward.distance,
+        distance: c.distance,
+        reflected: c.reflected,
+    }
+}
+
 /// Why the pictures of a recorded scan cannot be drawn again.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
@@ -511,6 +537,15 @@ impl Classifier {
         self.identify_path(path).map(|(outcome, _)| outcome)
     }
 
+    /// Identify a surface already prepared (the research tools' and the
+    /// evaluations' path: the same comparison, re-cut and answer as a
+    /// file's, without reading it again).
+    pub fn classify_prepared(&self, surface: &PreparedSurface) -> ScanOutcome {
+        let name = surface.prepared.name().to_string();
+        let _span = tracing::info_span!("scan", scan = %name).entered();
+        self.compare_prepared(&name, surface, surface.timings.load)
+    }
+
     /// Identify the scan at `path` only if what is read there is the
     /// content `expected` (a content hash): the file, or every slice of a
     /// folder, is read once and hashed as read, and exactly those bytes
@@ -719,18 +754,18 @@ impl Classifier {
     /// identify it; `load_ms` is the time it took to read.
     fn compare_prepared(&self, name: &str, surface: &PreparedSurface, load_ms: f64) -> ScanOutcome {
         let t = Instant::now();
-        let compared = self.screened(&surface.prepared);
+        let screened = self.screened(&surface.prepared);
         let screen_ms = t.elapsed().as_secs_f64() * 1e3;
         let t = Instant::now();
-        let distances: Vec<DistanceRow> = {
+        let compared: Vec<(DistanceRow, usize, cp::Alignment)> = {
             let _s = tracing::info_span!(
                 "compare",
                 scan = %name,
                 references = self.references.len(),
-                compared = compared.len()
+                compared = screened.len()
             )
             .entered();
-            compared
+            screened
                 .par_iter()
                 .filter_map(|&i| {
                     let r = &self.references[i];
@@ -745,17 +780,15 @@ impl Classifier {
                         }
                     };
                     let c = cp::compare(&surface.prepared, &prepared, &self.settings.cp.compare);
-                    Some(DistanceRow {
-                        reference: r.name().to_string(),
-                        forward: c.forward.distance,
-                        backward: c.backward.distance,
-                        distance: c.distance,
-                        reflected: c.reflected,
-                    })
+                    Some((distance_row(r.name(), &c), i, cp::Alignment::of(&c)))
                 })
                 .collect()
         };
         let compare_ms = t.elapsed().as_secs_f64() * 1e3;
+        let t = Instant::now();
+        let mut distances: Vec<DistanceRow> = compared.iter().map(|(d, ..)| d.clone()).collect();
+        let recut = self.recut_nearest(name, surface, &compared, &mut distances);
+        let recut_ms = t.elapsed().as_secs_f64() * 1e3;
         let mut id = identify::identify(&distances, &self.labels, NEAREST);
         let calibration = self.calibration.get();
         if let Some(c) = calibration {
@@ -769,8 +802,11 @@ impl Classifier {
             ("prepare".to_string(), surface.timings.prepare),
             ("compare".to_string(), compare_ms),
         ]);
-        if compared.len() < self.references.len() {
+        if screened.len() < self.references.len() {
             timings_ms.insert("screen".into(), screen_ms);
+        }
+        if !recut.is_empty() {
+            timings_ms.insert("recut".into(), recut_ms);
         }
         let t = Instant::now();
         let landmarks = self.nearest_landmarks(&distances, surface);
@@ -788,6 +824,9 @@ impl Classifier {
                 );
             }
         }
+        if let (false, Some(map)) = (recut.is_empty(), cleaning.as_object_mut()) {
+            map.insert("recut".into(), serde_json::json!(recut));
+        }
         ScanOutcome {
             ranks: id.ranks,
             distances,
@@ -796,6 +835,68 @@ impl Classifier {
             landmarks,
             calibrating,
         }
+    }
+
+    /// For a crown cut from a whole tooth (or a volume): the scan cut again
+    /// along the crop line of each of its `[cp] recut_nearest` nearest
+    /// references, moved onto it by their comparison, and compared with
+    /// it again; each round's comparison aligns the next round's cut
+    /// (the first alignment is pulled by the neck the cut removes). A
+    /// reference's row takes the re-cut distance where it is smaller.
+    /// Returns what was re-cut, for the result.
+    fn recut_nearest(
+        &self,
+        name: &str,
+        surface: &PreparedSurface,
+        compared: &[(DistanceRow, usize, cp::Alignment)],
+        rows: &mut [DistanceRow],
+    ) -> Vec<Recut> {
+        let k = self.settings.cp.recut.recut_nearest;
+        if k == 0 || surface.cleaning.crown.is_none() {
+            return Vec::new();
+        }
+        let _s = tracing::info_span!("recut", scan = %name, references = k).entered();
+        let mut order: Vec<usize> = (0..compared.len()).collect();
+        order.sort_by(|&a, &b| {
+            let (x, y) = (&compared[a].0, &compared[b].0);
+            x.distance
+                .total_cmp(&y.distance)
+                .then_with(|| x.reference.cmp(&y.reference))
+        });
+        order.truncate(k);
+        let results: Vec<(usize, cp::Comparison)> = order
+            .par_iter()
+            .filter_map(|&row| {
+                let (_, i, alignment) = &compared[row];
+                let reference = self.references[*i].prepared().ok()?;
+                let rim = cp::RimProfile::of(&reference)?;
+                let mut alignment = *alignment;
+                let mut last = None;
+                for _ in 0..RECUT_ROUNDS {
+                    let cut = cp::cut_along_rim(&surface.prepared, &alignment, &rim);
+                    let Ok(part) = pipeline::prepare_mesh(&cut, name, &self.settings) else {
+                        break;
+                    };
+                    let c = cp::compare(&part.prepared, &reference, &self.settings.cp.compare);
+                    alignment = cp::Alignment::of(&c).of_unnormalized(&part.prepared);
+                    last = Some(c);
+                }
+                last.map(|c| (row, c))
+            })
+            .collect();
+        let mut recut = Vec::new();
+        for (row, c) in results {
+            let before = rows[row].distance;
+            if c.distance < before {
+                rows[row] = distance_row(&rows[row].reference, &c);
+            }
+            recut.push(Recut {
+                reference: rows[row].reference.clone(),
+                before,
+                after: c.distance,
+            });
+        }
+        recut
     }
 
     /// The indices of the references a scan prepared as `scan` is compared
@@ -1298,6 +1399,68 @@ mod tests {
         // Under "auto", a library of 10 is compared whole.
         let auto = with(cp::Screening::Auto);
         assert_eq!(auto.distances.len(), 10);
+    }
+
+    /// A crown cut from a whole tooth is cut again along its nearest
+    /// references' crop lines, and each of those rows keeps the smaller
+    /// distance; a crown given as a file is never cut again, nor is any
+    /// crown with `recut_nearest = 0`.
+    #[test]
+    fn a_crown_found_on_a_whole_tooth_is_cut_again_along_its_nearest_references() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (classifier, _) = small_classifier(tmp.path());
+        let genus = &synth::CROWN_GENERA[3];
+        let crown = synth::crown(genus, 41, 600);
+        let whole = synth::whole_tooth(&crown, &synth::WholeToothParams::default(), 41).unwrap();
+        let (whole_path, crown_path) = (tmp.path().join("whole.stl"), tmp.path().join("crown.ply"));
+        morphoid_data::mesh_io::save(&whole_path, &whole.mesh).unwrap();
+        morphoid_data::mesh_io::save(&crown_path, &crown).unwrap();
+        let with = |nearest: usize, path: &Path| {
+            let mut settings = classifier.settings().clone();
+            settings.cp.recut.recut_nearest = nearest;
+            classifier
+                .clone()
+                .with_settings(settings)
+                .classify_file(path)
+                .unwrap()
+        };
+        let plain = with(0, &whole_path);
+        assert!(plain.cleaning.get("recut").is_none());
+        let recut = with(3, &whole_path);
+        let listed = recut.cleaning["recut"]
+            .as_array()
+            .expect("the re-cut listed");
+        assert_eq!(listed.len(), 3);
+        // The three were the nearest as first cut, and their rows hold the
+        // smaller distance; every other row is as without the re-cut.
+        let mut nearest: Vec<&DistanceRow> = plain.distances.iter().collect();
+        nearest.sort_by(|a, b| a.distance.total_cmp(&b.distance));
+        for entry in listed {
+            let name = entry["reference"].as_str().unwrap();
+            let (before, after) = (
+                entry["before"].as_f64().unwrap(),
+                entry["after"].as_f64().unwrap(),
+            );
+            assert!(nearest[..3]
+                .iter()
+                .any(|r| r.reference == name && r.distance == before));
+            let row = recut
+                .distances
+                .iter()
+                .find(|r| r.reference == name)
+                .unwrap();
+            assert_eq!(row.distance, before.min(after), "{name}");
+        }
+        for row in &recut.distances {
+            if !listed
+                .iter()
+                .any(|e| e["reference"] == row.reference.as_str())
+            {
+                assert!(plain.distances.contains(row), "{row:?}");
+            }
+        }
+        assert!(recut.timings_ms.contains_key("recut"));
+        assert!(with(3, &crown_path).cleaning.get("recut").is_none());
     }
 
     /// References are held in the cache, not in memory; one whose entry

@@ -35,6 +35,7 @@ mod params;
 mod prepare;
 mod prepared;
 mod procrustes;
+mod recut;
 mod samples;
 mod search;
 mod signature;
@@ -47,10 +48,13 @@ pub use mobius::Mobius;
 pub(crate) use optimize::nelder_mead;
 pub(crate) use params::Requirement;
 pub(crate) use params::{check, check_count};
-pub use params::{CompareParams, CpParams, ParamError, PrepareParams, ScreenParams, Screening};
+pub use params::{
+    CompareParams, CpParams, ParamError, PrepareParams, RecutParams, ScreenParams, Screening,
+};
 pub use prepare::prepare;
 pub use prepared::Prepared;
 pub use procrustes::{Handedness, Moments};
+pub use recut::{cut_along_rim, Alignment, RimProfile};
 pub(crate) use search::{candidate_maps, directed_for_mobius};
 pub use signature::{shape_signature, signature_distance, signature_terms, Signature};
 

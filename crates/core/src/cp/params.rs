@@ -176,6 +176,24 @@ impl ScreenParams {
     }
 }
 
+/// How an identification cuts a crown found on a whole tooth again along
+/// its nearest references' crop lines ([`cut_along_rim`](super::cut_along_rim)).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RecutParams {
+    /// A crown cut from a closed surface or a volume is cut again along
+    /// the crop line of each of this many nearest references and compared
+    /// with it once more; 0 turns this off. Crowns as files are never
+    /// cut again.
+    pub recut_nearest: usize,
+}
+
+impl Default for RecutParams {
+    fn default() -> Self {
+        Self { recut_nearest: 5 }
+    }
+}
+
 /// All parameters of the cP engine (the `[cp]` configuration section).
 /// Written and read as one flat table: the split into preparation and
 /// comparison parameters is not the user's concern.
@@ -188,6 +206,8 @@ pub struct CpParams {
     pub compare: CompareParams,
     /// When a library is screened before comparison.
     pub screen: ScreenParams,
+    /// Whether a crown found on a whole tooth is cut again.
+    pub recut: RecutParams,
 }
 
 /// The `[cp]` table as the user writes it; every key optional. (serde's
@@ -220,6 +240,7 @@ struct FlatParams {
     screen_keep: usize,
     screen_margin: f64,
     screen_from: usize,
+    recut_nearest: usize,
 }
 
 impl Default for FlatParams {
@@ -260,6 +281,7 @@ impl From<CpParams> for FlatParams {
             screen_margin,
             screen_from,
         } = p.screen;
+        let RecutParams { recut_nearest } = p.recut;
         FlatParams {
             samples,
             coarse_samples,
@@ -285,6 +307,7 @@ impl From<CpParams> for FlatParams {
             screen_keep,
             screen_margin,
             screen_from,
+            recut_nearest,
         }
     }
 }
@@ -321,6 +344,9 @@ impl From<FlatParams> for CpParams {
                 screen_keep: f.screen_keep,
                 screen_margin: f.screen_margin,
                 screen_from: f.screen_from,
+            },
+            recut: RecutParams {
+                recut_nearest: f.recut_nearest,
             },
         }
     }
@@ -505,13 +531,14 @@ mod tests {
             serde_json::to_value(PrepareParams::default()).unwrap(),
             serde_json::to_value(CompareParams::default()).unwrap(),
             serde_json::to_value(ScreenParams::default()).unwrap(),
+            serde_json::to_value(RecutParams::default()).unwrap(),
         ]
         .iter()
         .flat_map(flat_keys)
         .collect();
         want.sort();
         assert_eq!(flat_keys(&json), want);
-        assert_eq!(want.len(), 24);
+        assert_eq!(want.len(), 25);
         assert!(json.as_object().unwrap().values().all(|v| !v.is_object()));
     }
 

@@ -98,9 +98,12 @@ fn is_calibration_file(name: &str) -> bool {
     name.starts_with(PREFIX) && name.ends_with(&format!(".{EXTENSION}"))
 }
 
-/// The key of the settings the distances depend on.
+/// The key of the settings the distances depend on (not the re-cut of
+/// crowns found on whole teeth: the references are crowns as given).
 fn settings_key(settings: &Settings) -> String {
-    let params = serde_json::to_string(&(&settings.clean, &settings.cp)).unwrap_or_default();
+    let cp = &settings.cp;
+    let params = serde_json::to_string(&(&settings.clean, &cp.prepare, &cp.compare, &cp.screen))
+        .unwrap_or_default();
     hex(&Sha256::digest(params.as_bytes())[..16])
 }
 
