@@ -200,12 +200,7 @@ pub(crate) fn heldout_scores_classified(
                     );
                 }
             }
-            println!("held-out {rank}: {correct}/{total}");
-            morphoid_research::eval::RankScore {
-                rank: rank.clone(),
-                correct,
-                total,
-            }
+            rank_score(rank, correct, total)
         })
         .collect()
 }
@@ -266,12 +261,17 @@ pub(crate) fn heldout_scores(
                     );
                 }
             }
-            println!("held-out {rank}: {correct}/{total}");
-            morphoid_research::eval::RankScore {
-                rank: rank.clone(),
-                correct,
-                total,
-            }
+            rank_score(rank, correct, total)
         })
         .collect()
+}
+
+/// The held-out score at `rank`, printed.
+fn rank_score(rank: &str, correct: usize, total: usize) -> morphoid_research::eval::RankScore {
+    println!("held-out {rank}: {correct}/{total}");
+    morphoid_research::eval::RankScore {
+        rank: rank.to_string(),
+        correct,
+        total,
+    }
 }
