@@ -786,8 +786,11 @@ impl Classifier {
         };
         let compare_ms = t.elapsed().as_secs_f64() * 1e3;
         let t = Instant::now();
-        let mut distances: Vec<DistanceRow> = compared.iter().map(|(d, ..)| d.clone()).collect();
-        let recut = self.recut_nearest(name, surface, &compared, &mut distances);
+        let (mut distances, found): (Vec<DistanceRow>, Vec<(usize, cp::Alignment)>) = compared
+            .into_iter()
+            .map(|(row, i, alignment)| (row, (i, alignment)))
+            .unzip();
+        let recut = self.recut_nearest(name, surface, &found, &mut distances);
         let recut_ms = t.elapsed().as_secs_f64() * 1e3;
         let mut id = identify::identify(&distances, &self.labels, NEAREST);
         let calibration = self.calibration.get();
@@ -843,12 +846,13 @@ impl Classifier {
     /// it again; each round's comparison aligns the next round's cut
     /// (the first alignment is pulled by the neck the cut removes). A
     /// reference's row takes the re-cut distance where it is smaller.
+    /// `found[k]` is the reference index and alignment of `rows[k]`.
     /// Returns what was re-cut, for the result.
     fn recut_nearest(
         &self,
         name: &str,
         surface: &PreparedSurface,
-        compared: &[(DistanceRow, usize, cp::Alignment)],
+        found: &[(usize, cp::Alignment)],
         rows: &mut [DistanceRow],
     ) -> Vec<Recut> {
         let k = self.settings.cp.recut.recut_nearest;
@@ -856,9 +860,9 @@ impl Classifier {
             return Vec::new();
         }
         let _s = tracing::info_span!("recut", scan = %name, references = k).entered();
-        let mut order: Vec<usize> = (0..compared.len()).collect();
+        let mut order: Vec<usize> = (0..rows.len()).collect();
         order.sort_by(|&a, &b| {
-            let (x, y) = (&compared[a].0, &compared[b].0);
+            let (x, y) = (&rows[a], &rows[b]);
             x.distance
                 .total_cmp(&y.distance)
                 .then_with(|| x.reference.cmp(&y.reference))
@@ -867,10 +871,9 @@ impl Classifier {
         let results: Vec<(usize, cp::Comparison)> = order
             .par_iter()
             .filter_map(|&row| {
-                let (_, i, alignment) = &compared[row];
-                let reference = self.references[*i].prepared().ok()?;
+                let (i, mut alignment) = found[row];
+                let reference = self.references[i].prepared().ok()?;
                 let rim = cp::RimProfile::of(&reference)?;
-                let mut alignment = *alignment;
                 let mut last = None;
                 for _ in 0..RECUT_ROUNDS {
                     let cut = cp::cut_along_rim(&surface.prepared, &alignment, &rim);

@@ -9,7 +9,7 @@
 
 use super::comparison::Comparison;
 use super::prepared::Prepared;
-use crate::mesh::{cross, dot, longest_boundary_loop, norm, sub, Mesh};
+use crate::mesh::{cross, dot, longest_boundary_loop, norm, sub, unit, Mesh};
 use std::f64::consts::PI;
 
 /// Polar bins of a crop line: fine enough for the line's rise and fall
@@ -41,7 +41,11 @@ impl RimProfile {
             let x = cross(sub(p, centre), sub(points[(i + 1) % points.len()], centre));
             area = [area[0] + x[0], area[1] + x[1], area[2] + x[2]];
         }
-        let mut axis = unit(area)?;
+        let size = norm(area);
+        if !(size > 0.0 && size.is_finite()) {
+            return None;
+        }
+        let mut axis = unit(area);
         // Towards the crown: its vertices' mean lies above the line.
         if dot(sub(mean(&mesh.vertices)?, centre), axis) < 0.0 {
             axis = axis.map(|a| -a);
@@ -51,7 +55,8 @@ impl RimProfile {
         } else {
             [0.0, 1.0, 0.0]
         };
-        let x = unit(cross(axis, helper))?;
+        // Never parallel to the helper, so never zero.
+        let x = unit(cross(axis, helper));
         let rows = [x, cross(axis, x), axis];
         let mut profile = RimProfile {
             centre,
@@ -170,11 +175,6 @@ fn mean(points: &[[f64; 3]]) -> Option<[f64; 3]> {
     Some([0, 1, 2].map(|d| points.iter().map(|p| p[d]).sum::<f64>() / n))
 }
 
-fn unit(a: [f64; 3]) -> Option<[f64; 3]> {
-    let n = norm(a);
-    (n > 0.0 && n.is_finite()).then(|| a.map(|x| x / n))
-}
-
 fn bin_angle(b: usize) -> f64 {
     -PI + (b as f64 + 0.5) / BINS as f64 * 2.0 * PI
 }
@@ -252,7 +252,7 @@ mod tests {
                 .collect::<Vec<_>>(),
         )
         .expect("points");
-        let up = unit(sub(mean(&crown.vertices).expect("points"), centre)).expect("a direction");
+        let up = unit(sub(mean(&crown.vertices).expect("points"), centre));
         let mut necked = crown.clone();
         let drop = 0.06 * crate::mesh::bbox_diagonal(&crown);
         let first = necked.vertices.len() as u32;
