@@ -125,8 +125,7 @@ fn a_full_disk_under_the_database_loses_and_repeats_nothing() {
     std::fs::remove_file(&filler).unwrap();
     assert_quiet(&during, "disk full");
     assert_exactly_once(&env, &d, &names, Duration::from_secs(120));
-    let log = d.log_text();
-    assert!(log.contains("database available again"), "{log}");
+    let log = d.log_once("database available again");
     assert!(!log.contains("complete needs running"), "{log}");
     drop(d);
     drop(mnt);
@@ -247,7 +246,7 @@ fn the_database_deleted_under_the_daemon_comes_back_whole() {
         "{}",
         d.log_text()
     );
-    assert!(d.log_text().contains("it is back with everything recorded"));
+    d.log_once("it is back with everything recorded");
     names.extend((2..4).map(|i| drop_scan(&env, i)));
     assert_exactly_once(&env, &d, &names, Duration::from_secs(120));
 }
@@ -338,7 +337,7 @@ fn a_database_locked_by_another_process_delays_but_loses_nothing() {
     drop(other);
     assert_quiet(&during, "database locked");
     assert_exactly_once(&env, &d, &names, Duration::from_secs(120));
-    assert!(d.log_text().contains("database available again"));
+    d.log_once("database available again");
 }
 
 #[test]
@@ -390,7 +389,7 @@ fn a_read_only_results_folder_gets_every_result_file_once_writable() {
     }
     assert!(files.iter().any(|f| f == "index.html"), "{files:?}");
     assert_eq!(files.len(), 3 * names.len() + 1, "{files:?}");
-    assert!(d.log_text().contains("results folder available again"));
+    d.log_once("results folder available again");
 }
 
 #[test]
@@ -444,7 +443,7 @@ fn a_file_with_known_content_gets_its_own_duplicate_row_and_result_file() {
     let text = std::fs::read_to_string(&json).unwrap();
     assert!(text.contains(r#""status":"duplicate""#), "{text}");
     assert!(text.contains(r#""ranks""#), "{text}");
-    let log = d.log_text();
+    let log = d.log_once("b.ply: same content as scan");
     assert!(
         log.contains("b.ply: same content as scan") && log.contains("a.ply"),
         "{log}"

@@ -216,12 +216,16 @@ fn an_unwritable_results_folder_is_in_the_log_and_the_row_until_written() {
     assert_eq!(genus_of(&row), Some(genus(2)));
     let message = row.files_error.clone().unwrap();
     assert!(message.contains("not-a-folder"), "{message}");
-    // In the log, as an error naming the folder.
-    let log = d.log_text();
+    // In the log, as an error naming the folder (written after the row).
+    let logged = || {
+        d.log_text()
+            .lines()
+            .any(|l| l.contains("ERROR") && l.contains("not-a-folder"))
+    };
     assert!(
-        log.lines()
-            .any(|l| l.contains("ERROR") && l.contains("not-a-folder")),
-        "{log}"
+        wait_until(Duration::from_secs(30), logged),
+        "{}",
+        d.log_text()
     );
     // In `morphoid results`, plain and JSON.
     let plain = results_plain(&env);

@@ -179,6 +179,17 @@ impl Daemon {
         std::fs::read_to_string(&self.log).unwrap_or_default()
     }
 
+    /// The log once it contains `needle`, waiting up to 30 s: a line is
+    /// written after the database row it reports on, so a test that has
+    /// seen the row must still wait for the line. Panics with the log when
+    /// the line never comes.
+    pub(crate) fn log_once(&self, needle: &str) -> String {
+        if !wait_until(Duration::from_secs(30), || self.log_text().contains(needle)) {
+            panic!("{needle:?} never logged:\n{}", self.log_text());
+        }
+        self.log_text()
+    }
+
     /// Process id.
     pub(crate) fn pid(&self) -> i32 {
         self.child.id() as i32
