@@ -320,8 +320,24 @@ fn clean_exports_from_dir() {
                 .unwrap()
                 .mesh;
             let started = Instant::now();
-            match morphoid_data::pipeline::prepare_file(&dir.join(format!("{name}.ply")), &settings)
-            {
+            // MORPHOID_EXPORT_CLEANED=1: the crowns the run cut (kept as
+            // NAME.cleaned.ply) instead of cutting them again: the quick
+            // loop for working on what follows the cut.
+            let prepared = if std::env::var_os("MORPHOID_EXPORT_CLEANED").is_some() {
+                // No cleaned crown: the run refused the export.
+                morphoid_data::mesh_io::load(&dir.join(format!("{name}.cleaned.ply")))
+                    .map_err(anyhow::Error::from)
+                    .and_then(|cut| {
+                        let mut s =
+                            morphoid_data::pipeline::prepare_mesh(&cut.mesh, name, &settings)?;
+                        s.cleaning.crown = Some(Default::default());
+                        Ok(s)
+                    })
+            } else {
+                morphoid_data::pipeline::prepare_file(&dir.join(format!("{name}.ply")), &settings)
+                    .map_err(anyhow::Error::from)
+            };
+            match prepared {
                 Ok(out) => {
                     let f = fit(&out.cleaned, &crop);
                     let c = out.cleaning.crown.clone();

@@ -7,6 +7,7 @@
 //! writes the result files.
 
 mod files;
+mod recut;
 
 pub use files::{ResultFiles, ResultsError};
 
@@ -33,21 +34,6 @@ pub const NEAREST: usize = store::DEFAULT_NEAREST;
 
 /// How many nearest references a report draws beside the scan.
 const REPORT_NEAREST: usize = 3;
-
-/// Rounds of cutting a crown again along a reference's crop line: the
-/// second cut is aligned without the neck the first removed (on a crown
-/// given a neck, the first leaves a third of it, the second none).
-const RECUT_ROUNDS: usize = 2;
-
-/// A reference whose crop line a crown found on a whole tooth was cut
-/// along again, and its distance before and after (the result's
-/// `cleaning.recut`).
-#[derive(Debug, Clone, serde::Serialize)]
-struct Recut {
-    reference: String,
-    before: f64,
-    after: f64,
-}
 
 /// The distance row of reference `name` from comparison `c`.
 fn distance_row(name: &str, c: &cp::Comparison) -> DistanceRow {
@@ -790,7 +776,7 @@ impl Classifier {
             .into_iter()
             .map(|(row, i, alignment)| (row, (i, alignment)))
             .unzip();
-        let recut = self.recut_nearest(name, surface, &found, &mut distances);
+        let recut = self.recut(name, surface, &found, &mut distances);
         let recut_ms = t.elapsed().as_secs_f64() * 1e3;
         let mut id = identify::identify(&distances, &self.labels, NEAREST);
         let calibration = self.calibration.get();
@@ -838,68 +824,6 @@ impl Classifier {
             landmarks,
             calibrating,
         }
-    }
-
-    /// For a crown cut from a whole tooth (or a volume): the scan cut again
-    /// along the crop line of each of its `[cp] recut_nearest` nearest
-    /// references, moved onto it by their comparison, and compared with
-    /// it again; each round's comparison aligns the next round's cut
-    /// (the first alignment is pulled by the neck the cut removes). A
-    /// reference's row takes the re-cut distance where it is smaller.
-    /// `found[k]` is the reference index and alignment of `rows[k]`.
-    /// Returns what was re-cut, for the result.
-    fn recut_nearest(
-        &self,
-        name: &str,
-        surface: &PreparedSurface,
-        found: &[(usize, cp::Alignment)],
-        rows: &mut [DistanceRow],
-    ) -> Vec<Recut> {
-        let k = self.settings.cp.recut.recut_nearest;
-        if k == 0 || surface.cleaning.crown.is_none() {
-            return Vec::new();
-        }
-        let _s = tracing::info_span!("recut", scan = %name, references = k).entered();
-        let mut order: Vec<usize> = (0..rows.len()).collect();
-        order.sort_by(|&a, &b| {
-            let (x, y) = (&rows[a], &rows[b]);
-            x.distance
-                .total_cmp(&y.distance)
-                .then_with(|| x.reference.cmp(&y.reference))
-        });
-        order.truncate(k);
-        let results: Vec<(usize, cp::Comparison)> = order
-            .par_iter()
-            .filter_map(|&row| {
-                let (i, mut alignment) = found[row];
-                let reference = self.references[i].prepared().ok()?;
-                let rim = cp::RimProfile::of(&reference)?;
-                let mut last = None;
-                for _ in 0..RECUT_ROUNDS {
-                    let cut = cp::cut_along_rim(&surface.prepared, &alignment, &rim);
-                    let Ok(part) = pipeline::prepare_mesh(&cut, name, &self.settings) else {
-                        break;
-                    };
-                    let c = cp::compare(&part.prepared, &reference, &self.settings.cp.compare);
-                    alignment = cp::Alignment::of(&c).of_unnormalized(&part.prepared);
-                    last = Some(c);
-                }
-                last.map(|c| (row, c))
-            })
-            .collect();
-        let mut recut = Vec::new();
-        for (row, c) in results {
-            let before = rows[row].distance;
-            if c.distance < before {
-                rows[row] = distance_row(&rows[row].reference, &c);
-            }
-            recut.push(Recut {
-                reference: rows[row].reference.clone(),
-                before,
-                after: c.distance,
-            });
-        }
-        recut
     }
 
     /// The indices of the references a scan prepared as `scan` is compared
@@ -1404,9 +1328,10 @@ mod tests {
         assert_eq!(auto.distances.len(), 10);
     }
 
-    /// A crown cut from a whole tooth is cut again along its nearest
-    /// references' crop lines, and each of those rows keeps the smaller
-    /// distance; a crown given as a file is never cut again, nor is any
+    /// A crown cut from a whole tooth is cut again along each of its
+    /// nearest references' crop lines, then along the line they agree on
+    /// and compared with every reference; each row keeps its smallest
+    /// distance. A crown given as a file is never cut again, nor is any
     /// crown with `recut_nearest = 0`.
     #[test]
     fn a_crown_found_on_a_whole_tooth_is_cut_again_along_its_nearest_references() {
@@ -1430,14 +1355,15 @@ mod tests {
         let plain = with(0, &whole_path);
         assert!(plain.cleaning.get("recut").is_none());
         let recut = with(3, &whole_path);
-        let listed = recut.cleaning["recut"]
+        let listed = recut.cleaning["recut"]["references"]
             .as_array()
-            .expect("the re-cut listed");
+            .expect("the references re-cut listed");
         assert_eq!(listed.len(), 3);
-        // The three were the nearest as first cut, and their rows hold the
-        // smaller distance; every other row is as without the re-cut.
+        // The three were the nearest as first cut, and their rows hold at
+        // most the smaller distance.
         let mut nearest: Vec<&DistanceRow> = plain.distances.iter().collect();
         nearest.sort_by(|a, b| a.distance.total_cmp(&b.distance));
+        let mut voters = Vec::new();
         for entry in listed {
             let name = entry["reference"].as_str().unwrap();
             let (before, after) = (
@@ -1452,15 +1378,42 @@ mod tests {
                 .iter()
                 .find(|r| r.reference == name)
                 .unwrap();
-            assert_eq!(row.distance, before.min(after), "{name}");
+            assert!(row.distance <= before.min(after), "{name}");
+            voters.push(name.to_string());
         }
-        for row in &recut.distances {
-            if !listed
+        // Those three voted on the first common cut; every reference was
+        // compared with it, and no row grew.
+        let rounds = recut.cleaning["recut"]["consensus"]
+            .as_array()
+            .expect("the common cuts listed");
+        assert!(!rounds.is_empty() && rounds.len() <= 2, "{rounds:?}");
+        let mut first: Vec<String> = rounds[0]["references"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_str().unwrap().to_string())
+            .collect();
+        first.sort();
+        voters.sort();
+        assert_eq!(first, voters);
+        for round in rounds {
+            assert!(round["faces"].as_u64().unwrap() > 0);
+            let nearest = round["nearest"].as_str().unwrap();
+            let row = recut
+                .distances
                 .iter()
-                .any(|e| e["reference"] == row.reference.as_str())
-            {
-                assert!(plain.distances.contains(row), "{row:?}");
-            }
+                .find(|r| r.reference == nearest)
+                .unwrap();
+            assert!(row.distance <= round["distance"].as_f64().unwrap());
+        }
+        assert_eq!(recut.distances.len(), plain.distances.len());
+        for row in &recut.distances {
+            let before = plain
+                .distances
+                .iter()
+                .find(|r| r.reference == row.reference)
+                .unwrap();
+            assert!(row.distance <= before.distance, "{row:?}");
         }
         assert!(recut.timings_ms.contains_key("recut"));
         assert!(with(3, &crown_path).cleaning.get("recut").is_none());

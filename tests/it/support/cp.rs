@@ -194,8 +194,15 @@ pub(crate) fn heldout_scores_classified(
                 if call.taxon == truth {
                     correct += 1;
                 } else if rank == "genus" {
+                    // Where the nearest of its own genus stood.
+                    let mut rows: Vec<_> = outcome.distances.iter().collect();
+                    rows.sort_by(|a, b| a.distance.total_cmp(&b.distance));
+                    let own = rows
+                        .iter()
+                        .position(|r| labels.get(&r.reference, rank) == Some(truth));
+                    let own = own.map(|k| (k + 1, &rows[k].reference, rows[k].distance));
                     println!(
-                        "  miss {name}: {truth} called {} via {} at {:.4}",
+                        "  miss {name}: {truth} called {} via {} at {:.4}; nearest of its own (rank, name, distance): {own:?}",
                         call.taxon, call.reference, call.distance
                     );
                 }

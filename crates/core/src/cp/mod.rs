@@ -54,7 +54,7 @@ pub use params::{
 pub use prepare::prepare;
 pub use prepared::Prepared;
 pub use procrustes::{Handedness, Moments};
-pub use recut::{cut_along_rim, Alignment, RimProfile};
+pub use recut::{cut_along_rim, cut_along_rims, Alignment, RimProfile};
 pub(crate) use search::{candidate_maps, directed_for_mobius};
 pub use signature::{shape_signature, signature_distance, signature_terms, Signature};
 

@@ -5,7 +5,8 @@
 //! library crown often rises above that on some sides. Once the cP
 //! comparison has aligned the scan with a reference, the reference's own
 //! crop line, carried over by the comparison's rigid motion, says where a
-//! crown of that kind ends: the scan's faces below it are neck.
+//! crown of that kind ends: the scan's faces below it are neck. Several
+//! references' lines vote face by face ([`cut_along_rims`]).
 
 use super::comparison::Comparison;
 use super::prepared::Prepared;
@@ -147,22 +148,38 @@ impl Alignment {
 /// `alignment`; the vertices are the scan's normalized vertices, unused
 /// ones kept.
 pub fn cut_along_rim(scan: &Prepared, alignment: &Alignment, rim: &RimProfile) -> Mesh {
-    let moved: Vec<[f64; 3]> = scan
-        .vertices()
-        .iter()
-        .map(|&p| alignment.apply(p))
-        .collect();
+    cut_along_rims(scan, &[(*alignment, rim.clone())])
+}
+
+/// The faces of `scan` that lie above the crop lines of at least half of
+/// `rims` (each with the motion that takes the scan onto its reference;
+/// by the faces' centroids): the cut on which several references agree.
+/// The vertices are the scan's normalized vertices, unused ones kept.
+pub fn cut_along_rims(scan: &Prepared, rims: &[(Alignment, RimProfile)]) -> Mesh {
+    let mut votes = vec![0usize; scan.faces().len()];
+    for (alignment, rim) in rims {
+        let moved: Vec<[f64; 3]> = scan
+            .vertices()
+            .iter()
+            .map(|&p| alignment.apply(p))
+            .collect();
+        for (f, v) in scan.faces().iter().zip(votes.iter_mut()) {
+            let c = f.iter().fold([0.0; 3], |a, &i| {
+                let p = moved[i as usize];
+                [a[0] + p[0] / 3.0, a[1] + p[1] / 3.0, a[2] + p[2] / 3.0]
+            });
+            if rim.above(c) {
+                *v += 1;
+            }
+        }
+    }
+    let need = rims.len().div_ceil(2);
     let faces = scan
         .faces()
         .iter()
-        .copied()
-        .filter(|f| {
-            let c = f.iter().fold([0.0; 3], |a, &v| {
-                let p = moved[v as usize];
-                [a[0] + p[0] / 3.0, a[1] + p[1] / 3.0, a[2] + p[2] / 3.0]
-            });
-            rim.above(c)
-        })
+        .zip(&votes)
+        .filter(|(_, &v)| v >= need)
+        .map(|(f, _)| *f)
         .collect();
     Mesh::new(scan.vertices().to_vec(), faces)
 }
@@ -204,6 +221,34 @@ mod tests {
     use super::*;
     use crate::cp::{compare, prepare, CompareParams, PrepareParams};
     use crate::testing::synth::{self, CROWN_GENERA};
+
+    /// Lines vote face by face: a face is kept when it lies above at
+    /// least half of them.
+    #[test]
+    fn the_cut_along_several_lines_keeps_what_half_of_them_keep() {
+        let crown = synth::crown(&CROWN_GENERA[1], 5, 1200);
+        let scan = prepare(&crown, &PrepareParams::default()).expect("prepares");
+        let rim = RimProfile::of(&scan).expect("a crop line");
+        let identity = Alignment {
+            rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            translation: [0.0; 3],
+        };
+        // Moved far down the line's axis: every face lies below it.
+        let sunk = Alignment {
+            translation: rim.rows[2].map(|a| -100.0 * a),
+            ..identity
+        };
+        let own = cut_along_rim(&scan, &identity, &rim);
+        assert!(own.faces.len() > scan.faces().len() / 2);
+        assert!(cut_along_rim(&scan, &sunk, &rim).faces.is_empty());
+        let line = |a: Alignment| (a, rim.clone());
+        let two_of_three = cut_along_rims(&scan, &[line(identity), line(sunk), line(identity)]);
+        assert_eq!(two_of_three.faces, own.faces);
+        let half = cut_along_rims(&scan, &[line(sunk), line(identity)]);
+        assert_eq!(half.faces, own.faces);
+        let one_of_three = cut_along_rims(&scan, &[line(sunk), line(identity), line(sunk)]);
+        assert!(one_of_three.faces.is_empty());
+    }
 
     /// A moved copy of a crown is taken back onto it, vertex for vertex,
     /// from either direction of the comparison.
