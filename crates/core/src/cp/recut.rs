@@ -154,7 +154,8 @@ pub fn cut_along_rim(scan: &Prepared, alignment: &Alignment, rim: &RimProfile) -
 /// The faces of `scan` that lie above the crop lines of at least half of
 /// `rims` (each with the motion that takes the scan onto its reference;
 /// by the faces' centroids): the cut on which several references agree.
-/// The vertices are the scan's normalized vertices, unused ones kept.
+/// The vertices are the scan's normalized vertices, unused ones kept;
+/// no lines keep every face.
 pub fn cut_along_rims(scan: &Prepared, rims: &[(Alignment, RimProfile)]) -> Mesh {
     let mut votes = vec![0usize; scan.faces().len()];
     for (alignment, rim) in rims {

@@ -11,8 +11,9 @@
 //!   neck the cut removes ([`RECUT_ROUNDS`]);
 //! - **the line they agree on**: the scan keeps the faces that lie above
 //!   the crop lines of at least half of those references, and that crown is
-//!   compared with every reference compared before; its nearest references
-//!   then vote on the next such cut ([`CONSENSUS_ROUNDS`]). A reference of
+//!   compared with the references the screen keeps for it (its signature
+//!   is the crown's, no longer the neck's); its nearest references then
+//!   vote on the next such cut ([`CONSENSUS_ROUNDS`]). A reference of
 //!   the scan's genus that was not among the first nearest gets a crown cut
 //!   as its own kind is cut.
 //!
@@ -20,7 +21,7 @@
 //! cleaning cut from a closed surface or a volume are cut again.
 
 use super::{distance_row, Classifier};
-use crate::identify::DistanceRow;
+use crate::identify::{screened_references, DistanceRow};
 use morphoid_core::cp;
 use morphoid_data::pipeline::{self, PreparedSurface};
 use rayon::prelude::*;
@@ -32,8 +33,8 @@ const RECUT_ROUNDS: usize = 2;
 
 /// Rounds of cutting the crown along the line its nearest references
 /// agree on, each voted by the nearest of the round before (on the
-/// smooth-necked exports, genus 77 of 100 without, 81 after one round, 85
-/// after two).
+/// crowns first cut from the smooth-necked exports, genus 77 of 100
+/// without, 81 after one round, 84 after two).
 const CONSENSUS_ROUNDS: usize = 2;
 
 /// A reference whose crop line the crown was cut along again, and its
@@ -46,7 +47,8 @@ struct Recut {
 }
 
 /// One cut along the line the nearest references agree on: who voted, the
-/// faces it kept, and the nearest reference after it.
+/// faces it kept of the prepared crown it cut (of the scan's first, then
+/// of the round before's), and the nearest reference after it.
 #[derive(Debug, Clone, serde::Serialize)]
 struct ConsensusCut {
     references: Vec<String>,
@@ -138,10 +140,12 @@ impl Classifier {
             let lines: Vec<(cp::Alignment, cp::RimProfile)> =
                 voters.iter().map(|(_, a, r)| (*a, r.clone())).collect();
             let cut = cp::cut_along_rims(&base, &lines);
+            let kept = cut.faces.len();
             let Ok(part) = pipeline::prepare_mesh(&cut, name, &self.settings) else {
                 break;
             };
-            let compared: Vec<(usize, cp::Comparison)> = (0..found.len())
+            let candidates = self.screened_rows(&part.prepared, found, &voters);
+            let compared: Vec<(usize, cp::Comparison)> = candidates
                 .into_par_iter()
                 .filter_map(|row| {
                     let reference = self.references[found[row].0].prepared().ok()?;
@@ -164,7 +168,7 @@ impl Classifier {
             };
             report.consensus.push(ConsensusCut {
                 references: voters.iter().map(|v| names[v.0].to_string()).collect(),
-                faces: part.prepared.faces().len(),
+                faces: kept,
                 nearest: names[nearest].to_string(),
                 distance: distances[nearest].unwrap_or(f64::NAN),
             });
@@ -178,6 +182,31 @@ impl Classifier {
             base = part.prepared;
         }
         report
+    }
+
+    /// The rows of `found` a crown cut again is compared with: those the
+    /// screen keeps for it (screening on, whatever the library's size:
+    /// the crown's own signature, now that its neck is gone, and the
+    /// screen's settings) and the rows that voted on its cut.
+    fn screened_rows(
+        &self,
+        crown: &cp::Prepared,
+        found: &[(usize, cp::Alignment)],
+        voters: &[(usize, cp::Alignment, cp::RimProfile)],
+    ) -> Vec<usize> {
+        let signatures: Vec<cp::Signature> = found
+            .iter()
+            .map(|&(i, _)| self.signatures[i].clone())
+            .collect();
+        let params = cp::ScreenParams {
+            screening: cp::Screening::On,
+            ..self.settings.cp.screen
+        };
+        let mut rows = screened_references(&cp::shape_signature(crown), &signatures, &params, &[]);
+        rows.extend(voters.iter().map(|v| v.0));
+        rows.sort_unstable();
+        rows.dedup();
+        rows
     }
 
     /// The scan cut along the crop line of reference `i`, starting from
