@@ -57,6 +57,14 @@ struct ConsensusCut {
     distance: f64,
 }
 
+/// One cut along a common line: the crown it left, prepared; the faces it
+/// kept; and the rows compared with that crown.
+struct CommonLineCut {
+    crown: cp::Prepared,
+    kept: usize,
+    compared: Vec<(usize, cp::Comparison)>,
+}
+
 /// What the re-cut did (the result's `cleaning.recut`).
 #[derive(Debug, Clone, Default, serde::Serialize)]
 pub(super) struct RecutReport {
@@ -137,51 +145,81 @@ impl Classifier {
             if voters.is_empty() {
                 break;
             }
-            let lines: Vec<(cp::Alignment, cp::RimProfile)> =
-                voters.iter().map(|(_, a, r)| (*a, r.clone())).collect();
-            let cut = cp::cut_along_rims(&base, &lines);
-            let kept = cut.faces.len();
-            let Ok(part) = pipeline::prepare_mesh(&cut, name, &self.settings) else {
+            let Some(round) = self.cut_along_common_line(name, &base, found, &voters, &names)
+            else {
                 break;
             };
-            let candidates = self.screened_rows(&part.prepared, found, &voters);
-            let compared: Vec<(usize, cp::Comparison)> = candidates
-                .into_par_iter()
-                .filter_map(|row| {
-                    let reference = self.references[found[row].0].prepared().ok()?;
-                    let c = cp::compare(&part.prepared, &reference, &self.settings.cp.compare);
-                    Some((row, c))
-                })
-                .collect();
-            let mut distances = vec![None; rows.len()];
-            let mut alignments = vec![None; rows.len()];
-            for (row, c) in &compared {
-                distances[*row] = Some(c.distance);
-                alignments[*row] = Some(cp::Alignment::of(c));
+            for (row, c) in &round.compared {
                 if c.distance < rows[*row].distance {
                     rows[*row] = distance_row(names[*row], c);
                 }
             }
+            let distances: Vec<Option<f64>> = {
+                let mut d = vec![None; rows.len()];
+                for (row, c) in &round.compared {
+                    d[*row] = Some(c.distance);
+                }
+                d
+            };
             let next = nearest_k(&distances, &names, k);
             let Some(&nearest) = next.first() else {
                 break;
             };
             report.consensus.push(ConsensusCut {
                 references: voters.iter().map(|v| names[v.0].to_string()).collect(),
-                faces: kept,
+                faces: round.kept,
                 nearest: names[nearest].to_string(),
                 distance: distances[nearest].unwrap_or(f64::NAN),
             });
             voters = next
                 .into_iter()
                 .filter_map(|row| {
+                    let (_, c) = round.compared.iter().find(|(r, _)| *r == row)?;
                     let reference = self.references[found[row].0].prepared().ok()?;
-                    Some((row, alignments[row]?, cp::RimProfile::of(&reference)?))
+                    Some((row, cp::Alignment::of(c), cp::RimProfile::of(&reference)?))
                 })
                 .collect();
-            base = part.prepared;
+            base = round.crown;
         }
         report
+    }
+
+    /// `base` cut where at least half of the `voters`' crop lines agree,
+    /// prepared, and compared with the rows [`Classifier::screened_rows`]
+    /// keeps for it; `None` when the cut cannot be prepared.
+    fn cut_along_common_line(
+        &self,
+        name: &str,
+        base: &cp::Prepared,
+        found: &[(usize, cp::Alignment)],
+        voters: &[(usize, cp::Alignment, cp::RimProfile)],
+        names: &[&str],
+    ) -> Option<CommonLineCut> {
+        let lines: Vec<(cp::Alignment, cp::RimProfile)> =
+            voters.iter().map(|(_, a, r)| (*a, r.clone())).collect();
+        let cut = cp::cut_along_rims(base, &lines);
+        let kept = cut.faces.len();
+        let part = pipeline::prepare_mesh(&cut, name, &self.settings).ok()?;
+        let compared = self
+            .screened_rows(&part.prepared, found, voters)
+            .into_par_iter()
+            .filter_map(|row| {
+                let reference = match self.references[found[row].0].prepared() {
+                    Ok(p) => p,
+                    Err(e) => {
+                        tracing::warn!(reference = %names[row], "left out of the re-cut: {e}");
+                        return None;
+                    }
+                };
+                let c = cp::compare(&part.prepared, &reference, &self.settings.cp.compare);
+                Some((row, c))
+            })
+            .collect();
+        Some(CommonLineCut {
+            crown: part.prepared,
+            kept,
+            compared,
+        })
     }
 
     /// The rows of `found` a crown cut again is compared with: those the
