@@ -149,18 +149,15 @@ impl Classifier {
             else {
                 break;
             };
+            let mut distances = vec![None; rows.len()];
+            let mut alignments = vec![None; rows.len()];
             for (row, c) in &round.compared {
+                distances[*row] = Some(c.distance);
+                alignments[*row] = Some(cp::Alignment::of(c));
                 if c.distance < rows[*row].distance {
                     rows[*row] = distance_row(names[*row], c);
                 }
             }
-            let distances: Vec<Option<f64>> = {
-                let mut d = vec![None; rows.len()];
-                for (row, c) in &round.compared {
-                    d[*row] = Some(c.distance);
-                }
-                d
-            };
             let next = nearest_k(&distances, &names, k);
             let Some(&nearest) = next.first() else {
                 break;
@@ -174,9 +171,8 @@ impl Classifier {
             voters = next
                 .into_iter()
                 .filter_map(|row| {
-                    let (_, c) = round.compared.iter().find(|(r, _)| *r == row)?;
                     let reference = self.references[found[row].0].prepared().ok()?;
-                    Some((row, cp::Alignment::of(c), cp::RimProfile::of(&reference)?))
+                    Some((row, alignments[row]?, cp::RimProfile::of(&reference)?))
                 })
                 .collect();
             base = round.crown;
@@ -232,10 +228,8 @@ impl Classifier {
         found: &[(usize, cp::Alignment)],
         voters: &[(usize, cp::Alignment, cp::RimProfile)],
     ) -> Vec<usize> {
-        let signatures: Vec<cp::Signature> = found
-            .iter()
-            .map(|&(i, _)| self.signatures[i].clone())
-            .collect();
+        let signatures: Vec<&cp::Signature> =
+            found.iter().map(|&(i, _)| &self.signatures[i]).collect();
         let params = cp::ScreenParams {
             screening: cp::Screening::On,
             ..self.settings.cp.screen

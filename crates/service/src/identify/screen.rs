@@ -14,7 +14,7 @@ use morphoid_core::cp::{signature_distance, ScreenParams, Signature};
 /// of `always` (those a calibration reads whatever the screen says).
 pub fn screened_references(
     scan: &Signature,
-    references: &[Signature],
+    references: &[impl std::borrow::Borrow<Signature>],
     params: &ScreenParams,
     always: &[usize],
 ) -> Vec<usize> {
@@ -25,7 +25,7 @@ pub fn screened_references(
     let mut by_likeness: Vec<(f64, usize)> = references
         .iter()
         .enumerate()
-        .map(|(i, r)| (signature_distance(scan, r), i))
+        .map(|(i, r)| (signature_distance(scan, r.borrow()), i))
         .collect();
     by_likeness.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     let last_kept = by_likeness[params.screen_keep - 1].0;
