@@ -14,7 +14,11 @@ fn http_the_console_follows_the_running_daemon() {
     );
     let mut daemon = Daemon::start(&env);
     let base = daemon.console_url();
+    // A fresh connection per request: the server closes a kept-alive
+    // connection once it has been idle for the header timeout, and a
+    // request sent on it at that moment fails (a POST is not retried).
     let client = reqwest::blocking::Client::builder()
+        .pool_max_idle_per_host(0)
         .timeout(Duration::from_secs(20))
         .build()
         .unwrap();

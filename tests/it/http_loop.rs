@@ -110,7 +110,11 @@ fn http_the_curators_loop_grows_the_library_from_its_own_scans() {
     let start_refs = daemon.references();
     assert_eq!(start_refs as usize, library_names.len());
     let base = daemon.console_url();
+    // A fresh connection per request: the server closes a kept-alive
+    // connection once it has been idle for the header timeout, and a
+    // request sent on it at that moment fails (a POST is not retried).
     let client = reqwest::blocking::Client::builder()
+        .pool_max_idle_per_host(0)
         .timeout(Duration::from_secs(60))
         .build()
         .unwrap();

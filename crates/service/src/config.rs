@@ -45,7 +45,8 @@ pub struct Http {
     pub max_body_bytes: usize,
     /// Largest request head (request line and headers), in bytes.
     pub max_header_bytes: usize,
-    /// How long a client may take to send a request's head.
+    /// How long a client may take to send a request's head; a kept-alive
+    /// connection idle this long is closed too (the wait for the next head).
     pub header_timeout_seconds: f64,
     /// How long one request may take, its body included.
     pub request_timeout_seconds: f64,

@@ -193,7 +193,11 @@ impl Console {
             .expect("start")
             .expect("listen is set");
         let base = format!("http://{}", server.local_addr());
+        // A fresh connection per request: the server closes a kept-alive
+        // connection once it has been idle for the header timeout, and a
+        // request sent on it at that moment fails (a POST is not retried).
         let client = reqwest::blocking::Client::builder()
+            .pool_max_idle_per_host(0)
             .redirect(reqwest::redirect::Policy::none())
             .timeout(Duration::from_secs(20))
             .build()
