@@ -50,6 +50,31 @@ pub struct PreparedSurface {
     /// What was done to a volume (slice folder, NRRD, NIfTI); `None` for
     /// a surface file.
     pub volume: Option<VolumeReport>,
+    /// For a crown cut from a whole tooth, the crowns of the other margins
+    /// found ([`clean::Cleaned::alternatives`]), prepared; empty when the
+    /// cut is not to be judged by the library (`[cp] recut_nearest = 0`).
+    pub alternatives: Vec<AlternativeCut>,
+}
+
+/// Another crown cut from the same whole tooth, cleaned and prepared.
+#[derive(Debug, Clone)]
+pub struct AlternativeCut {
+    /// The cleaned crown.
+    pub cleaned: Mesh,
+    /// Its prepared form.
+    pub prepared: Prepared,
+}
+
+impl PreparedSurface {
+    /// Take alternative `k` for the scan's crown: it becomes `cleaned` and
+    /// `prepared`, and the crown it replaces takes its place among the
+    /// alternatives.
+    pub fn take_alternative(&mut self, k: usize) {
+        if let Some(a) = self.alternatives.get_mut(k) {
+            std::mem::swap(&mut self.cleaned, &mut a.cleaned);
+            std::mem::swap(&mut self.prepared, &mut a.prepared);
+        }
+    }
 }
 
 /// Why a file could not be prepared; every message names the file.
@@ -365,6 +390,11 @@ pub fn prepare_mesh(
         cp::prepare(&cleaned.mesh, &settings.cp.prepare)?
     };
     prepared.set_name(name);
+    let alternatives = if settings.cp.recut.recut_nearest > 0 {
+        alternative_cuts(cleaned.alternatives, name, &settings.cp)
+    } else {
+        Vec::new()
+    };
     Ok(PreparedSurface {
         cleaned: cleaned.mesh,
         prepared,
@@ -375,7 +405,21 @@ pub fn prepare_mesh(
             prepare: ms(t),
         },
         volume: None,
+        alternatives,
     })
+}
+
+/// The crowns of `alternatives` prepared, named `name`; one that cannot
+/// be prepared is left out (the crown the cleaning chose stands).
+fn alternative_cuts(alternatives: Vec<Mesh>, name: &str, params: &CpParams) -> Vec<AlternativeCut> {
+    alternatives
+        .into_par_iter()
+        .filter_map(|cleaned| {
+            let mut prepared = cp::prepare(&cleaned, &params.prepare).ok()?;
+            prepared.set_name(name);
+            Some(AlternativeCut { cleaned, prepared })
+        })
+        .collect()
 }
 
 /// [`prepare_file`] for several files, in parallel, in their order; the

@@ -7,6 +7,7 @@
 //! writes the result files.
 
 mod files;
+mod margin;
 mod recut;
 
 pub use files::{ResultFiles, ResultsError};
@@ -526,7 +527,9 @@ impl Classifier {
     /// Identify a surface already prepared (the research tools' and the
     /// evaluations' path: the same comparison, re-cut and answer as a
     /// file's, without reading it again).
-    pub fn classify_prepared(&self, surface: &PreparedSurface) -> ScanOutcome {
+    /// A crown the library weighs better than the cleaning's choice among
+    /// the margins it found is swapped into `surface` (`cleaning.margins`).
+    pub fn classify_prepared(&self, surface: &mut PreparedSurface) -> ScanOutcome {
         let name = surface.prepared.name().to_string();
         let _span = tracing::info_span!("scan", scan = %name).entered();
         self.compare_prepared(&name, surface, surface.timings.load)
@@ -566,9 +569,9 @@ impl Classifier {
             }
         }
         if loaded.specimens.len() == 1 {
-            let surface = pipeline::prepare_loaded(loaded, path, &self.settings)?;
+            let mut surface = pipeline::prepare_loaded(loaded, path, &self.settings)?;
             let load_ms = surface.timings.load;
-            let outcome = self.compare_prepared(&name, &surface, load_ms);
+            let outcome = self.compare_prepared(&name, &mut surface, load_ms);
             return Ok(Read::Identified(Box::new((outcome, surface))));
         }
         // Several specimens: each identified on its own.
@@ -588,9 +591,9 @@ impl Classifier {
             .enumerate()
             .map(|(i, (position, prepared))| {
                 let result = prepared
-                    .map(|surface| {
+                    .map(|mut surface| {
                         let name = format!("{name}#{}", i + 1);
-                        let outcome = self.compare_prepared(&name, &surface, load_ms);
+                        let outcome = self.compare_prepared(&name, &mut surface, load_ms);
                         (outcome, surface)
                     })
                     .map_err(Arc::new);
@@ -638,9 +641,9 @@ impl Classifier {
         let _span = tracing::info_span!("scan", scan = %name).entered();
         // From the file, not its bytes in memory: a binary STL export of
         // hundreds of megabytes is read record by record.
-        let surface = pipeline::prepare_file(path, &self.settings)?;
+        let mut surface = pipeline::prepare_file(path, &self.settings)?;
         let load_ms = surface.timings.load;
-        let outcome = self.compare_prepared(&name, &surface, load_ms);
+        let outcome = self.compare_prepared(&name, &mut surface, load_ms);
         Ok((outcome, surface))
     }
 
@@ -718,7 +721,7 @@ impl Classifier {
             Ok(_) => return Err(SceneError::Changed(path.to_path_buf())),
             Err(_) => return Err(SceneError::Gone(path.to_path_buf())),
         }
-        let surface = match record.specimen {
+        let mut surface = match record.specimen {
             Some(n) => {
                 let (surface, content) = self.prepare_specimen(path, n)?;
                 if content.hash != record.content_hash {
@@ -728,6 +731,12 @@ impl Classifier {
             }
             None => pipeline::prepare_file(path, &self.settings).map_err(ClassifyError::from)?,
         };
+        // The crown the identification took among the margins found.
+        if let Some(k) = record.cleaning["margins"]["chosen"].as_u64() {
+            if k > 0 {
+                surface.take_alternative(k as usize - 1);
+            }
+        }
         let nearest: Vec<(String, f64)> = record
             .nearest
             .iter()
@@ -738,44 +747,26 @@ impl Classifier {
 
     /// Compare a prepared scan named `name` with every reference and
     /// identify it; `load_ms` is the time it took to read.
-    fn compare_prepared(&self, name: &str, surface: &PreparedSurface, load_ms: f64) -> ScanOutcome {
+    fn compare_prepared(
+        &self,
+        name: &str,
+        surface: &mut PreparedSurface,
+        load_ms: f64,
+    ) -> ScanOutcome {
         let t = Instant::now();
-        let screened = self.screened(&surface.prepared);
+        let mut screened = self.screened(&surface.prepared);
         let screen_ms = t.elapsed().as_secs_f64() * 1e3;
         let t = Instant::now();
-        let compared: Vec<(DistanceRow, usize, cp::Alignment)> = {
-            let _s = tracing::info_span!(
-                "compare",
-                scan = %name,
-                references = self.references.len(),
-                compared = screened.len()
-            )
-            .entered();
-            screened
-                .par_iter()
-                .filter_map(|&i| {
-                    let r = &self.references[i];
-                    // A cache entry removed or damaged since the library
-                    // was opened leaves its reference out of this answer
-                    // (the next library build prepares it again).
-                    let prepared = match r.prepared() {
-                        Ok(p) => p,
-                        Err(e) => {
-                            tracing::warn!(reference = %r.name(), "left out of the comparison: {e}");
-                            return None;
-                        }
-                    };
-                    let c = cp::compare(&surface.prepared, &prepared, &self.settings.cp.compare);
-                    Some((distance_row(r.name(), &c), i, cp::Alignment::of(&c)))
-                })
-                .collect()
-        };
+        let (mut distances, mut found) = self.compared_rows(name, &surface.prepared, &screened);
         let compare_ms = t.elapsed().as_secs_f64() * 1e3;
         let t = Instant::now();
-        let (mut distances, found): (Vec<DistanceRow>, Vec<(usize, cp::Alignment)>) = compared
-            .into_iter()
-            .map(|(row, i, alignment)| (row, (i, alignment)))
-            .unzip();
+        let margin = self.choose_margin(surface, &distances);
+        if margin.as_ref().is_some_and(|m| m.changed()) {
+            screened = self.screened(&surface.prepared);
+            (distances, found) = self.compared_rows(name, &surface.prepared, &screened);
+        }
+        let margin_ms = t.elapsed().as_secs_f64() * 1e3;
+        let t = Instant::now();
         let recut = self.recut(name, surface, &found, &mut distances);
         let recut_ms = t.elapsed().as_secs_f64() * 1e3;
         let mut id = identify::identify(&distances, &self.labels, NEAREST);
@@ -793,6 +784,9 @@ impl Classifier {
         ]);
         if screened.len() < self.references.len() {
             timings_ms.insert("screen".into(), screen_ms);
+        }
+        if margin.is_some() {
+            timings_ms.insert("margins".into(), margin_ms);
         }
         if !recut.is_empty() {
             timings_ms.insert("recut".into(), recut_ms);
@@ -813,6 +807,9 @@ impl Classifier {
                 );
             }
         }
+        if let (Some(m), Some(map)) = (&margin, cleaning.as_object_mut()) {
+            map.insert("margins".into(), serde_json::json!(m));
+        }
         if let (false, Some(map)) = (recut.is_empty(), cleaning.as_object_mut()) {
             map.insert("recut".into(), serde_json::json!(recut));
         }
@@ -824,6 +821,42 @@ impl Classifier {
             landmarks,
             calibrating,
         }
+    }
+
+    /// `scan` compared with the references `indices`: a distance row and
+    /// the reference's index and alignment for each.
+    fn compared_rows(
+        &self,
+        name: &str,
+        scan: &cp::Prepared,
+        indices: &[usize],
+    ) -> (Vec<DistanceRow>, Vec<(usize, cp::Alignment)>) {
+        let _s = tracing::info_span!(
+            "compare",
+            scan = %name,
+            references = self.references.len(),
+            compared = indices.len()
+        )
+        .entered();
+        let compared: Vec<(DistanceRow, (usize, cp::Alignment))> = indices
+            .par_iter()
+            .filter_map(|&i| {
+                let r = &self.references[i];
+                // A cache entry removed or damaged since the library was
+                // opened leaves its reference out of this answer (the next
+                // library build prepares it again).
+                let prepared = match r.prepared() {
+                    Ok(p) => p,
+                    Err(e) => {
+                        tracing::warn!(reference = %r.name(), "left out of the comparison: {e}");
+                        return None;
+                    }
+                };
+                let c = cp::compare(scan, &prepared, &self.settings.cp.compare);
+                Some((distance_row(r.name(), &c), (i, cp::Alignment::of(&c))))
+            })
+            .collect();
+        compared.into_iter().unzip()
     }
 
     /// The indices of the references a scan prepared as `scan` is compared
@@ -1417,6 +1450,86 @@ mod tests {
         }
         assert!(recut.timings_ms.contains_key("recut"));
         assert!(with(3, &crown_path).cleaning.get("recut").is_none());
+    }
+
+    /// Of the crowns the cleaning found on a whole tooth, the one whose
+    /// nearest reference is nearest is taken, and the answer is that
+    /// crown's: here an alternative that is a reference's own crown (at
+    /// distance zero) replaces the cut, while a far one is left aside.
+    /// Nothing is weighed with `recut_nearest = 0`.
+    #[test]
+    fn of_the_margins_found_the_crown_nearest_the_library_is_taken() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (classifier, _) = small_classifier(tmp.path());
+        let crown = synth::crown(&synth::CROWN_GENERA[2], 57, 600);
+        let whole = synth::whole_tooth(&crown, &synth::WholeToothParams::default(), 57).unwrap();
+        let path = tmp.path().join("whole.stl");
+        morphoid_data::mesh_io::save(&path, &whole.mesh).unwrap();
+        let settings = classifier.settings().clone();
+        let cut = pipeline::prepare_file(&path, &settings).unwrap();
+        assert!(cut.cleaning.crown.is_some());
+        let reference = classifier.references()[4].clone();
+        let own = |prepared: &cp::Prepared, cleaned: &morphoid_core::mesh::Mesh| {
+            let mut prepared = prepared.clone();
+            prepared.set_name(cut.prepared.name());
+            pipeline::AlternativeCut {
+                cleaned: cleaned.clone(),
+                prepared,
+            }
+        };
+        let near = own(&reference.prepared().unwrap(), &cut.cleaned);
+        // A far crown: the scan's own, flattened to a tenth of its height.
+        let flat = morphoid_core::mesh::Mesh::new(
+            cut.cleaned
+                .vertices
+                .iter()
+                .map(|p| [p[0], p[1], 0.1 * p[2]])
+                .collect(),
+            cut.cleaned.faces.clone(),
+        );
+        let far = own(&cp::prepare(&flat, &settings.cp.prepare).unwrap(), &flat);
+
+        let mut surface = cut.clone();
+        surface.alternatives = vec![far.clone(), near.clone()];
+        let outcome = classifier.classify_prepared(&mut surface);
+        let margin = &outcome.cleaning["margins"];
+        assert_eq!(margin["chosen"], 2, "{margin}");
+        assert_eq!(margin["crowns"].as_array().unwrap().len(), 3);
+        assert_eq!(margin["crowns"][2]["nearest"], reference.name());
+        assert!(margin["crowns"][2]["distance"].as_f64().unwrap() < 1e-6);
+        // The answer is the taken crown's, which is now the scan's.
+        let nearest = outcome
+            .distances
+            .iter()
+            .min_by(|a, b| a.distance.total_cmp(&b.distance))
+            .unwrap();
+        assert_eq!(nearest.reference, reference.name());
+        assert_eq!(
+            surface.prepared.faces(),
+            reference.prepared().unwrap().faces()
+        );
+        assert_eq!(
+            surface.alternatives[1].prepared.faces(),
+            cut.prepared.faces()
+        );
+        assert!(outcome.timings_ms.contains_key("margins"));
+
+        let mut surface = cut.clone();
+        surface.alternatives = vec![far];
+        let outcome = classifier.classify_prepared(&mut surface);
+        assert_eq!(outcome.cleaning["margins"]["chosen"], 0);
+        assert_eq!(surface.prepared.faces(), cut.prepared.faces());
+
+        let mut off = settings.clone();
+        off.cp.recut.recut_nearest = 0;
+        let mut surface = cut.clone();
+        surface.alternatives = vec![near];
+        let outcome = classifier
+            .clone()
+            .with_settings(off)
+            .classify_prepared(&mut surface);
+        assert!(outcome.cleaning.get("margins").is_none());
+        assert_eq!(surface.prepared.faces(), cut.prepared.faces());
     }
 
     /// References are held in the cache, not in memory; one whose entry

@@ -175,7 +175,7 @@ pub(crate) fn heldout_scores_classified(
                 labels.clone(),
                 settings.clone(),
             )
-            .classify_prepared(surface)
+            .classify_prepared(&mut surface.clone())
         })
         .collect();
     ranks

@@ -18,7 +18,8 @@
 //! 6. face orientation is made consistent ([`orient`]);
 //! 7. a closed surface (or a nearly closed one: every hole small, see
 //!    [`NEARLY_CLOSED`]) is taken for a whole tooth and cut to its crown at
-//!    the cervical margin ([`crown`], unless `crown = "off"`);
+//!    the cervical margin ([`crown`], unless `crown = "off"`); the crowns
+//!    of other margins found go on beside it ([`Cleaned::alternatives`]);
 //! 8. all boundary loops but the longest (by geometric length) are filled
 //!    ([`holes`]); the surface must then be a disk (one loop, Euler
 //!    characteristic 1);
@@ -158,7 +159,16 @@ pub struct Cleaned {
     pub mesh: Mesh,
     /// What was changed.
     pub report: CleanReport,
+    /// For a crown cut from a whole tooth: the crowns of other margins the
+    /// search found, cleaned alike (disk-type, at the working resolution),
+    /// best merit first. Which crown is the tooth's is for a library to
+    /// tell; the geometry's choice is `mesh`.
+    pub alternatives: Vec<Mesh>,
 }
+
+/// A disk-type surface and, for a crown cut from a whole tooth, the disks
+/// of the other cuts found ([`Cleaned::alternatives`]).
+type Disks = (Mesh, Vec<Mesh>);
 
 /// Why a surface cannot be made disk-type.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -231,7 +241,7 @@ fn validate(mesh: &Mesh) -> Result<(), CleanError> {
 /// Steps 4–8: largest component, manifold repair, consistent orientation,
 /// hole filling, disk test and outward orientation, with counts added to
 /// `report`.
-fn make_disk(m: &Mesh, report: &mut CleanReport, crown: CrownMode) -> Result<Mesh, CleanError> {
+fn make_disk(m: &Mesh, report: &mut CleanReport, crown: CrownMode) -> Result<Disks, CleanError> {
     make_disk_of(m, report, crown, false)
 }
 
@@ -241,7 +251,7 @@ fn make_disk_of(
     report: &mut CleanReport,
     crown: CrownMode,
     revoxelized: bool,
-) -> Result<Mesh, CleanError> {
+) -> Result<Disks, CleanError> {
     let min = 3;
     let (m3, d1) = components::largest_component_by_area(m);
     let (m4, ne) = manifold::repair_nonmanifold_edges(&m3);
@@ -273,8 +283,8 @@ fn make_disk_of(
         report.predecimated_faces = report.predecimated_faces.max(m8.faces.len());
         return make_disk_of(&coarser, report, crown, revoxelized);
     }
-    let m8 = if !is_whole(&m8, crown) {
-        m8
+    let (m8, alternatives) = if !is_whole(&m8, crown) {
+        (m8, Vec::new())
     } else if crown == CrownMode::Off {
         return Err(CleanError::Closed);
     } else {
@@ -292,7 +302,18 @@ fn make_disk_of(
         }
         cut_whole_tooth(&closed, filled, report)?
     };
-    let (m9, filled) = holes::fill_holes_except_longest(&m8);
+    let disk = outward_disk(&m8, report)?;
+    let alternatives = alternatives
+        .iter()
+        .filter_map(|a| outward_disk(a, &mut CleanReport::default()).ok())
+        .collect();
+    Ok((disk, alternatives))
+}
+
+/// Steps 8–9: `m8`'s holes but its outer boundary filled, checked to be a
+/// disk and turned so that its normals point outward.
+fn outward_disk(m8: &Mesh, report: &mut CleanReport) -> Result<Mesh, CleanError> {
+    let (m9, filled) = holes::fill_holes_except_longest(m8);
     report.filled_holes += filled;
     let chi = euler_characteristic(&m9);
     if chi != 1 {
@@ -315,7 +336,7 @@ fn make_disk_of(
 /// The disk of the whole tooth `closed` taken through a voxel grid
 /// ([`voxelize::revoxelized`]), which closes its handles, with `report`
 /// updated; `None` (and `report` as it was) when that fails.
-fn revoxelized_disk(closed: &Mesh, report: &mut CleanReport, crown: CrownMode) -> Option<Mesh> {
+fn revoxelized_disk(closed: &Mesh, report: &mut CleanReport, crown: CrownMode) -> Option<Disks> {
     let solid = voxelize::revoxelized(closed, REVOXEL_SAMPLES)?;
     tracing::debug!(
         faces = solid.faces.len(),
@@ -434,12 +455,12 @@ fn cut_whole_tooth(
     closed: &Mesh,
     filled: usize,
     report: &mut CleanReport,
-) -> Result<Mesh, CleanError> {
+) -> Result<Disks, CleanError> {
     let cut = crown::extract_crown(closed)?;
     let mut crown_report = cut.report;
     crown_report.filled_holes = filled;
     report.crown = Some(crown_report);
-    Ok(cut.mesh)
+    Ok((cut.mesh, cut.alternatives))
 }
 
 /// Run the whole cleaning pipeline (see the module documentation).
@@ -488,17 +509,36 @@ pub fn clean(mesh: &Mesh, opts: &CleanOptions) -> Result<Cleaned, CleanError> {
         m2 = d;
     }
 
-    let m3 = make_disk(&m2, &mut report, opts.crown)?;
+    let (m3, alternatives) = make_disk(&m2, &mut report, opts.crown)?;
+    let out = working_resolution(&m3, opts, &mut report)?;
+    drop(m3);
+    let alternatives = alternatives
+        .iter()
+        .filter_map(|a| working_resolution(a, opts, &mut CleanReport::default()).ok())
+        .collect();
+    Ok(Cleaned {
+        mesh: out,
+        report,
+        alternatives,
+    })
+}
 
+/// Step 10: the disk `m3` resampled to the working resolution and its
+/// triangles improved, with the output's figures in `report`.
+fn working_resolution(
+    m3: &Mesh,
+    opts: &CleanOptions,
+    report: &mut CleanReport,
+) -> Result<Mesh, CleanError> {
     // Decimation may merge vertices that share a position (copies made by
     // the vertex split) and create non-manifold spots: repair again.
-    let resampled = resample::resample_to_vertex_count(&m3, opts.target_vertices);
+    let resampled = resample::resample_to_vertex_count(m3, opts.target_vertices);
     let m4 = if resampled.vertices.len() == m3.vertices.len() {
         resampled
     } else {
-        make_disk(&resampled, &mut CleanReport::default(), CrownMode::Off)?
+        make_disk(&resampled, &mut CleanReport::default(), CrownMode::Off)?.0
     };
-    let reference = resample::SurfaceReference::new(&m3).ok_or(CleanError::TooFewFaces(0))?;
+    let reference = resample::SurfaceReference::new(m3).ok_or(CleanError::TooFewFaces(0))?;
     let (out, flips) = resample::improve_triangles(&m4, &reference, opts.relax_iterations);
     report.edge_flips = flips;
     // A relaxed sliver can end up flat (three points on a line), which the
@@ -521,5 +561,5 @@ pub fn clean(mesh: &Mesh, opts: &CleanOptions) -> Result<Cleaned, CleanError> {
     report.euler_characteristic = chi;
     report.area = surface_area(&out);
     report.bbox_diagonal = bbox_diagonal(&out);
-    Ok(Cleaned { mesh: out, report })
+    Ok(out)
 }

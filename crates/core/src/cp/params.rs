@@ -183,8 +183,9 @@ impl ScreenParams {
 pub struct RecutParams {
     /// A crown cut from a closed surface or a volume is cut again along
     /// the crop line of each of this many nearest references and compared
-    /// with it once more; 0 turns this off. Crowns as files are never
-    /// cut again.
+    /// with it once more; 0 turns this off, and with it the library's
+    /// choice among the margins the cleaning found. Crowns as files are
+    /// never cut again.
     pub recut_nearest: usize,
 }
 

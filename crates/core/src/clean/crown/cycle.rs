@@ -535,8 +535,11 @@ mod tests {
                 }
                 for &(w, cost, step) in graph.neighbours(node / LAYERS) {
                     let l = (node % LAYERS) as i64 + i64::from(step);
+                    if !(0..LAYERS as i64).contains(&l) {
+                        continue;
+                    }
                     let next = w as usize * LAYERS + l as usize;
-                    if (0..LAYERS as i64).contains(&l) && d + cost < dist[next] {
+                    if d + cost < dist[next] {
                         dist[next] = d + cost;
                         prev[next] = node;
                         heap.push(HeapItem(d + cost, next as u32));

@@ -210,7 +210,23 @@ pub(super) struct ExtractedCrown {
     pub mesh: Mesh,
     /// What was cut.
     pub report: CrownReport,
+    /// The crowns of other margins found (about other axes, or from the
+    /// neck rather than a crease), of lower merit, that keep a different
+    /// part of the surface: disk-type, best merit first, at most
+    /// [`MAX_ALTERNATIVE_CUTS`]. The geometry ranks the loops; the
+    /// references can tell which crown is one (the classifier compares
+    /// them).
+    pub alternatives: Vec<Mesh>,
 }
+
+/// Other cuts kept beside the best (see [`ExtractedCrown::alternatives`]).
+/// On the two-rooted exports of the 116 teeth at 300 voxels, 61 of 116
+/// have more than one distinct candidate, rarely more than three.
+const MAX_ALTERNATIVE_CUTS: usize = 2;
+
+/// Two cuts are one when the faces kept by one and not the other are
+/// fewer than this share of the smaller crown's faces.
+const DISTINCT_CUT: f64 = 0.1;
 
 /// One axis tried and the crown it gives.
 struct Candidate {
@@ -782,22 +798,76 @@ fn root_points_below(mesh: &Mesh, cyl: &Cylinder, inside: &[bool], slab: f64) ->
 /// outline a crease loop may cut.
 const BELOW_NECK: f64 = 0.05;
 
-/// The candidate of highest merit, except that where a neck was seen on
-/// the outline, a crease loop cutting well below it is no margin: below
-/// the neck hang the roots, whose furcation and ridges have creases too.
-fn best_candidate(candidates: Vec<Candidate>) -> Option<Candidate> {
+/// The candidates by merit, highest first, except that where a neck was
+/// seen on the outline, a crease loop cutting well below it is no margin:
+/// below the neck hang the roots, whose furcation and ridges have creases
+/// too. Of equal merits the last found comes first.
+fn ranked_candidates(candidates: Vec<Candidate>) -> Vec<Candidate> {
     let neck = candidates
         .iter()
         .filter(|c| c.report.neck_bulge > 0.0)
         .max_by(|a, b| a.merit().total_cmp(&b.merit()))
         .map(|c| c.report.cut_height_mean);
-    candidates
+    let mut ranked: Vec<Candidate> = candidates
         .into_iter()
         .filter(|c| {
             c.report.neck_bulge > 0.0
                 || neck.is_none_or(|n| c.report.cut_height_mean >= n - BELOW_NECK)
         })
-        .max_by(|a, b| a.merit().total_cmp(&b.merit()))
+        .collect();
+    ranked.reverse();
+    ranked.sort_by(|a, b| b.merit().total_cmp(&a.merit()));
+    ranked
+}
+
+/// Whether the crowns `a` and `b` (faces kept) are the same cut (see
+/// [`DISTINCT_CUT`]).
+fn same_cut(a: &[bool], b: &[bool]) -> bool {
+    let differ = a.iter().zip(b).filter(|(x, y)| x != y).count();
+    let smaller = a
+        .iter()
+        .filter(|&&k| k)
+        .count()
+        .min(b.iter().filter(|&&k| k).count());
+    (differ as f64) < DISTINCT_CUT * smaller as f64
+}
+
+/// The faces of `oriented` marked in `inside`, as a mesh of their own:
+/// the crown, with the disk's Euler characteristic and boundary count.
+fn crown_faces(oriented: &Mesh, inside: &[bool]) -> (Mesh, usize, i64) {
+    let faces: Vec<[u32; 3]> = oriented
+        .faces
+        .iter()
+        .zip(inside)
+        .filter_map(|(f, &k)| k.then_some(*f))
+        .collect();
+    let crown =
+        super::faces::remove_unreferenced_vertices(&Mesh::new(oriented.vertices.clone(), faces));
+    let loops = boundary_loops(&crown).len();
+    let euler = euler_characteristic(&crown);
+    (crown, loops, euler)
+}
+
+/// The crowns of `others` (ranked, after `best`) that are disks and cut
+/// differently from `best` and from each other, at most
+/// [`MAX_ALTERNATIVE_CUTS`].
+fn alternative_crowns(oriented: &Mesh, best: &Candidate, others: &[Candidate]) -> Vec<Mesh> {
+    let mut kept: Vec<&[bool]> = vec![&best.inside];
+    let mut crowns = Vec::new();
+    for c in others {
+        if crowns.len() == MAX_ALTERNATIVE_CUTS {
+            break;
+        }
+        if kept.iter().any(|k| same_cut(k, &c.inside)) {
+            continue;
+        }
+        let (crown, loops, euler) = crown_faces(oriented, &c.inside);
+        if loops == 1 && euler == 1 {
+            kept.push(&c.inside);
+            crowns.push(crown);
+        }
+    }
+    crowns
 }
 
 /// Rounds of smoothing before the margin search: enough to flatten
@@ -976,8 +1046,8 @@ pub(super) fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
             Err(r) => reasons.push(r),
         }
     }
-    let best = best_candidate(candidates);
-    let Some(best) = best else {
+    let mut ranked = ranked_candidates(candidates).into_iter();
+    let Some(best) = ranked.next() else {
         // Every axis searched leaves a candidate or a rejection, so the
         // fallback only guards an empty set of axes.
         let reason = reasons
@@ -986,19 +1056,12 @@ pub(super) fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
             .map_or(CrownRefusal::NoMarginLine, |r| r.reason);
         return Err(CrownError::NoCrown(reason));
     };
-    let faces: Vec<[u32; 3]> = oriented
-        .faces
-        .iter()
-        .zip(&best.inside)
-        .filter_map(|(f, &k)| k.then_some(*f))
-        .collect();
-    let crown =
-        super::faces::remove_unreferenced_vertices(&Mesh::new(oriented.vertices.clone(), faces));
-    let loops = boundary_loops(&crown).len();
-    let euler = euler_characteristic(&crown);
+    let (crown, loops, euler) = crown_faces(&oriented, &best.inside);
     if loops != 1 || euler != 1 {
         return Err(CrownError::NotDisk { loops, euler });
     }
+    let others: Vec<Candidate> = ranked.collect();
+    let alternatives = alternative_crowns(&oriented, &best, &others);
     let mut report = best.report;
     report.removed_handles = (2 - euler_characteristic(mesh)) / 2;
     tracing::debug!(
@@ -1010,12 +1073,57 @@ pub(super) fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
     Ok(ExtractedCrown {
         mesh: crown,
         report,
+        alternatives,
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn candidate(merit: f64, neck: f64, mean: f64, inside: &[bool]) -> Candidate {
+        Candidate {
+            inside: inside.to_vec(),
+            report: CrownReport {
+                margin_merit: merit,
+                neck_bulge: neck,
+                cut_height_mean: mean,
+                ..CrownReport::default()
+            },
+        }
+    }
+
+    #[test]
+    fn candidates_rank_by_merit_and_a_crease_far_below_the_neck_goes() {
+        let ranked = ranked_candidates(vec![
+            candidate(0.5, 1.1, 0.6, &[true]),
+            candidate(0.8, 1.2, 0.5, &[false]),
+            // A crease loop 0.1 below the best neck's cut: the roots'.
+            candidate(0.9, 0.0, 0.4, &[true, true]),
+            candidate(0.8, 0.0, 0.48, &[true, false]),
+        ]);
+        let merits: Vec<(f64, usize)> =
+            ranked.iter().map(|c| (c.merit(), c.inside.len())).collect();
+        // Of equal merits the last found comes first, as the single best
+        // was chosen before there were alternatives.
+        assert_eq!(merits, [(0.8, 2), (0.8, 1), (0.5, 1)]);
+    }
+
+    #[test]
+    fn cuts_that_differ_by_under_a_tenth_of_the_smaller_crown_are_one() {
+        let a: Vec<bool> = (0..100).map(|i| i < 50).collect();
+        let mut b = a.clone();
+        for k in b.iter_mut().skip(50).take(4) {
+            *k = true;
+        }
+        assert!(same_cut(&a, &b));
+        for k in b.iter_mut().skip(54).take(2) {
+            *k = true;
+        }
+        assert!(!same_cut(&a, &b), "6 of 50 differ");
+        let c: Vec<bool> = (0..100).map(|i| i >= 50).collect();
+        assert!(!same_cut(&a, &c));
+    }
 
     #[test]
     fn refusals_print_what_they_measured() {
