@@ -883,6 +883,21 @@ impl Classifier {
         )
     }
 
+    /// The indices into `signatures` the screen keeps for `crown`, a crown
+    /// cut from a whole tooth (again): screening on whatever the library's
+    /// size, on the crown's own signature.
+    fn screened_crown(
+        &self,
+        crown: &cp::Prepared,
+        signatures: &[impl std::borrow::Borrow<cp::Signature>],
+    ) -> Vec<usize> {
+        let params = cp::ScreenParams {
+            screening: cp::Screening::On,
+            ..self.settings.cp.screen
+        };
+        identify::screened_references(&cp::shape_signature(crown), signatures, &params, &[])
+    }
+
     /// The landmarks of the nearest reference (smallest distance, ties by
     /// name) carried onto the scan, when that reference has landmarks.
     /// A failure is logged and leaves the result without landmarks: the

@@ -10,7 +10,7 @@
 //! have alternatives.
 
 use super::Classifier;
-use crate::identify::{screened_references, DistanceRow};
+use crate::identify::DistanceRow;
 use morphoid_core::cp;
 use morphoid_data::pipeline::PreparedSurface;
 use rayon::prelude::*;
@@ -93,26 +93,24 @@ impl Classifier {
     /// The nearest reference to `crown` among those the screen keeps for
     /// it; `None` when none could be compared.
     fn nearest_screened(&self, crown: &cp::Prepared) -> Option<WeighedCrown> {
-        let params = cp::ScreenParams {
-            screening: cp::Screening::On,
-            ..self.settings.cp.screen
-        };
-        let kept = screened_references(&cp::shape_signature(crown), &self.signatures, &params, &[]);
-        kept.par_iter()
-            .filter_map(|&i| {
-                let r = &self.references[i];
-                let reference = r.prepared().ok()?;
-                let c = cp::compare(crown, &reference, &self.settings.cp.compare);
-                Some(WeighedCrown {
-                    faces: crown.faces().len(),
-                    nearest: r.name().to_string(),
-                    distance: c.distance,
-                })
+        let (distance, i) = self
+            .screened_crown(crown, &self.signatures)
+            .into_par_iter()
+            .filter_map(|i| {
+                let reference = self.references[i].prepared().ok()?;
+                Some((
+                    cp::compare(crown, &reference, &self.settings.cp.compare).distance,
+                    i,
+                ))
             })
             .min_by(|a, b| {
-                a.distance
-                    .total_cmp(&b.distance)
-                    .then_with(|| a.nearest.cmp(&b.nearest))
-            })
+                a.0.total_cmp(&b.0)
+                    .then_with(|| self.references[a.1].name().cmp(self.references[b.1].name()))
+            })?;
+        Some(WeighedCrown {
+            faces: crown.faces().len(),
+            nearest: self.references[i].name().to_string(),
+            distance,
+        })
     }
 }

@@ -21,7 +21,7 @@
 //! cleaning cut from a closed surface or a volume are cut again.
 
 use super::{distance_row, Classifier};
-use crate::identify::{screened_references, DistanceRow};
+use crate::identify::DistanceRow;
 use morphoid_core::cp;
 use morphoid_data::pipeline::{self, PreparedSurface};
 use rayon::prelude::*;
@@ -230,11 +230,7 @@ impl Classifier {
     ) -> Vec<usize> {
         let signatures: Vec<&cp::Signature> =
             found.iter().map(|&(i, _)| &self.signatures[i]).collect();
-        let params = cp::ScreenParams {
-            screening: cp::Screening::On,
-            ..self.settings.cp.screen
-        };
-        let mut rows = screened_references(&cp::shape_signature(crown), &signatures, &params, &[]);
+        let mut rows = self.screened_crown(crown, &signatures);
         rows.extend(voters.iter().map(|v| v.0));
         rows.sort_unstable();
         rows.dedup();
