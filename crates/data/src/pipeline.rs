@@ -385,16 +385,22 @@ pub fn prepare_mesh(
     };
     let clean_ms = ms(t);
     let t = Instant::now();
-    let mut prepared = {
-        let _s = tracing::debug_span!("prepare", scan = %name).entered();
-        cp::prepare(&cleaned.mesh, &settings.cp.prepare)?
-    };
+    // The other crowns found are prepared beside the chosen one.
+    let (prepared, alternatives) = rayon::join(
+        || {
+            let _s = tracing::debug_span!("prepare", scan = %name).entered();
+            cp::prepare(&cleaned.mesh, &settings.cp.prepare)
+        },
+        || {
+            if settings.cp.recut.recut_nearest > 0 {
+                alternative_cuts(cleaned.alternatives, name, &settings.cp)
+            } else {
+                Vec::new()
+            }
+        },
+    );
+    let mut prepared = prepared?;
     prepared.set_name(name);
-    let alternatives = if settings.cp.recut.recut_nearest > 0 {
-        alternative_cuts(cleaned.alternatives, name, &settings.cp)
-    } else {
-        Vec::new()
-    };
     Ok(PreparedSurface {
         cleaned: cleaned.mesh,
         prepared,

@@ -56,6 +56,7 @@ use crate::mesh::{
     surface_area, widest_boundary_loop_extent, Mesh,
 };
 pub use crown::{CrownError, CrownMode, CrownReport};
+use rayon::prelude::*;
 pub use specimens::surface_specimens;
 
 /// A surface whose every boundary loop spans less than this share of its
@@ -302,12 +303,18 @@ fn make_disk_of(
         }
         cut_whole_tooth(&closed, filled, report)?
     };
-    let disk = outward_disk(&m8, report)?;
-    let alternatives = alternatives
-        .iter()
-        .filter_map(|a| outward_disk(a, &mut CleanReport::default()).ok())
-        .collect();
-    Ok((disk, alternatives))
+    // The other crowns are made disks beside the chosen one: on a whole
+    // tooth this step is single-threaded, and a second core is free.
+    let (disk, alternatives) = rayon::join(
+        || outward_disk(&m8, report),
+        || {
+            alternatives
+                .par_iter()
+                .filter_map(|a| outward_disk(a, &mut CleanReport::default()).ok())
+                .collect()
+        },
+    );
+    Ok((disk?, alternatives))
 }
 
 /// Steps 8–9: `m8`'s holes but its outer boundary filled, checked to be a
@@ -510,12 +517,18 @@ pub fn clean(mesh: &Mesh, opts: &CleanOptions) -> Result<Cleaned, CleanError> {
     }
 
     let (m3, alternatives) = make_disk(&m2, &mut report, opts.crown)?;
-    let out = working_resolution(&m3, opts, &mut report)?;
+    // Resampled beside the chosen crown, as in `make_disk`.
+    let (out, alternatives) = rayon::join(
+        || working_resolution(&m3, opts, &mut report),
+        || {
+            alternatives
+                .par_iter()
+                .filter_map(|a| working_resolution(a, opts, &mut CleanReport::default()).ok())
+                .collect()
+        },
+    );
+    let out = out?;
     drop(m3);
-    let alternatives = alternatives
-        .iter()
-        .filter_map(|a| working_resolution(a, opts, &mut CleanReport::default()).ok())
-        .collect();
     Ok(Cleaned {
         mesh: out,
         report,
