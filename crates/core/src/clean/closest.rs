@@ -146,8 +146,21 @@ impl TriangleGrid {
         })
     }
 
-    /// The closest point of the surface to `p`.
+    /// The closest point of the surface to `p` (of equally close faces,
+    /// the one of lowest index).
     pub fn closest_point(&self, p: [f64; 3]) -> ClosestPoint {
+        self.closest_point_within(p, f64::INFINITY)
+            .unwrap_or(ClosestPoint {
+                point: p,
+                distance: f64::INFINITY,
+                face: 0,
+            })
+    }
+
+    /// The closest point of the surface to `p` if it lies nearer than
+    /// `limit` (as [`Self::closest_point`] finds it); the search stops at
+    /// that distance.
+    pub fn closest_point_within(&self, p: [f64; 3], limit: f64) -> Option<ClosestPoint> {
         let c = [0, 1, 2].map(|d| ((p[d] - self.origin[d]) / self.cell).floor() as i64);
         // Clamp the query cell into the grid; `extra` is how far outside we are.
         let cc = [0, 1, 2].map(|d| c[d].clamp(0, self.dims[d] - 1));
@@ -158,38 +171,35 @@ impl TriangleGrid {
             face: 0,
         };
         for r in 0..=max_r {
-            for i in (cc[0] - r)..=(cc[0] + r) {
-                for j in (cc[1] - r)..=(cc[1] + r) {
-                    for k in (cc[2] - r)..=(cc[2] + r) {
-                        let on_shell = (i - cc[0]).abs() == r
-                            || (j - cc[1]).abs() == r
-                            || (k - cc[2]).abs() == r;
-                        if !on_shell {
-                            continue;
-                        }
-                        let Some(list) = self.cells.get(&[i, j, k]) else {
-                            continue;
+            self.for_each_shell_cell(cc, r, |cell| {
+                // A cell farther than the best face so far holds no closer
+                // face (the slack covers rounding in the cell's bounds); the
+                // test is cheaper than the lookup, and deep inside a solid
+                // most cells of the outer shells are skipped by it.
+                if self.cell_distance(p, cell) > best.distance.min(limit) * (1.0 + 1e-9) {
+                    return;
+                }
+                let Some(list) = self.cells.get(&cell) else {
+                    return;
+                };
+                for &fi in list {
+                    let f = self.faces[fi as usize];
+                    let q = closest_point_on_triangle(
+                        p,
+                        self.vertices[f[0] as usize],
+                        self.vertices[f[1] as usize],
+                        self.vertices[f[2] as usize],
+                    );
+                    let d = norm(sub(q, p));
+                    if d < best.distance || (d == best.distance && fi < best.face) {
+                        best = ClosestPoint {
+                            point: q,
+                            distance: d,
+                            face: fi,
                         };
-                        for &fi in list {
-                            let f = self.faces[fi as usize];
-                            let q = closest_point_on_triangle(
-                                p,
-                                self.vertices[f[0] as usize],
-                                self.vertices[f[1] as usize],
-                                self.vertices[f[2] as usize],
-                            );
-                            let d = norm(sub(q, p));
-                            if d < best.distance || (d == best.distance && fi < best.face) {
-                                best = ClosestPoint {
-                                    point: q,
-                                    distance: d,
-                                    face: fi,
-                                };
-                            }
-                        }
                     }
                 }
-            }
+            });
             // Everything outside the shells searched so far is at least this
             // far from p (distance from p to the searched box's faces).
             let mut reach = f64::INFINITY;
@@ -198,11 +208,47 @@ impl TriangleGrid {
                 let hi = self.origin[d] + (cc[d] + r + 1) as f64 * self.cell;
                 reach = reach.min((p[d] - lo).max(0.0)).min((hi - p[d]).max(0.0));
             }
-            if best.distance <= reach {
+            if best.distance.min(limit) <= reach {
                 break;
             }
         }
-        best
+        (best.distance < limit).then_some(best)
+    }
+
+    /// Call `visit` on each cell of the grid at Chebyshev distance exactly
+    /// `r` from the cell `cc` (cells outside the grid hold no faces and are
+    /// left out).
+    fn for_each_shell_cell(&self, cc: [i64; 3], r: i64, mut visit: impl FnMut([i64; 3])) {
+        let range = |d: usize| (cc[d] - r).max(0)..=(cc[d] + r).min(self.dims[d] - 1);
+        for i in range(0) {
+            for j in range(1) {
+                if (i - cc[0]).abs() == r || (j - cc[1]).abs() == r {
+                    for k in range(2) {
+                        visit([i, j, k]);
+                    }
+                } else {
+                    // Inside the shell's i–j square (so r > 0): only its
+                    // two k faces.
+                    for k in [cc[2] - r, cc[2] + r] {
+                        if (0..self.dims[2]).contains(&k) {
+                            visit([i, j, k]);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Distance from `p` to the box of `cell`.
+    fn cell_distance(&self, p: [f64; 3], cell: [i64; 3]) -> f64 {
+        let mut s = 0.0;
+        for d in 0..3 {
+            let lo = self.origin[d] + cell[d] as f64 * self.cell;
+            let hi = lo + self.cell;
+            let g = (lo - p[d]).max(p[d] - hi).max(0.0);
+            s += g * g;
+        }
+        s.sqrt()
     }
 
     /// Distance from `p` to the surface.
@@ -283,6 +329,41 @@ mod tests {
             ];
             let d = g.distance(p);
             assert!((d - brute(p, &m)).abs() < 1e-12, "{p:?}");
+        }
+    }
+
+    /// The face found is the nearest of lowest index, as a search of every
+    /// face finds it, for points inside a closed surface (where the
+    /// search skips far cells) and outside it.
+    #[test]
+    fn grid_finds_the_face_a_search_of_all_faces_finds() {
+        let m = crate::testing::synth::closed_sphere(2000);
+        let g = TriangleGrid::new(&m).expect("grid");
+        for s in 0..400 {
+            let t = s as f64;
+            let r = 0.05 + 1.4 * ((t * 0.61).sin() * 0.5 + 0.5);
+            let dir = [(t * 0.37).sin(), (t * 0.73).cos(), (t * 0.11).sin() - 0.3];
+            let n = norm(dir);
+            let p = dir.map(|x| x / n * r);
+            let found = g.closest_point(p);
+            let (mut bd, mut bf) = (f64::INFINITY, 0u32);
+            for (fi, f) in m.faces.iter().enumerate() {
+                let q = closest_point_on_triangle(
+                    p,
+                    m.vertices[f[0] as usize],
+                    m.vertices[f[1] as usize],
+                    m.vertices[f[2] as usize],
+                );
+                let d = norm(sub(q, p));
+                if d < bd {
+                    (bd, bf) = (d, fi as u32);
+                }
+            }
+            assert_eq!((found.distance, found.face), (bd, bf), "{p:?}");
+            // Searched only as far as a limit: the same face when nearer.
+            let within = g.closest_point_within(p, 0.1);
+            let expected = (bd < 0.1).then_some((bd, bf));
+            assert_eq!(within.map(|c| (c.distance, c.face)), expected, "{p:?}");
         }
     }
 }

@@ -72,9 +72,13 @@ pub fn phantom(tooth: &WholeTooth, params: &PhantomParams) -> Grid {
             i / (dims[0] * dims[1]),
         );
         let p = [0, 1, 2].map(|a| origin[a] + [x, y, z][a] as f64 * h);
-        if let Some(t) = &tri {
-            let c = t.closest_point(p);
-            if c.distance < thickness && tooth.crown_faces.get(c.face as usize) == Some(&true) {
+        // Only a surface nearer than the enamel's thickness matters, and
+        // most samples of the shell have none (the search stops there).
+        if let Some(c) = tri
+            .as_ref()
+            .and_then(|t| t.closest_point_within(p, thickness))
+        {
+            if tooth.crown_faces.get(c.face as usize) == Some(&true) {
                 *v = l2;
             }
         }
