@@ -1,6 +1,6 @@
 //! What a batch scan costs (issue #29's speed target): three real teeth,
 //! each in its own foam and tube, standing side by side in one stack of
-//! at least 300³ voxels (16-bit TIFF slices, `support::mounting`), then
+//! at least 300³ voxels (16-bit TIFF slices, `morphoid_synth::volume::mounting`), then
 //! `morphoid classify` of the stack against the 116-tooth library
 //! (prepared once beforehand, so the cache is warm) run three times as a
 //! whole process under GNU time: wall time, CPU time and peak RSS, and
@@ -21,8 +21,8 @@ use std::path::PathBuf;
 #[allow(dead_code)]
 #[path = "../tests/it/support/mod.rs"]
 mod support;
+use morphoid_synth::volume::mounting::{batch_mounts, write_batch_in};
 use support::measured::{library_config, morphoid_binary, run_measured, wall_summary};
-use support::mounting::{batch_mounts, write_batch_in};
 
 /// Identifications measured.
 const RUNS: usize = 3;
@@ -65,7 +65,7 @@ fn main() {
     };
     let stack = tmp.path().join("batch");
     let teeth: Vec<(&Mesh, _)> = crowns.iter().zip(batch_mounts(7, across, 3)).collect();
-    let truth = write_batch_in(&teeth, 3, [STACK; 3], &stack);
+    let truth = write_batch_in(&teeth, 3, [STACK; 3], &stack).expect("batch stack written");
     let dims = truth.first().map_or([0; 3], |t| t.dims);
     println!(
         "stack: {}×{}×{} voxels ({:.1} M), three teeth {across} voxels across",

@@ -1,12 +1,13 @@
 //! Batch scans: several real teeth scanned together, each in its own foam
-//! and tube, the mounts standing side by side (`support::mounting`, built
+//! and tube, the mounts standing side by side (`morphoid_synth::volume::mounting`, built
 //! independently of the segmentation). Each tooth must come out as its own
 //! specimen, numbered along the stack's longest axis, with its position,
 //! its crown on the real crown, and its own identification.
 
-use super::support::{cp as cps, data, mounting::*};
+use super::support::{cp as cps, data};
 use morphoid_core::clean::point_to_surface_distances;
 use morphoid_data::pipeline::{load_scan, prepare_specimens, PreparedSurface, Settings};
+use morphoid_synth::volume::mounting::*;
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -33,7 +34,7 @@ fn batch(dir: &Path, names: &[String], seed: u64, across: usize, gap: i64, out: 
         .zip(batch_mounts(seed, across, names.len()))
         .collect();
     let path = out.join(format!("batch-{seed}"));
-    let truth = write_batch(&teeth, gap, &path);
+    let truth = write_batch(&teeth, gap, &path).unwrap();
     let settings = Settings::default();
     let loaded = load_scan(&path, &settings).expect("the batch stack is read");
     let warnings = loaded
@@ -189,7 +190,7 @@ fn teeth_in_mounts_short_of_the_stack_ends_are_each_their_own_specimen() {
     let teeth: Vec<(&morphoid_core::mesh::Mesh, Mount)> = crowns.iter().zip(mounts).collect();
     let tmp = tempfile::tempdir().unwrap();
     let path = tmp.path().join("short-mounts");
-    let truth = write_batch(&teeth, 3, &path);
+    let truth = write_batch(&teeth, 3, &path).unwrap();
     let loaded = load_scan(&path, &Settings::default()).expect("the batch stack is read");
     keep_or_remove(&path);
     let report = loaded.volume.as_ref().map(|v| &v.segmentation);

@@ -1,16 +1,17 @@
 //! Slice stacks of real teeth mounted as loose teeth are scanned (roots in
 //! floral foam inside a plastic tube, wax, a pin, the scanner's artefacts;
-//! `support::mounting`, built independently of the segmentation), read
+//! `morphoid_synth::volume::mounting`, built independently of the segmentation), read
 //! back through the normal volume path: the tooth is kept, the foam and
 //! the tube are dropped with their reasons, the crown is where the real
 //! crown is, and it is identified against the other real crowns.
 
-use super::support::{cp as cps, data, mounting::*};
+use super::support::{cp as cps, data};
 use morphoid_core::clean::point_to_surface_distances;
 use morphoid_core::mesh::Mesh;
 use morphoid_core::volume::DropReason;
 use morphoid_data::pipeline::{prepare_file, PreparedSurface, Settings};
 use morphoid_data::volume::VolumeReport;
+use morphoid_synth::volume::mounting::*;
 use rayon::prelude::*;
 use std::path::Path;
 use std::process::Command;
@@ -36,7 +37,7 @@ fn mean(d: Vec<f64>) -> f64 {
 fn mounted_scan(dir: &Path, name: &str, mount: &Mount, out: &Path) -> Outcome {
     let crown = cps::load_tooth(dir, name);
     let path = out.join(name);
-    let written = write_mounted(&crown, mount, &path);
+    let written = write_mounted(&crown, mount, &path).unwrap();
     let mut settings = Settings::default();
     // MORPHOID_MOUNTED_ENAMEL=1 cuts the crown over the enamel
     // (`[volume] enamel = true`) instead of at the closed surface's margin.
@@ -212,7 +213,7 @@ fn foam_alone_and_an_empty_tube_are_no_specimen() {
         ("empty_tube", empty_tube, "thin shell"),
     ] {
         let path = tmp.path().join(name);
-        write_mounted(&crown, &mount, &path);
+        write_mounted(&crown, &mount, &path).unwrap();
         let out = Command::new(BIN)
             .args(["inspect", "--json", "--config"])
             .arg(&config)
@@ -253,7 +254,7 @@ fn inspect_json_lists_what_was_kept_and_dropped() {
     let config = tmp.path().join("morphoid.toml");
     std::fs::write(&config, "").unwrap();
     let path = tmp.path().join("mounted");
-    let written = write_mounted(&crown, &Mount::varied(33, 150), &path);
+    let written = write_mounted(&crown, &Mount::varied(33, 150), &path).unwrap();
     let out = Command::new(BIN)
         .args(["inspect", "--json", "--config"])
         .arg(&config)

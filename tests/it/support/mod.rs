@@ -13,7 +13,6 @@ pub(crate) mod library;
 pub(crate) mod lm;
 #[allow(dead_code)] // used by the benches, which include this module
 pub(crate) mod measured;
-pub(crate) mod mounting;
 pub(crate) mod store;
 
 /// What a test does when something it needs is missing (`what`, and `how`

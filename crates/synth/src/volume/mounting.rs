@@ -13,20 +13,32 @@
 //! painted in by their geometry; nothing here thresholds, labels or
 //! measures shapes the way the library does.
 
+use super::{write_volume, StackSpec, SynthFormat};
 use morphoid_core::mesh::Grid;
 use morphoid_core::mesh::{boundary_loops, Mesh};
-use morphoid_synth::volume::{write_volume, StackSpec, SynthFormat};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use std::path::Path;
+
+/// Why a mounted scan could not be made.
+#[derive(Debug, thiserror::Error)]
+pub enum MountingError {
+    /// The surface given has no rim: mounting builds a root below an open
+    /// crown's rim.
+    #[error("the crown has no rim: mounting needs an open crown surface")]
+    NoRim,
+    /// The slices could not be written.
+    #[error("writing the mounted scan's slices")]
+    Write(#[from] std::io::Error),
+}
 
 /// Grey of air (0..1 before the offset).
 const AIR: f32 = 0.04;
 
 /// Floral foam: a noisy, textured fill of the tube from the bottom up.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Foam {
+pub struct Foam {
     /// Mean grey (between air and dentine).
     pub grey: f32,
     /// Standard deviation of its texture (grey units).
@@ -41,7 +53,7 @@ pub(crate) struct Foam {
 /// A plastic tube (or straw) along z, from the end of the stack the roots
 /// point to.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Tube {
+pub struct Tube {
     /// Inner radius over the tooth's largest distance from the tube axis.
     pub clearance: f64,
     /// Wall thickness, voxels.
@@ -55,7 +67,7 @@ pub(crate) struct Tube {
 
 /// How a tooth is mounted and scanned.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Mount {
+pub struct Mount {
     /// Voxels across the crown's longest horizontal extent.
     pub voxels_across: usize,
     /// Whether there is a tooth (false: the mount with nothing in it).
@@ -118,7 +130,7 @@ impl Mount {
     /// A mount varied by `seed` within the ranges real scans show:
     /// resolution `across`, tube size and wall, foam level, grey and
     /// texture, noise, tilt, orientation, wax, a pin.
-    pub(crate) fn varied(seed: u64, across: usize) -> Mount {
+    pub fn varied(seed: u64, across: usize) -> Mount {
         let mut r = ChaCha8Rng::seed_from_u64(seed ^ 0x006d_6f75_6e74);
         Mount {
             voxels_across: across,
@@ -150,7 +162,7 @@ impl Mount {
 
 /// What was written, for checking what segmentation found.
 #[derive(Debug, Clone)]
-pub(crate) struct Mounted {
+pub struct Mounted {
     /// The crown surface in the stack's voxel coordinates (sample (x, y, z)
     /// at (x, y, z)); empty without a tooth.
     pub crown: Mesh,
@@ -186,16 +198,14 @@ fn unit(a: [f64; 3]) -> [f64; 3] {
     a.map(|c| c / n)
 }
 
-/// The rim (longest boundary loop) of an open crown.
-fn rim(crown: &Mesh) -> Vec<[f64; 3]> {
+/// The rim (longest boundary loop) of an open crown; `None` for a closed
+/// surface.
+fn rim(crown: &Mesh) -> Option<Vec<[f64; 3]>> {
     let loops = boundary_loops(crown);
-    let longest = loops
-        .iter()
-        .max_by_key(|l| l.len())
-        .expect("the crown is open");
+    let longest = loops.iter().max_by_key(|l| l.len())?;
     longest
         .iter()
-        .map(|&v| crown.vertices[v as usize])
+        .map(|&v| crown.vertices.get(v as usize).copied())
         .collect()
 }
 
@@ -485,15 +495,15 @@ fn blur(values: &mut [f32], dims: [usize; 3], sigma: f64) {
 
 /// Write `crown` (an open crown surface) mounted as `mount` says, as a
 /// folder of 16-bit TIFF slices at `path`.
-pub(crate) fn write_mounted(crown: &Mesh, mount: &Mount, path: &Path) -> Mounted {
-    let (grid, mounted) = mounted_grid(crown, mount);
+pub fn write_mounted(crown: &Mesh, mount: &Mount, path: &Path) -> Result<Mounted, MountingError> {
+    let (grid, mounted) = mounted_grid(crown, mount)?;
     let spec = StackSpec {
         noise: mount.noise,
         seed: mount.seed,
         ..Default::default()
     };
-    write_volume(&grid, path, SynthFormat::Tiff16, &spec).expect("stack written");
-    mounted
+    write_volume(&grid, path, SynthFormat::Tiff16, &spec)?;
+    Ok(mounted)
 }
 
 /// Several teeth scanned together (batch scanning): each mounted as its
@@ -501,23 +511,31 @@ pub(crate) fn write_mounted(crown: &Mesh, mount: &Mount, path: &Path) -> Mounted
 /// along x, `gap` voxels apart (a negative gap pushes them into each
 /// other: tubes and foam merge, the brighter material wins), aligned at
 /// the bottom, in one stack of 16-bit TIFF slices at `path`. Returns each
-/// tooth's crown in the stack's voxel coordinates, in order along x.
-pub(crate) fn write_batch(teeth: &[(&Mesh, Mount)], gap: i64, path: &Path) -> Vec<Mounted> {
+/// tooth's crown in the stack's voxel coordinates, in order along x
+/// (none, and nothing written, for no teeth).
+pub fn write_batch(
+    teeth: &[(&Mesh, Mount)],
+    gap: i64,
+    path: &Path,
+) -> Result<Vec<Mounted>, MountingError> {
     write_batch_in(teeth, gap, [0; 3], path)
 }
 
 /// [`write_batch`] into a stack of at least `min_dims` voxels: the row of
 /// mounts centred in x and y, air around it and above it.
-pub(crate) fn write_batch_in(
+pub fn write_batch_in(
     teeth: &[(&Mesh, Mount)],
     gap: i64,
     min_dims: [usize; 3],
     path: &Path,
-) -> Vec<Mounted> {
+) -> Result<Vec<Mounted>, MountingError> {
+    let Some((_, first)) = teeth.first() else {
+        return Ok(Vec::new());
+    };
     let parts: Vec<(Grid, Mounted)> = teeth
         .iter()
         .map(|(crown, mount)| mounted_grid(crown, mount))
-        .collect();
+        .collect::<Result<_, _>>()?;
     let width: i64 =
         parts.iter().map(|(g, _)| g.dims[0] as i64).sum::<i64>() + gap * (parts.len() as i64 - 1);
     let tallest = |a: usize| {
@@ -575,21 +593,20 @@ pub(crate) fn write_batch_in(
         spacing: [1.0; 3],
         values,
     };
-    let first = &teeth[0].1;
     let spec = StackSpec {
         noise: first.noise,
         seed: first.seed,
         ..Default::default()
     };
-    write_volume(&grid, path, SynthFormat::Tiff16, &spec).expect("stack written");
-    out
+    write_volume(&grid, path, SynthFormat::Tiff16, &spec)?;
+    Ok(out)
 }
 
 /// The grey values of `crown` mounted as `mount` says (before the
 /// scanner's noise, which the writer adds), and what was placed.
-fn mounted_grid(crown: &Mesh, mount: &Mount) -> (Grid, Mounted) {
+fn mounted_grid(crown: &Mesh, mount: &Mount) -> Result<(Grid, Mounted), MountingError> {
     let mut rng = ChaCha8Rng::seed_from_u64(mount.seed);
-    let rim = rim(crown);
+    let rim = rim(crown).ok_or(MountingError::NoRim)?;
     let fr = frame(crown, &rim);
     let local = |p: [f64; 3]| fr.axes.map(|e| dot(sub(p, fr.centre), e));
     let crown_local: Vec<[f64; 3]> = crown.vertices.iter().map(|&p| local(p)).collect();
@@ -921,7 +938,7 @@ fn mounted_grid(crown: &Mesh, mount: &Mount) -> (Grid, Mounted) {
         tooth_box: [lo, hi].map(|c| [0, 1, 2].map(|a| c[a] + shift[a])),
         dims,
     };
-    (grid, mounted)
+    Ok((grid, mounted))
 }
 
 /// The root's width as a fraction of the rim's at `u` (0 at the rim, 1 at
@@ -935,7 +952,7 @@ fn root_scale(u: f64) -> f64 {
 /// `across` voxels across each crown: one scan of one kind of mount (the
 /// same foam and tube material, offset, noise and rings for every tooth),
 /// each mount its own size, foam level, tilt and orientation.
-pub(crate) fn batch_mounts(seed: u64, across: usize, count: usize) -> Vec<Mount> {
+pub fn batch_mounts(seed: u64, across: usize, count: usize) -> Vec<Mount> {
     let first = Mount::varied(seed, across);
     (0..count)
         .map(|i| {
