@@ -8,11 +8,13 @@ mod calibration;
 mod nearest;
 mod screen;
 
-pub(crate) use calibration::{calibratable, reference_distances_in_turn, MIN_HELD};
+pub(crate) use calibration::{
+    calibratable, merge_calibration_shards, reference_distances_in_turn, CalibrationShare, MIN_HELD,
+};
 pub use calibration::{
-    calibration_shard, expected_calibration_error, merge_calibration_shards, reference_distances,
-    reliability, roc_auc, share_caught_at, Calibration, CalibrationShard, CalibrationShardError,
-    CalibrationShare, CalibrationTurn, ReferenceDistances,
+    calibration_shard, expected_calibration_error, reference_distances, reliability, roc_auc,
+    share_caught_at, Calibration, CalibrationShard, CalibrationShardError, CalibrationTurn,
+    ReferenceDistances,
 };
 pub use nearest::{
     identify, Confidence, DistanceRow, Identification, LandmarkPoint, RankResult, ScanLandmarks,

@@ -497,13 +497,19 @@ fn blur(values: &mut [f32], dims: [usize; 3], sigma: f64) {
 /// folder of 16-bit TIFF slices at `path`.
 pub fn write_mounted(crown: &Mesh, mount: &Mount, path: &Path) -> Result<Mounted, MountingError> {
     let (grid, mounted) = mounted_grid(crown, mount)?;
+    write_scan(&grid, mount, path)?;
+    Ok(mounted)
+}
+
+/// `grid` as 16-bit TIFF slices at `path`, with the scanner noise of
+/// `mount`.
+fn write_scan(grid: &Grid, mount: &Mount, path: &Path) -> std::io::Result<[f64; 3]> {
     let spec = StackSpec {
         noise: mount.noise,
         seed: mount.seed,
         ..Default::default()
     };
-    write_volume(&grid, path, SynthFormat::Tiff16, &spec)?;
-    Ok(mounted)
+    write_volume(grid, path, SynthFormat::Tiff16, &spec)
 }
 
 /// Several teeth scanned together (batch scanning): each mounted as its
@@ -593,12 +599,7 @@ pub fn write_batch_in(
         spacing: [1.0; 3],
         values,
     };
-    let spec = StackSpec {
-        noise: first.noise,
-        seed: first.seed,
-        ..Default::default()
-    };
-    write_volume(&grid, path, SynthFormat::Tiff16, &spec)?;
+    write_scan(&grid, first, path)?;
     Ok(out)
 }
 

@@ -29,10 +29,10 @@ mod statistic;
 pub use cached::reference_distances;
 pub(crate) use cached::reference_distances_in_turn;
 use cached::CALIBRATION_SAMPLE;
-pub use shard::{
-    calibration_shard, merge_calibration_shards, CalibrationShard, CalibrationShardError,
-};
-pub use share::{CalibrationShare, CalibrationTurn};
+pub(crate) use shard::merge_calibration_shards;
+pub use shard::{calibration_shard, CalibrationShard, CalibrationShardError};
+pub(crate) use share::CalibrationShare;
+pub use share::CalibrationTurn;
 use statistic::{
     conformal_quantile, fit_rank_weight, mean_within_taxon_rank, rank_term, relative_distance,
 };

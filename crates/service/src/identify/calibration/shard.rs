@@ -165,7 +165,7 @@ pub fn calibration_shard(
 /// each shard once; stored in `cache` as
 /// [`reference_distances`](super::reference_distances) stores them, so
 /// that the library's next build or daemon start finds them.
-pub fn merge_calibration_shards(
+pub(crate) fn merge_calibration_shards(
     references: &[CachedReference],
     settings: &Settings,
     cache: &Cache,

@@ -20,7 +20,7 @@ type PairKey = (String, String);
 
 /// The calibrations of one daemon (cheap to clone: shared).
 #[derive(Debug, Clone, Default)]
-pub struct CalibrationShare {
+pub(crate) struct CalibrationShare {
     memo: Arc<Mutex<HashMap<PairKey, f64>>>,
     latest: Arc<AtomicU64>,
 }
@@ -28,7 +28,7 @@ pub struct CalibrationShare {
 impl CalibrationShare {
     /// The turn of a calibration that starts now: every earlier turn is
     /// superseded.
-    pub fn next_turn(&self) -> CalibrationTurn {
+    pub(crate) fn next_turn(&self) -> CalibrationTurn {
         let turn = self.latest.fetch_add(1, Ordering::SeqCst) + 1;
         CalibrationTurn {
             share: self.clone(),
