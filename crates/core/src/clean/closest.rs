@@ -162,7 +162,7 @@ impl TriangleGrid {
     /// that distance.
     pub fn closest_point_within(&self, p: [f64; 3], limit: f64) -> Option<ClosestPoint> {
         let c = [0, 1, 2].map(|d| ((p[d] - self.origin[d]) / self.cell).floor() as i64);
-        // Clamp the query cell into the grid; `extra` is how far outside we are.
+        // A query outside the grid starts from the nearest cell in it.
         let cc = [0, 1, 2].map(|d| c[d].clamp(0, self.dims[d] - 1));
         let max_r = (0..3).map(|d| self.dims[d]).max().unwrap_or(1) + 1;
         let mut best = ClosestPoint {
