@@ -328,7 +328,7 @@ fn scans_are_identified_while_the_calibration_runs_and_get_confidence_after() {
     put(&env, &early, &scan_bytes(3, 301));
     let d = Daemon::start_with(&env, &[("NOTIFY_SOCKET", socket_path.to_str().unwrap())]);
     let recorded = |p: &Path| row_of(&env.db, p).is_some_and(|r| r.status == ScanStatus::Ok);
-    // The calibration's threads run 10 nice steps below the daemon's, so
+    // The calibration's threads run 19 nice steps below the daemon's, so
     // that a scan arriving meanwhile is identified first.
     let calibration_niceness = || {
         let threads = thread_niceness(d.pid());
@@ -345,7 +345,7 @@ fn scans_are_identified_while_the_calibration_runs_and_get_confidence_after() {
     let lowered = wait_until(Duration::from_secs(60), || {
         seen = calibration_niceness();
         seen.as_ref().is_some_and(|(daemon_nice, niceness)| {
-            niceness.iter().all(|&n| n == (daemon_nice + 10).min(19))
+            niceness.iter().all(|&n| n == (daemon_nice + 19).min(19))
         })
     });
     assert!(
