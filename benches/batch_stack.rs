@@ -12,7 +12,9 @@
 //! ```
 //!
 //! `MORPHOID_BENCH_ACROSS` sets the voxels across each crown (default 64,
-//! which puts the row of three mounts in about 300 voxels).
+//! which puts the row of three mounts in about 300 voxels);
+//! `MORPHOID_BENCH_WORK=DIR` works in `DIR` and keeps the stack, the
+//! library's cache and the databases there for a closer look.
 
 use morphoid_data::mesh_io;
 use morphoid_synth::mesh::{self as synth, LibrarySpec, Mesh, CROWN_GENERA};
@@ -39,6 +41,9 @@ fn main() {
         .unwrap_or(64);
     let bin = morphoid_binary();
     let tmp = tempfile::tempdir().expect("temp dir");
+    let work = std::env::var_os("MORPHOID_BENCH_WORK")
+        .map_or_else(|| tmp.path().to_path_buf(), PathBuf::from);
+    std::fs::create_dir_all(&work).expect("work folder");
     let (crowns, library): (Vec<Mesh>, PathBuf) = match support::data::teeth_dir_if_present() {
         Some(dir) => (
             TEETH
@@ -53,7 +58,7 @@ fn main() {
         ),
         None => {
             eprintln!("real teeth not found: synthetic crowns and library");
-            let lib = tmp.path().join("library");
+            let lib = work.join("library");
             synth::write_synthetic_library(&lib, &LibrarySpec::default()).expect("library");
             (
                 (0..3)
@@ -63,7 +68,7 @@ fn main() {
             )
         }
     };
-    let stack = tmp.path().join("batch");
+    let stack = work.join("batch");
     let teeth: Vec<(&Mesh, _)> = crowns.iter().zip(batch_mounts(7, across, 3)).collect();
     let truth = write_batch_in(&teeth, 3, [STACK; 3], &stack).expect("batch stack written");
     let dims = truth.first().map_or([0; 3], |t| t.dims);
@@ -74,9 +79,9 @@ fn main() {
         dims[2],
         (dims[0] * dims[1] * dims[2]) as f64 / 1e6
     );
-    let cache = tmp.path().join("cache");
-    let figures = tmp.path().join("time.txt");
-    let config = |run: usize| library_config(tmp.path(), &run.to_string(), &library, &cache);
+    let cache = work.join("cache");
+    let figures = work.join("time.txt");
+    let config = |run: usize| library_config(&work, &run.to_string(), &library, &cache);
     // Prepare the library once, so classify measures the scan, not the build.
     let build = config(0);
     run_measured(&bin, &["--config", &build, "library", "build"], &figures)
