@@ -17,17 +17,25 @@ pub struct DiskWarp {
 }
 
 /// Hyperbolic distance between two points of the unit disk.
+#[cfg(test)]
 fn hyperbolic_distance(z: [f64; 2], w: [f64; 2]) -> f64 {
-    // |z − w| / |1 − z̄ w|
-    let num = (z[0] - w[0]).hypot(z[1] - w[1]);
+    let r = pseudo_hyperbolic_squared(z, w).sqrt().min(1.0 - 1e-15);
+    2.0 * r.atanh()
+}
+
+/// The squared pseudo-hyperbolic distance `|z − w|² / |1 − z̄ w|²` of two
+/// points of the unit disk: the hyperbolic distance is `2 atanh` of its
+/// square root, so it orders pairs as that does, without the square root
+/// and the logarithm (a comparison's search asks for it millions of times).
+fn pseudo_hyperbolic_squared(z: [f64; 2], w: [f64; 2]) -> f64 {
+    let (dx, dy) = (z[0] - w[0], z[1] - w[1]);
     let re = 1.0 - (z[0] * w[0] + z[1] * w[1]);
     let im = -(z[0] * w[1] - z[1] * w[0]);
-    let den = re.hypot(im);
+    let den = re * re + im * im;
     if den <= 0.0 {
         return f64::INFINITY;
     }
-    let r = (num / den).min(1.0 - 1e-15);
-    2.0 * r.atanh()
+    (dx * dx + dy * dy) / den
 }
 
 /// Pairs `(i, j)` such that `a[i]` and `b[j]` are each other's nearest
@@ -40,17 +48,20 @@ pub(super) fn mutually_nearest(
     let nearest = |p: [f64; 2], set: &[[f64; 2]]| -> Option<(usize, f64)> {
         let mut best: Option<(usize, f64)> = None;
         for (k, &q) in set.iter().enumerate() {
-            let d = hyperbolic_distance(p, q);
+            let d = pseudo_hyperbolic_squared(p, q);
             if best.is_none_or(|(_, bd)| d < bd) {
                 best = Some((k, d));
             }
         }
         best
     };
+    // The same bound on the squared pseudo-hyperbolic distance.
+    let bound = (0.5 * max_distance).tanh().powi(2);
+    let within = |d: f64| max_distance > 0.0 && (max_distance.is_infinite() || d < bound);
     let mut out = Vec::new();
     for (i, &p) in a.iter().enumerate() {
         if let Some((j, d)) = nearest(p, b) {
-            if d < max_distance && nearest(b[j], a).map(|(k, _)| k) == Some(i) {
+            if within(d) && nearest(b[j], a).map(|(k, _)| k) == Some(i) {
                 out.push((i, j));
             }
         }
@@ -114,6 +125,43 @@ fn kernel(a: [f64; 2], b: [f64; 2], width: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The proxy orders pairs as the hyperbolic distance does, and its
+    /// bound keeps the same pairs, on scattered points of the disk.
+    #[test]
+    fn the_squared_pseudo_distance_orders_and_bounds_as_the_distance() {
+        let point = |k: usize| {
+            let t = k as f64 * 2.399;
+            let r = 0.97 * ((k * 7919) % 1000) as f64 / 1000.0;
+            [r * t.cos(), r * t.sin()]
+        };
+        let points: Vec<[f64; 2]> = (0..60).map(point).collect();
+        for &z in &points {
+            for (&a, &b) in points.iter().zip(points.iter().skip(1)) {
+                let (da, db) = (hyperbolic_distance(z, a), hyperbolic_distance(z, b));
+                let (pa, pb) = (
+                    pseudo_hyperbolic_squared(z, a),
+                    pseudo_hyperbolic_squared(z, b),
+                );
+                if (da - db).abs() > 1e-9 {
+                    assert_eq!(da < db, pa < pb, "{z:?} {a:?} {b:?}");
+                }
+            }
+            for max in [0.1, 0.5, 1.0, 3.0] {
+                let bound = (0.5f64 * max).tanh().powi(2);
+                for &a in &points {
+                    let d = hyperbolic_distance(z, a);
+                    if (d - max).abs() > 1e-9 {
+                        assert_eq!(d < max, pseudo_hyperbolic_squared(z, a) < bound);
+                    }
+                }
+            }
+        }
+        // No pair at all under a bound that is not positive.
+        assert!(mutually_nearest(&points, &points, 0.0).is_empty());
+        assert!(mutually_nearest(&points, &points, -1.0).is_empty());
+        assert_eq!(mutually_nearest(&points, &points, f64::INFINITY).len(), 60);
+    }
 
     #[test]
     fn interpolates_and_is_identity_far_away() {
