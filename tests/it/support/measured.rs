@@ -92,11 +92,16 @@ pub(crate) fn morphoid_binary() -> PathBuf {
 }
 
 /// A configuration file `morphoid-TAG.toml` in `dir` for the library
-/// `lib` with its cache `cache` and a database `scans-TAG.db` of its own
-/// (the same content twice in one database is a duplicate, not
+/// `lib` with its cache `cache` and a database `scans-TAG.db` of its own,
+/// made anew (the same content twice in one database is a duplicate, not
 /// identified again); its path.
 pub(crate) fn library_config(dir: &Path, tag: &str, lib: &Path, cache: &Path) -> String {
     let db = dir.join(format!("scans-{tag}.db"));
+    // A folder kept from an earlier run holds its database: the same scan
+    // again would be a duplicate there, not identified.
+    for suffix in ["", "-wal", "-shm"] {
+        let _ = std::fs::remove_file(dir.join(format!("scans-{tag}.db{suffix}")));
+    }
     let path = dir.join(format!("morphoid-{tag}.toml"));
     std::fs::write(
         &path,
