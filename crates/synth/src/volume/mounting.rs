@@ -15,7 +15,7 @@
 
 use super::{write_volume, StackSpec, SynthFormat};
 use morphoid_core::mesh::Grid;
-use morphoid_core::mesh::{boundary_loops, Mesh};
+use morphoid_core::mesh::{boundary_loops, cross, dot, sub, unit, Mesh};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -178,24 +178,6 @@ pub struct Mounted {
 struct Frame {
     centre: [f64; 3],
     axes: [[f64; 3]; 3],
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn unit(a: [f64; 3]) -> [f64; 3] {
-    let n = dot(a, a).sqrt().max(1e-300);
-    a.map(|c| c / n)
 }
 
 /// The rim (longest boundary loop) of an open crown; `None` for a closed
