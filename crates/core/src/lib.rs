@@ -21,5 +21,7 @@ pub mod mesh;
 pub mod stats;
 pub mod volume;
 
+mod union_find;
+
 #[cfg(test)]
 mod testing;

@@ -1,7 +1,7 @@
 //! Connected components.
 
-use super::union_find::UnionFind;
 use crate::mesh::{face_areas, Mesh};
+use crate::union_find::UnionFind;
 
 /// Label of the connected component (faces linked through shared vertices)
 /// of every face, labels numbered 0.. in order of each component's first

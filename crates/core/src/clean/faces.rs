@@ -1,7 +1,7 @@
 //! Degenerate, duplicate and unreferenced elements.
 
-use super::union_find::UnionFind;
 use crate::mesh::{norm, sub, triangle_area, Mesh};
+use crate::union_find::UnionFind;
 
 /// Remove faces with a repeated vertex index and collapse zero-area faces
 /// (area ≤ `area_eps`): the shortest edge of such a sliver is contracted, its

@@ -1,7 +1,7 @@
 //! Repair of non-manifold edges and vertices.
 
-use super::union_find::UnionFind;
 use crate::mesh::{has_directed_edge, HalfEdges, Mesh};
+use crate::union_find::UnionFind;
 use rustc_hash::FxHashMap;
 
 /// Make every edge have at most two faces. On an edge with more, the first

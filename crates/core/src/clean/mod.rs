@@ -43,7 +43,6 @@ mod manifold;
 mod orient;
 mod resample;
 mod specimens;
-mod union_find;
 mod voxelize;
 mod weld;
 

@@ -5,8 +5,8 @@
 
 use super::neighbours::Neighbours;
 use super::normals::LocalPlane;
-use crate::clean::union_find::UnionFind;
 use crate::mesh::{cross, dot, norm, sub, Mesh};
+use crate::union_find::UnionFind;
 use rayon::prelude::*;
 use rustc_hash::{FxHashMap, FxHashSet};
 

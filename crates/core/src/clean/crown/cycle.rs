@@ -117,7 +117,7 @@ impl WindingGraph {
     /// every source over the whole surface (minutes on a 400k-face
     /// isosurface).
     fn sources_with_winding_loop(&self, sources: &[u32]) -> Vec<u32> {
-        let mut uf = crate::clean::union_find::UnionFind::new(self.len() * LAYERS);
+        let mut uf = crate::union_find::UnionFind::new(self.len() * LAYERS);
         for v in 0..self.len() {
             let list = self.neighbours(v);
             // Each edge is listed from both ends: one of them is enough.
