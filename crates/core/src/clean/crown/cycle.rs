@@ -10,7 +10,8 @@
 //! down), and a winding loop through a vertex `s` is a shortest path from
 //! `s`'s copy at winding 0 to its copy at winding 1. Paths are searched from
 //! the vertices where an edge crosses that half-plane forwards (in
-//! parallel, each from both its ends), each search cut off at the best
+//! parallel; each search serves as a search from both ends, the cover
+//! looking the same from each copy of `s`), each cut off at the best
 //! loop found so far, so most of them stop after a few steps.
 
 use crate::mesh::HeapItem;
@@ -270,19 +271,18 @@ impl WindingGraph {
     }
 }
 
-/// One search's distances and predecessors in the cover, from the start
-/// (side 0) and from the target (side 1), reset between searches by the
-/// entries it touched.
+/// One search's distances and predecessors in the cover, from `s`'s copy
+/// at winding 0, reset between searches by the entries it touched.
 struct Scratch {
-    /// Per node, its distance from each side (side by side in memory: a
-    /// step reads both).
-    dist: Vec<[f64; 2]>,
-    prev: Vec<[u32; 2]>,
+    dist: Vec<f64>,
+    prev: Vec<u32>,
     touched: Vec<usize>,
 }
 
-/// The cheapest join of the two sides found so far: its cost and the
-/// edge's ends, reached from the start and from the target.
+/// The cheapest join of the two halves of a loop found so far: its cost,
+/// the node the first half ends at (reached from the start) and the node
+/// the second half begins at (a copy one winding up of a node reached
+/// from the start).
 #[derive(Clone, Copy)]
 struct Meeting {
     cost: f64,
@@ -290,33 +290,51 @@ struct Meeting {
     from_target: usize,
 }
 
+/// The node one winding up (`+1`) or down (`-1`) from `node`, if the
+/// cover holds it.
+fn shifted(node: usize, by: i64) -> Option<usize> {
+    let l = (node % LAYERS) as i64 + by;
+    (0..LAYERS as i64)
+        .contains(&l)
+        .then(|| node - node % LAYERS + l as usize)
+}
+
 impl Scratch {
     fn new(vertices: usize) -> Self {
         let nodes = vertices * LAYERS;
         Scratch {
-            dist: vec![[f64::INFINITY; 2]; nodes],
-            prev: vec![[u32::MAX; 2]; nodes],
+            dist: vec![f64::INFINITY; nodes],
+            prev: vec![u32::MAX; nodes],
             touched: Vec::new(),
         }
     }
 
     fn reset(&mut self) {
         for &i in &self.touched {
-            self.dist[i] = [f64::INFINITY; 2];
-            self.prev[i] = [u32::MAX; 2];
+            self.dist[i] = f64::INFINITY;
+            self.prev[i] = u32::MAX;
         }
         self.touched.clear();
+    }
+
+    /// The distance from the target (`s`'s copy at winding 1) to `node`:
+    /// the cover looks the same from each copy of `s`, one winding apart,
+    /// so it is the distance from the start to the node one winding down.
+    fn dist_to_target(&self, node: usize) -> f64 {
+        shifted(node, -1).map_or(f64::INFINITY, |n| self.dist[n])
     }
 
     /// The cheapest loop through `s` that winds once, if it beats `bound`
     /// (the best loop's cost and its source's position; a tie beats it
     /// when `position` comes first), and the nodes popped.
     ///
-    /// The path from `s`'s copy at winding 0 to its copy at winding 1 is
-    /// searched from both ends at once (the cover's edges go both ways at
-    /// the same cost), each side reaching about half the loop's cost out
-    /// instead of one side all of it; the loop's cost is then summed
-    /// along it from `s`, as a search from one end adds it up.
+    /// A loop is a path from `s`'s copy at winding 0 to its copy at
+    /// winding 1. The cover's edges go both ways at the same cost and
+    /// the cover looks the same from each copy, so the search from the
+    /// target is the search from the start moved one winding up: one
+    /// search serves as both sides of a two-sided one, reaching half the
+    /// loop's cost out. The loop's cost is then summed along it from `s`,
+    /// as a search from one end adds it up.
     fn cheapest_loop_through(
         &mut self,
         graph: &WindingGraph,
@@ -330,57 +348,58 @@ impl Scratch {
             Some((cost, at)) if position < at => d > cost,
             Some((cost, _)) => d >= cost,
         };
-        let s = s as usize;
-        let ends = [s * LAYERS + START, s * LAYERS + START + 1];
-        let mut heaps = [BinaryHeap::new(), BinaryHeap::new()];
-        for side in 0..2 {
-            self.dist[ends[side]][side] = 0.0;
-            heaps[side].push(HeapItem(0.0, ends[side] as u32));
-        }
-        self.touched.extend(ends);
+        let start = s as usize * LAYERS + START;
+        self.dist[start] = 0.0;
+        self.touched.push(start);
+        let mut heap = BinaryHeap::from([HeapItem(0.0, start as u32)]);
         let mut meeting: Option<Meeting> = None;
         let mut popped = 0usize;
         loop {
-            let top = |h: &BinaryHeap<HeapItem>| h.peek().map_or(f64::INFINITY, |i| i.0);
-            let (top0, top1) = (top(&heaps[0]), top(&heaps[1]));
-            // No path not yet seen is cheaper than the two sides' nearest
-            // unsettled nodes together.
-            let unseen = top0 + top1;
+            // No path not yet seen is cheaper than twice the nearest
+            // unsettled node: each half of it has one.
+            let unseen = 2.0 * heap.peek().map_or(f64::INFINITY, |i| i.0);
             if meeting.is_some_and(|m| unseen >= m.cost) {
                 break;
             }
             if cut_off(unseen) && meeting.is_none_or(|m| cut_off(m.cost)) {
                 return (None, popped);
             }
-            let side = usize::from(top1 < top0);
-            let Some(HeapItem(d, node)) = heaps[side].pop() else {
+            let Some(HeapItem(d, node)) = heap.pop() else {
                 break;
             };
             popped += 1;
             let node = node as usize;
-            if d > self.dist[node][side] {
+            if d > self.dist[node] {
                 continue;
             }
-            self.relax(graph, side, node, d, &mut heaps[side], &mut meeting);
+            // A path through a node reached at `nd` costs at least `nd`
+            // and `d` more: beyond the best join or the bound, the node
+            // need not be queued.
+            let limit = meeting
+                .map_or(f64::INFINITY, |m| m.cost)
+                .min(bound.map_or(f64::INFINITY, |b| b.0));
+            self.relax(graph, node, d, limit - d, &mut heap, &mut meeting);
         }
         let Some(m) = meeting else {
             return (None, popped);
         };
-        let found = self.joined_loop(graph, ends, m);
+        let found = self.joined_loop(graph, start, m);
         if found.as_ref().is_none_or(|c| cut_off(c.cost)) {
             return (None, popped);
         }
         (found, popped)
     }
 
-    /// Relax the edges out of `node` (settled at `d` on `side`), noting the
-    /// cheapest join with the other side.
+    /// Relax the edges out of `node` (settled at `d`), noting the cheapest
+    /// join of the two halves: the edge ends a first half, or, one
+    /// winding up, begins a second; nodes reached beyond `reach` are not
+    /// queued (no path through them can be the loop).
     fn relax(
         &mut self,
         graph: &WindingGraph,
-        side: usize,
         node: usize,
         d: f64,
+        reach: f64,
         heap: &mut BinaryHeap<HeapItem>,
         meeting: &mut Option<Meeting>,
     ) {
@@ -392,51 +411,54 @@ impl Scratch {
             }
             let next = w as usize * LAYERS + l as usize;
             let nd = d + cost;
-            let known = self.dist[next];
-            let through = nd + known[1 - side];
-            if through < meeting.map_or(f64::INFINITY, |m| m.cost) {
-                let (from_start, from_target) = if side == 0 {
-                    (node, next)
-                } else {
-                    (next, node)
-                };
+            let best = meeting.map_or(f64::INFINITY, |m| m.cost);
+            // First half to `node`, the edge, second half from `next`.
+            let ahead = nd + self.dist_to_target(next);
+            // Moved one winding up: second half from `node` (up), the edge
+            // reversed, first half to `next` (up).
+            let behind = shifted(next, 1).map_or(f64::INFINITY, |n| nd + self.dist[n]);
+            if ahead < best && ahead <= behind {
                 *meeting = Some(Meeting {
-                    cost: through,
-                    from_start,
-                    from_target,
+                    cost: ahead,
+                    from_start: node,
+                    from_target: next,
                 });
+            } else if behind < best {
+                if let (Some(up_next), Some(up_node)) = (shifted(next, 1), shifted(node, 1)) {
+                    *meeting = Some(Meeting {
+                        cost: behind,
+                        from_start: up_next,
+                        from_target: up_node,
+                    });
+                }
             }
-            if nd < known[side] {
-                if known[0].is_infinite() && known[1].is_infinite() {
+            if nd < self.dist[next] && nd <= reach {
+                if self.dist[next].is_infinite() {
                     self.touched.push(next);
                 }
-                self.dist[next][side] = nd;
-                self.prev[next][side] = node as u32;
+                self.dist[next] = nd;
+                self.prev[next] = node as u32;
                 heap.push(HeapItem(nd, next as u32));
             }
         }
     }
 
-    /// The loop through the join `m`: the start's side's path to it, the
-    /// edge, the target's side's path back; `None` if an edge is missing
-    /// (it cannot be).
-    fn joined_loop(
-        &self,
-        graph: &WindingGraph,
-        [start, target]: [usize; 2],
-        m: Meeting,
-    ) -> Option<WindingCycle> {
+    /// The loop through the join `m`: the path from `start` to its first
+    /// node, the edge, and the path from its second node to the target
+    /// (the path from `start` to the node one winding down, walked back);
+    /// `None` if an edge is missing (it cannot be).
+    fn joined_loop(&self, graph: &WindingGraph, start: usize, m: Meeting) -> Option<WindingCycle> {
         let mut nodes = Vec::new();
         let mut at = m.from_start;
         while at != start {
             nodes.push(at);
-            at = self.prev[at][0] as usize;
+            at = *self.prev.get(at)? as usize;
         }
         nodes.reverse();
-        let mut at = m.from_target;
+        let mut at = shifted(m.from_target, -1)?;
         nodes.push(at);
-        while at != target {
-            at = self.prev[at][1] as usize;
+        while at != start {
+            at = *self.prev.get(at)? as usize;
             nodes.push(at);
         }
         let vertices: Vec<u32> = nodes.iter().map(|&n| (n / LAYERS) as u32).collect();
@@ -565,7 +587,7 @@ mod tests {
     }
 
     #[test]
-    fn the_two_sided_searches_find_the_loop_a_search_from_every_source_finds() {
+    fn the_searches_from_both_ends_find_the_loop_a_search_from_every_source_finds() {
         let (m, rings) = (30, 12);
         let (angles, mut edges) = cylinder(m, rings, rings);
         // Costs of no pattern (a fixed linear congruential sequence).
