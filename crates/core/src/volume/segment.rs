@@ -91,19 +91,10 @@ pub(crate) fn connected_components(mask: &[bool], dims: [usize; 3]) -> (Vec<u32>
         }
     }
     // A set's root is its smallest run, the first in the grid's order:
-    // numbering roots in order numbers components by their first voxel.
-    let mut final_label = vec![u32::MAX; sets.len()];
-    let mut components = 0u32;
-    for r in 0..sets.len() as u32 {
-        let root = sets.find(r);
-        final_label[r as usize] = if root == r {
-            components += 1;
-            components - 1
-        } else {
-            final_label[root as usize]
-        };
-    }
-    let mut sizes = vec![0usize; components as usize];
+    // numbering sets by their roots numbers components by their first
+    // voxel.
+    let (final_label, components) = sets.numbered_sets();
+    let mut sizes = vec![0usize; components];
     for l in labels.iter_mut().filter(|l| **l != u32::MAX) {
         *l = final_label[*l as usize];
         sizes[*l as usize] += 1;
