@@ -4,7 +4,7 @@
 //! the source and made area preserving again.
 
 use super::comparison::{Correspondence, Directed};
-use super::evaluate::{evaluate_images, handedness};
+use super::evaluate::{boundary_tapered_areas, evaluate_images, handedness};
 use super::moser::area_preserving_correction;
 use super::params::CompareParams;
 use super::prepared::Prepared;
@@ -31,6 +31,8 @@ pub(super) fn procrustes_descent(
         return;
     }
     let target = t.disk_measure();
+    let weights =
+        boundary_tapered_areas(s, params.boundary_taper_from, params.boundary_taper_weight);
     let h = handedness(&d.mobius);
     let mut fit = RigidFit {
         rotation: d.rotation,
@@ -52,7 +54,7 @@ pub(super) fn procrustes_descent(
         }) else {
             break;
         };
-        match evaluate_images(s, t, &corrected, h) {
+        match evaluate_images(s, t, &corrected, h, &weights) {
             Some((f, corr)) if f.residual < fit.residual => {
                 fit = f;
                 d.correspondence = corr;
@@ -206,9 +208,14 @@ mod tests {
             translation: [0.0; 3],
             residual: 0.0,
         };
-        let (_, corr) =
-            crate::cp::evaluate::evaluate_map(&p, &p, |z| z, handedness(&Mobius::identity()))
-                .expect("identity");
+        let (_, corr) = crate::cp::evaluate::evaluate_map(
+            &p,
+            &p,
+            |z| z,
+            handedness(&Mobius::identity()),
+            &p.vertex_areas,
+        )
+        .expect("identity");
         let moved =
             gauss_newton_step(&p, &p, &fit, &corr, &CompareParams::default()).expect("a step");
         let worst = moved

@@ -66,17 +66,49 @@ pub(super) fn sample_residual(
     mom.residual(handedness)
 }
 
+/// The weights of the distance over the vertices of `s`: each vertex's
+/// area times a factor that is 1 up to `from` from the disk's centre and
+/// falls linearly to `rim` at its edge, all scaled to add up to the
+/// surface's area. The rim is the crop line, and where a crown is cut
+/// varies most between two crops of one tooth (the crowns cut from whole
+/// teeth most of all); a weight of 1 leaves the areas as they are.
+pub(super) fn boundary_tapered_areas(s: &Prepared, from: f64, rim: f64) -> Vec<f64> {
+    let factor = |z: [f64; 2]| {
+        let r = (z[0] * z[0] + z[1] * z[1]).sqrt();
+        if r <= from {
+            1.0
+        } else {
+            1.0 - (1.0 - rim) * ((r - from) / (1.0 - from)).min(1.0)
+        }
+    };
+    let factors: Vec<f64> = s.uv.iter().map(|&z| factor(z)).collect();
+    let total: f64 = s.vertex_areas.iter().sum();
+    let tapered: f64 = s
+        .vertex_areas
+        .iter()
+        .zip(&factors)
+        .map(|(a, f)| a * f)
+        .sum();
+    let scale = if tapered > 0.0 { total / tapered } else { 1.0 };
+    s.vertex_areas
+        .iter()
+        .zip(&factors)
+        .map(|(a, f)| a * f * scale)
+        .collect()
+}
+
 /// Evaluate a disk map (`map`, of the given handedness) on all vertices of
-/// `s` weighted by vertex area: the optimal rigid motion, its residual and
-/// the correspondence.
+/// `s` with the given `weights` (one per vertex): the optimal rigid
+/// motion, its residual and the correspondence.
 pub(super) fn evaluate_map(
     s: &Prepared,
     t: &Prepared,
     map: impl Fn([f64; 2]) -> [f64; 2],
     handedness: Handedness,
+    weights: &[f64],
 ) -> Option<(RigidFit, Correspondence)> {
     let images: Vec<[f64; 2]> = s.uv.iter().map(|&z| map(z)).collect();
-    evaluate_images(s, t, &images, handedness)
+    evaluate_images(s, t, &images, handedness, weights)
 }
 
 /// Evaluate given images (points of `t`'s disk, one per vertex of `s`) as
@@ -86,6 +118,7 @@ pub(super) fn evaluate_images(
     t: &Prepared,
     images: &[[f64; 2]],
     handedness: Handedness,
+    weights: &[f64],
 ) -> Option<(RigidFit, Correspondence)> {
     let mut mom = Moments::default();
     let mut corr: Correspondence = vec![(NO_TRIANGLE, [0.0; 3]); s.vertices.len()];
@@ -96,7 +129,7 @@ pub(super) fn evaluate_images(
         let (Some(&w), Some(&x), Some(&a)) = (
             images.get(v as usize),
             s.vertices.get(v as usize),
-            s.vertex_areas.get(v as usize),
+            weights.get(v as usize),
         ) else {
             return None;
         };
@@ -119,7 +152,8 @@ mod tests {
     #[test]
     fn the_identity_map_has_no_residual_and_maps_each_vertex_to_itself() {
         let s = crown(0, 1);
-        let (fit, corr) = evaluate_map(&s, &s, |z| z, Handedness::Proper).expect("evaluated");
+        let (fit, corr) =
+            evaluate_map(&s, &s, |z| z, Handedness::Proper, &s.vertex_areas).expect("evaluated");
         assert!(fit.residual < 1e-12, "{}", fit.residual);
         assert_eq!(corr.len(), s.vertices.len());
         for (v, &(f, b)) in corr.iter().enumerate() {
@@ -143,8 +177,14 @@ mod tests {
         let turn = Mobius::rotation(0.8);
         let mut hints = vec![NO_TRIANGLE; s.samples.len()];
         let sampled = sample_residual(&s, &t, |z| turn.apply(z), handedness(&turn), &mut hints);
-        let (fit, _) =
-            evaluate_map(&s, &t, |z| turn.apply(z), handedness(&turn)).expect("evaluated");
+        let (fit, _) = evaluate_map(
+            &s,
+            &t,
+            |z| turn.apply(z),
+            handedness(&turn),
+            &s.vertex_areas,
+        )
+        .expect("evaluated");
         assert!(fit.residual > 1e-3, "{}", fit.residual);
         // Samples carry Voronoi-area weights: both estimate the same
         // integral.
@@ -164,9 +204,39 @@ mod tests {
     }
 
     #[test]
+    fn the_taper_lowers_the_rims_weight_and_keeps_the_total_area() {
+        let s = crown(0, 1);
+        let total: f64 = s.vertex_areas.iter().sum();
+        // A weight of 1 at the rim leaves the areas exactly as they are.
+        assert_eq!(boundary_tapered_areas(&s, 0.7, 1.0), s.vertex_areas);
+        let w = boundary_tapered_areas(&s, 0.7, 0.2);
+        assert!((w.iter().sum::<f64>() / total - 1.0).abs() < 1e-12);
+        // Relative to its area, a vertex within 0.7 of the centre weighs
+        // one common factor (above 1: the rim gave weight away), one on
+        // the rim a fifth of it, and none more nor less than those.
+        let ratio = |v: usize| w[v] / s.vertex_areas[v];
+        let radius = |v: usize| s.uv[v][0].hypot(s.uv[v][1]);
+        let inner = (0..w.len())
+            .find(|&v| radius(v) <= 0.7)
+            .expect("a central vertex");
+        let rim = (0..w.len())
+            .find(|&v| radius(v) > 1.0 - 1e-9)
+            .expect("a rim vertex");
+        assert!(ratio(inner) > 1.0);
+        assert!((ratio(rim) / ratio(inner) - 0.2).abs() < 1e-9);
+        for v in 0..w.len() {
+            let r = ratio(v) / ratio(inner);
+            assert!((0.2 - 1e-9..=1.0 + 1e-9).contains(&r), "vertex {v}: {r}");
+            if radius(v) <= 0.7 {
+                assert!((r - 1.0).abs() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
     fn images_for_fewer_vertices_are_refused() {
         let s = crown(0, 1);
         let short = &s.uv[..s.uv.len() - 1];
-        assert!(evaluate_images(&s, &s, short, Handedness::Proper).is_none());
+        assert!(evaluate_images(&s, &s, short, Handedness::Proper, &s.vertex_areas).is_none());
     }
 }

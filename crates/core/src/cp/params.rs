@@ -85,6 +85,14 @@ pub struct CompareParams {
     /// Whether `compare` descends both directed maps (otherwise only the
     /// one with the smaller distance after the search).
     pub descent_both_directions: bool,
+    /// Vertices farther than this from the centre of the disk weigh less
+    /// in the distance, their weight falling linearly to
+    /// `boundary_taper_weight` at the rim: the band along the cut, where
+    /// two crops of one tooth differ most.
+    pub boundary_taper_from: f64,
+    /// The weight at the rim, relative to the centre (1 turns the taper
+    /// off).
+    pub boundary_taper_weight: f64,
 }
 
 impl Default for CompareParams {
@@ -105,6 +113,8 @@ impl Default for CompareParams {
             descent_smoothing: 10,
             descent_damping: 0.5,
             descent_both_directions: false,
+            boundary_taper_from: 0.7,
+            boundary_taper_weight: 0.2,
         }
     }
 }
@@ -237,6 +247,8 @@ struct FlatParams {
     descent_smoothing: usize,
     descent_damping: f64,
     descent_both_directions: bool,
+    boundary_taper_from: f64,
+    boundary_taper_weight: f64,
     screening: Screening,
     screen_keep: usize,
     screen_margin: f64,
@@ -275,6 +287,8 @@ impl From<CpParams> for FlatParams {
             descent_smoothing,
             descent_damping,
             descent_both_directions,
+            boundary_taper_from,
+            boundary_taper_weight,
         } = p.compare;
         let ScreenParams {
             screening,
@@ -304,6 +318,8 @@ impl From<CpParams> for FlatParams {
             descent_smoothing,
             descent_damping,
             descent_both_directions,
+            boundary_taper_from,
+            boundary_taper_weight,
             screening,
             screen_keep,
             screen_margin,
@@ -339,6 +355,8 @@ impl From<FlatParams> for CpParams {
                 descent_smoothing: f.descent_smoothing,
                 descent_damping: f.descent_damping,
                 descent_both_directions: f.descent_both_directions,
+                boundary_taper_from: f.boundary_taper_from,
+                boundary_taper_weight: f.boundary_taper_weight,
             },
             screen: ScreenParams {
                 screening: f.screening,
@@ -489,6 +507,20 @@ impl CompareParams {
             damping,
             Requirement::HalfOpenUnitInterval,
             damping > 0.0 && damping <= 1.0,
+        )?;
+        let from = self.boundary_taper_from;
+        check(
+            "boundary_taper_from",
+            from,
+            Requirement::OpenUnitInterval,
+            from > 0.0 && from < 1.0,
+        )?;
+        let rim = self.boundary_taper_weight;
+        check(
+            "boundary_taper_weight",
+            rim,
+            Requirement::HalfOpenUnitInterval,
+            rim > 0.0 && rim <= 1.0,
         )
     }
 }
@@ -539,7 +571,7 @@ mod tests {
         .collect();
         want.sort();
         assert_eq!(flat_keys(&json), want);
-        assert_eq!(want.len(), 25);
+        assert_eq!(want.len(), 27);
         assert!(json.as_object().unwrap().values().all(|v| !v.is_object()));
     }
 
@@ -650,6 +682,21 @@ mod tests {
                 p.prepare.feature_separation = -1.0;
                 p
             }),
+            ("boundary_taper_from = 1: must be between 0 and 1", {
+                let mut p = CpParams::default();
+                p.compare.boundary_taper_from = 1.0;
+                p
+            }),
+            ("boundary_taper_weight = 0: must be > 0 and <= 1", {
+                let mut p = CpParams::default();
+                p.compare.boundary_taper_weight = 0.0;
+                p
+            }),
+            ("boundary_taper_weight = NaN", {
+                let mut p = CpParams::default();
+                p.compare.boundary_taper_weight = f64::NAN;
+                p
+            }),
         ];
         for (want, p) in bad {
             let e = p.validate().expect_err(want).to_string();
@@ -665,6 +712,8 @@ mod tests {
         p.compare.descent_steps = 0;
         p.compare.refine_evaluations = 0;
         p.prepare.feature_separation = 0.0;
+        // A rim weight of 1: no taper.
+        p.compare.boundary_taper_weight = 1.0;
         assert_eq!(p.validate(), Ok(()));
     }
 }

@@ -6,7 +6,9 @@
 //! the best of those evaluated on every vertex and made area preserving.
 
 use super::comparison::{Correspondence, Directed};
-use super::evaluate::{evaluate_images, evaluate_map, handedness, sample_residual};
+use super::evaluate::{
+    boundary_tapered_areas, evaluate_images, evaluate_map, handedness, sample_residual,
+};
 use super::locate::NO_TRIANGLE;
 use super::mobius::Mobius;
 use super::moser::{area_preserving_correction, FLOW_STEPS};
@@ -122,9 +124,9 @@ impl DiskMap {
         sample_residual(s, t, |z| self.apply(z), handedness(&self.mobius), hints)
     }
 
-    /// The map evaluated on every vertex of `s`.
-    fn evaluate(self, s: &Prepared, t: &Prepared) -> Option<Evaluated> {
-        let (fit, corr) = evaluate_map(s, t, |z| self.apply(z), handedness(&self.mobius))?;
+    /// The map evaluated on every vertex of `s`, with `weights`.
+    fn evaluate(self, s: &Prepared, t: &Prepared, weights: &[f64]) -> Option<Evaluated> {
+        let (fit, corr) = evaluate_map(s, t, |z| self.apply(z), handedness(&self.mobius), weights)?;
         Some(Evaluated {
             residual: fit.residual,
             map: self,
@@ -327,14 +329,19 @@ struct Evaluated {
 /// The refined maps evaluated on every vertex, best first. Only maps whose
 /// sample residual is near the best one's can have the smallest residual
 /// over all vertices; the others are not evaluated.
-fn evaluate_refined(s: &Prepared, t: &Prepared, refined: Vec<(f64, DiskMap)>) -> Vec<Evaluated> {
+fn evaluate_refined(
+    s: &Prepared,
+    t: &Prepared,
+    refined: Vec<(f64, DiskMap)>,
+    weights: &[f64],
+) -> Vec<Evaluated> {
     let best_sampled = refined.iter().map(|r| r.0).fold(f64::INFINITY, f64::min);
     let mut evaluated: Vec<Evaluated> = Vec::new();
     for (score, map) in refined {
         if score > FULL_EVALUATION_MARGIN * best_sampled {
             continue;
         }
-        evaluated.extend(map.evaluate(s, t));
+        evaluated.extend(map.evaluate(s, t, weights));
     }
     evaluated.sort_by(|a, b| a.residual.total_cmp(&b.residual));
     evaluated
@@ -365,7 +372,7 @@ fn alternative(
 
 /// Make the map of `e` area preserving (χ) and evaluate it again; `e` is
 /// left as it is when the correction cannot be computed.
-fn area_correct(s: &Prepared, t: &Prepared, e: &mut Evaluated) {
+fn area_correct(s: &Prepared, t: &Prepared, e: &mut Evaluated, weights: &[f64]) {
     let images: Vec<[f64; 2]> = s.uv.iter().map(|&z| e.map.apply(z)).collect();
     let Some(target) = t.disk_measure() else {
         return;
@@ -375,7 +382,7 @@ fn area_correct(s: &Prepared, t: &Prepared, e: &mut Evaluated) {
     else {
         return;
     };
-    if let Some((fit, corr)) = evaluate_images(s, t, &moved, handedness(&e.map.mobius)) {
+    if let Some((fit, corr)) = evaluate_images(s, t, &moved, handedness(&e.map.mobius), weights) {
         e.residual = fit.residual;
         e.fit = fit;
         e.corr = corr;
@@ -388,7 +395,7 @@ fn area_correct(s: &Prepared, t: &Prepared, e: &mut Evaluated) {
 /// (the cW distance returns its map this way). `None` only for a target
 /// without triangles.
 pub(crate) fn directed_for_mobius(s: &Prepared, t: &Prepared, m: Mobius) -> Option<Directed> {
-    let e = DiskMap::mobius(m).evaluate(s, t)?;
+    let e = DiskMap::mobius(m).evaluate(s, t, &s.vertex_areas)?;
     let distance = e.residual.max(0.0).sqrt();
     Some(Directed {
         distance,
@@ -407,6 +414,8 @@ pub(crate) fn directed_for_mobius(s: &Prepared, t: &Prepared, m: Mobius) -> Opti
 /// of the best map.
 pub(crate) fn search_directed(s: &Prepared, t: &Prepared, params: &CompareParams) -> Directed {
     let features = FeaturePoints::of(s, t);
+    let weights =
+        boundary_tapered_areas(s, params.boundary_taper_from, params.boundary_taper_weight);
     let cands = ranked_candidates(s, t, &features, params);
     let angle_step = std::f64::consts::TAU / params.angles.max(1) as f64;
     let step = [0.05, 0.05, 0.5 * angle_step];
@@ -420,12 +429,12 @@ pub(crate) fn search_directed(s: &Prepared, t: &Prepared, params: &CompareParams
         });
         refined.push(refine(s, t, &features, m0, step, params, give_up));
     }
-    let mut evaluated = evaluate_refined(s, t, refined);
+    let mut evaluated = evaluate_refined(s, t, refined, &weights);
     let search_residual = evaluated.first().map_or(f64::MAX, |b| b.residual);
     if let Some(first) = evaluated.first_mut() {
         // The alternative is kept only when it lowers the distance.
         if let Some(other) = alternative(&first.map, &features, params) {
-            if let Some(e) = other.evaluate(s, t) {
+            if let Some(e) = other.evaluate(s, t, &weights) {
                 if e.residual < first.residual {
                     *first = e;
                 }
@@ -434,7 +443,7 @@ pub(crate) fn search_directed(s: &Prepared, t: &Prepared, params: &CompareParams
         // The final map is made area preserving; its distance is the
         // result.
         if params.area_correction {
-            area_correct(s, t, first);
+            area_correct(s, t, first, &weights);
         }
     }
     match evaluated.into_iter().next() {
