@@ -416,7 +416,8 @@ impl Scratch {
             let ahead = nd + self.dist_to_target(next);
             // Moved one winding up: second half from `node` (up), the edge
             // reversed, first half to `next` (up).
-            let behind = shifted(next, 1).map_or(f64::INFINITY, |n| nd + self.dist[n]);
+            let up_next = shifted(next, 1);
+            let behind = up_next.map_or(f64::INFINITY, |n| nd + self.dist[n]);
             if ahead < best && ahead <= behind {
                 *meeting = Some(Meeting {
                     cost: ahead,
@@ -424,7 +425,7 @@ impl Scratch {
                     from_target: next,
                 });
             } else if behind < best {
-                if let (Some(up_next), Some(up_node)) = (shifted(next, 1), shifted(node, 1)) {
+                if let (Some(up_next), Some(up_node)) = (up_next, shifted(node, 1)) {
                     *meeting = Some(Meeting {
                         cost: behind,
                         from_start: up_next,
