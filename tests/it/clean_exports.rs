@@ -5,9 +5,9 @@
 //! the crown is compared with the real crop it was built on, and the
 //! whole teeth are identified against the other crowns.
 
-use crate::support::clean::mean_max_distance;
+use crate::support::clean::{crop_fit, print_identified_fits, CropFit};
 use crate::support::exports::{export_seed, exported_tooth, form_for, Junction, Placement};
-use morphoid_core::mesh::{bbox_diagonal, surface_area, Mesh};
+use morphoid_core::mesh::{bbox_diagonal, Mesh};
 use std::time::Instant;
 
 /// A kind of export: roots, junction and resolution.
@@ -43,21 +43,6 @@ const MIXED: Kind = Kind {
     voxels: 0,
 };
 
-/// How close an extracted crown is to the crop it was built on.
-struct Fit {
-    mean: f64,
-    area_ratio: f64,
-}
-
-fn fit(extracted: &Mesh, original: &Mesh) -> Fit {
-    let (m1, _) = mean_max_distance(&extracted.vertices, original);
-    let (m2, _) = mean_max_distance(&original.vertices, extracted);
-    Fit {
-        mean: 0.5 * (m1 + m2) / bbox_diagonal(original),
-        area_ratio: surface_area(extracted) / surface_area(original),
-    }
-}
-
 /// Lowest and highest point of the crop line of `crop` along `axis`, as a
 /// fraction of `whole`'s length along it (0 at the root end): where the
 /// cut should lie, in the terms of `CrownReport::cut_height_min`/`max`.
@@ -87,6 +72,8 @@ fn crop_line_heights(whole: &Mesh, crop: &Mesh, axis: [f64; 3]) -> (f64, f64) {
 /// What one run found.
 struct Run {
     prepared: Vec<morphoid_data::pipeline::PreparedSurface>,
+    /// The crop each of `prepared` was built on, moved as it was.
+    crops: Vec<Mesh>,
     refused: Vec<String>,
     off_target: Vec<String>,
     total: usize,
@@ -117,6 +104,7 @@ fn run_kind(kind: Kind, step: usize, through_binary: bool) -> Option<Run> {
     let settings = morphoid_data::pipeline::Settings::default();
     let mut run = Run {
         prepared: Vec::new(),
+        crops: Vec::new(),
         refused: Vec::new(),
         off_target: Vec::new(),
         total: picked.len(),
@@ -175,9 +163,9 @@ fn run_kind(kind: Kind, step: usize, through_binary: bool) -> Option<Run> {
                     return Err(name.clone());
                 }
                 let crown = morphoid_data::mesh_io::load(&crown_path).expect("the crown written").mesh;
-                let f = fit(&crown, &moved(&original));
+                let f = crop_fit(&crown, &moved(&original));
                 println!("{}: mean {:.4} area {:.3}", line(seconds), f.mean, f.area_ratio);
-                return Ok((name.clone(), f, None));
+                return Ok((name.clone(), f, None, moved(&original)));
             }
             let out = morphoid_data::pipeline::prepare_file(&path, &settings);
             let seconds = started.elapsed().as_secs_f64();
@@ -188,7 +176,7 @@ fn run_kind(kind: Kind, step: usize, through_binary: bool) -> Option<Run> {
                         let cleaned = out_dir.join(format!("{name}.cleaned.ply"));
                         morphoid_data::mesh_io::write_ply(&cleaned, &out.cleaned).unwrap();
                     }
-                    let f = fit(&out.cleaned, &moved(&original));
+                    let f = crop_fit(&out.cleaned, &moved(&original));
                     let crown = out.cleaning.crown.clone();
                     let truth = crown
                         .as_ref()
@@ -201,7 +189,7 @@ fn run_kind(kind: Kind, step: usize, through_binary: bool) -> Option<Run> {
                         crown.map(|c| (c.method, c.cut_height_min, c.cut_height_max)),
                         truth
                     );
-                    Ok((name.clone(), f, Some(out)))
+                    Ok((name.clone(), f, Some(out), moved(&original)))
                 }
                 Err(e) => {
                     println!("{}: REFUSED {e}", line(seconds));
@@ -212,11 +200,14 @@ fn run_kind(kind: Kind, step: usize, through_binary: bool) -> Option<Run> {
         .collect();
     for o in outcomes {
         match o {
-            Ok((name, f, prepared)) => {
-                if !(f.mean < 0.01 && (0.9..1.1).contains(&f.area_ratio)) {
+            Ok((name, f, prepared, crop)) => {
+                if !f.on_target() {
                     run.off_target.push(name);
                 }
-                run.prepared.extend(prepared);
+                if let Some(prepared) = prepared {
+                    run.prepared.push(prepared);
+                    run.crops.push(crop);
+                }
             }
             Err(name) => run.refused.push(name),
         }
@@ -233,13 +224,22 @@ fn run_kind(kind: Kind, step: usize, through_binary: bool) -> Option<Run> {
     Some(run)
 }
 
-/// The held-out identification of a run's teeth against the other crowns.
-fn identify(run: &Run) -> Vec<morphoid_research::eval::RankScore> {
+/// The held-out identification of a run's teeth against the other crowns;
+/// the crowns they were identified by (cut again along the nearest
+/// references' lines) measured against their crops too.
+fn identify(run: &mut Run) -> Vec<morphoid_research::eval::RankScore> {
     let dir = crate::support::data::teeth_dir().unwrap();
     let names = crate::support::cp::tooth_names(&dir);
     let params = morphoid_core::cp::CpParams::default();
     let originals = crate::support::cp::prepare_teeth(&dir, &names, &params);
-    let scores = crate::support::cp::heldout_scores_classified(&dir, &run.prepared, &originals);
+    let scores = crate::support::cp::heldout_scores_classified(&dir, &mut run.prepared, &originals);
+    let fits: Vec<(String, CropFit)> = run
+        .prepared
+        .iter()
+        .zip(&run.crops)
+        .map(|(s, crop)| (s.prepared.name().to_string(), crop_fit(&s.cleaned, crop)))
+        .collect();
+    print_identified_fits(&fits, run.total);
     for s in &scores {
         println!(
             "held out, {}: {}/{} ({} refused, not counted)",
@@ -271,24 +271,24 @@ fn clean_exports_whole_teeth_of_every_form_are_cut_on_target() {
 #[test]
 #[ignore = "full data: 116 smooth-necked single-rooted teeth, identified held out"]
 fn clean_exports_smooth_single_rooted_all() {
-    if let Some(run) = run_kind(SMOOTH_ONE_ROOT, 1, false) {
-        identify(&run);
+    if let Some(mut run) = run_kind(SMOOTH_ONE_ROOT, 1, false) {
+        identify(&mut run);
     }
 }
 
 #[test]
 #[ignore = "full data: 116 two-rooted isosurfaces at 300 voxels, identified held out"]
 fn clean_exports_two_rooted_300_all() {
-    if let Some(run) = run_kind(TWO_ROOTS_300, 1, false) {
-        identify(&run);
+    if let Some(mut run) = run_kind(TWO_ROOTS_300, 1, false) {
+        identify(&mut run);
     }
 }
 
 #[test]
 #[ignore = "real data: every 4th tooth of every form, cut and measured"]
 fn clean_exports_mixed_subset() {
-    if let Some(run) = run_kind(MIXED, 4, false) {
-        identify(&run);
+    if let Some(mut run) = run_kind(MIXED, 4, false) {
+        identify(&mut run);
     }
 }
 
@@ -311,7 +311,7 @@ fn clean_exports_from_dir() {
     use rayon::prelude::*;
     let results: Vec<(
         String,
-        Option<Fit>,
+        Option<CropFit>,
         Option<morphoid_data::pipeline::PreparedSurface>,
     )> = names
         .par_iter()
@@ -339,7 +339,7 @@ fn clean_exports_from_dir() {
             };
             match prepared {
                 Ok(out) => {
-                    let f = fit(&out.cleaned, &crop);
+                    let f = crop_fit(&out.cleaned, &crop);
                     let c = out.cleaning.crown.clone();
                     println!(
                         "{name}: mean {:.4} area {:.3} {:.1} s {:?}",
@@ -360,10 +360,7 @@ fn clean_exports_from_dir() {
     let refused = results.iter().filter(|(_, f, _)| f.is_none()).count();
     let on = results
         .iter()
-        .filter(|(_, f, _)| {
-            f.as_ref()
-                .is_some_and(|f| f.mean < 0.01 && (0.9..1.1).contains(&f.area_ratio))
-        })
+        .filter(|(_, f, _)| f.as_ref().is_some_and(CropFit::on_target))
         .count();
     println!(
         "{} exports: {on} on target, {refused} refused",
@@ -376,7 +373,19 @@ fn clean_exports_from_dir() {
         let all = crate::support::cp::tooth_names(&teeth);
         let params = morphoid_core::cp::CpParams::default();
         let originals = crate::support::cp::prepare_teeth(&teeth, &all, &params);
-        let surfaces: Vec<_> = results.into_iter().filter_map(|(_, _, s)| s).collect();
-        crate::support::cp::heldout_scores_classified(&teeth, &surfaces, &originals);
+        let mut surfaces: Vec<_> = results.into_iter().filter_map(|(_, _, s)| s).collect();
+        crate::support::cp::heldout_scores_classified(&teeth, &mut surfaces, &originals);
+        let fits: Vec<(String, CropFit)> = surfaces
+            .iter()
+            .map(|s| {
+                let name = s.prepared.name().to_string();
+                let crop = morphoid_data::mesh_io::load(&dir.join(format!("{name}.crop.ply")))
+                    .unwrap()
+                    .mesh;
+                let f = crop_fit(&s.cleaned, &crop);
+                (name, f)
+            })
+            .collect();
+        print_identified_fits(&fits, names.len());
     }
 }

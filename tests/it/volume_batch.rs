@@ -4,19 +4,23 @@
 //! specimen, numbered along the stack's longest axis, with its position,
 //! its crown on the real crown, and its own identification.
 
+use super::support::clean::{crop_fit, print_identified_fits, CropFit};
 use super::support::{cp as cps, data};
 use morphoid_core::clean::point_to_surface_distances;
+use morphoid_core::mesh::Mesh;
 use morphoid_data::pipeline::{load_scan, prepare_specimens, PreparedSurface, Settings};
 use morphoid_synth::volume::mounting::*;
 use rayon::prelude::*;
 use std::path::Path;
 
 /// One batch of teeth as read back: each specimen prepared (or why not),
-/// with its mean distance to the true crown (voxels) and whether its box
-/// holds that crown.
+/// with its mean distance to the true crown (voxels) and the crown its box
+/// holds.
 struct Batch {
     names: Vec<String>,
-    specimens: Vec<(Result<PreparedSurface, String>, Option<f64>, bool)>,
+    /// Each specimen prepared, its mean distance to the true crown its box
+    /// holds (in voxels), and that crown.
+    specimens: Vec<(Result<PreparedSurface, String>, Option<f64>, Option<Mesh>)>,
     warnings: Vec<String>,
 }
 
@@ -59,7 +63,7 @@ fn batch(dir: &Path, names: &[String], seed: u64, across: usize, gap: i64, out: 
                 ))),
                 _ => None,
             };
-            (prepared, distance, holder.is_some())
+            (prepared, distance, holder.map(|k| truth[k].crown.clone()))
         })
         .collect();
     keep_or_remove(&path);
@@ -92,7 +96,8 @@ fn centre(points: &[[f64; 3]]) -> [f64; 3] {
 
 fn print_batch(b: &Batch) {
     println!("{}: {} specimens", b.names.join(" + "), b.specimens.len());
-    for (i, (p, d, holds)) in b.specimens.iter().enumerate() {
+    for (i, (p, d, truth)) in b.specimens.iter().enumerate() {
+        let holds = truth.is_some();
         match p {
             Ok(_) => println!(
                 "  #{}: crown {:.2} voxels from the true crown, box holds a crown {holds}",
@@ -126,8 +131,8 @@ fn three_teeth_scanned_together_are_three_specimens_in_order() {
     print_batch(&b);
     assert_eq!(b.specimens.len(), 3, "{:?}", b.warnings);
     let mut xs = Vec::new();
-    for (p, d, holds) in &b.specimens {
-        assert!(holds, "a specimen's box holds no tooth");
+    for (p, d, truth) in &b.specimens {
+        assert!(truth.is_some(), "a specimen's box holds no tooth");
         let p = p.as_ref().expect("each specimen is prepared");
         assert!(d.is_some_and(|d| d < 2.0), "crown {d:?} voxels off");
         xs.push(centre(&p.cleaned.vertices)[0]);
@@ -152,7 +157,10 @@ fn two_teeth_in_merged_mounts_are_two_specimens() {
     let b = batch(&dir, &names, 11, 80, -12, tmp.path());
     print_batch(&b);
     assert_eq!(b.specimens.len(), 2, "{:?}", b.warnings);
-    assert!(b.specimens.iter().all(|(p, _, holds)| p.is_ok() && *holds));
+    assert!(b
+        .specimens
+        .iter()
+        .all(|(p, _, truth)| p.is_ok() && truth.is_some()));
 }
 
 /// Three real teeth in one stack whose mounts stop short of its ends:
@@ -280,21 +288,34 @@ fn all_teeth_in_batches_of_three_are_identified() {
     // Each specimen named after the tooth its box holds, in x order: the
     // batch's teeth stand in the order they were given.
     let mut prepared: Vec<morphoid_data::pipeline::PreparedSurface> = Vec::new();
+    let mut truths: Vec<Option<Mesh>> = Vec::new();
     for b in batches
         .iter()
         .filter(|b| b.specimens.len() == b.names.len())
     {
-        for (name, (p, _, _)) in b.names.iter().zip(&b.specimens) {
+        for (name, (p, _, truth)) in b.names.iter().zip(&b.specimens) {
             if let Ok(p) = p {
                 let mut q = p.clone();
                 q.prepared.set_name(name);
                 prepared.push(q);
+                truths.push(truth.clone());
             }
         }
     }
     let params = morphoid_core::cp::CpParams::default();
     let originals = cps::prepare_teeth(&dir, &all, &params);
-    let s = cps::heldout_scores_classified(&dir, &prepared, &originals);
+    let s = cps::heldout_scores_classified(&dir, &mut prepared, &originals);
+    let fits: Vec<(String, CropFit)> = prepared
+        .iter()
+        .zip(&truths)
+        .filter_map(|(p, t)| {
+            Some((
+                p.prepared.name().to_string(),
+                crop_fit(&p.cleaned, t.as_ref()?),
+            ))
+        })
+        .collect();
+    print_identified_fits(&fits, teeth);
     let genus = s
         .iter()
         .find(|r| r.rank == "genus")

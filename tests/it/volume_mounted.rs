@@ -5,6 +5,7 @@
 //! the tube are dropped with their reasons, the crown is where the real
 //! crown is, and it is identified against the other real crowns.
 
+use super::support::clean::{crop_fit, print_identified_fits, CropFit};
 use super::support::{cp as cps, data};
 use morphoid_core::clean::point_to_surface_distances;
 use morphoid_core::mesh::Mesh;
@@ -26,6 +27,8 @@ struct Outcome {
     /// Mean distance from the extracted crown to the voxelized truth and
     /// back, in voxels of the stack.
     distances: Option<(f64, f64)>,
+    /// The true crown, in the stack's voxels.
+    truth: Mesh,
 }
 
 fn mean(d: Vec<f64>) -> f64 {
@@ -63,6 +66,7 @@ fn mounted_scan(dir: &Path, name: &str, mount: &Mount, out: &Path) -> Outcome {
         mount: mount.clone(),
         prepared,
         distances,
+        truth: written.crown,
     }
 }
 
@@ -339,12 +343,18 @@ fn identify_mounted(names: &[String], across: Option<usize>) -> (usize, usize, u
     );
     let params = morphoid_core::cp::CpParams::default();
     let originals = cps::prepare_teeth(&dir, &all, &params);
-    let stacks: Vec<morphoid_data::pipeline::PreparedSurface> = kept
+    let mut stacks: Vec<morphoid_data::pipeline::PreparedSurface> = kept
         .iter()
         .map(|o| o.prepared.as_ref().unwrap().clone())
         .collect();
     println!("mounted stacks:");
-    let s = cps::heldout_scores_classified(&dir, &stacks, &originals);
+    let s = cps::heldout_scores_classified(&dir, &mut stacks, &originals);
+    let fits: Vec<(String, CropFit)> = stacks
+        .iter()
+        .zip(&kept)
+        .map(|(s, o)| (o.name.clone(), crop_fit(&s.cleaned, &o.truth)))
+        .collect();
+    print_identified_fits(&fits, outcomes.len());
     let crops: Vec<morphoid_core::cp::Prepared> = originals
         .iter()
         .filter(|p| names.iter().any(|n| n == p.name()))

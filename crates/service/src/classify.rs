@@ -1467,6 +1467,68 @@ mod tests {
         assert!(with(3, &crown_path).cleaning.get("recut").is_none());
     }
 
+    /// After the cuts along the references' lines, the scan's crown is the
+    /// last common cut's: in the file's units, on the first crown, its
+    /// cleaned and prepared forms one surface (what landmarks and the
+    /// report take).
+    #[test]
+    fn the_crown_cut_again_becomes_the_scans_crown_in_the_files_units() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (classifier, _) = small_classifier(tmp.path());
+        let crown = synth::crown(&synth::CROWN_GENERA[1], 43, 600);
+        let whole = synth::whole_tooth(&crown, &synth::WholeToothParams::default(), 43).unwrap();
+        let path = tmp.path().join("whole.ply");
+        morphoid_data::mesh_io::save(&path, &whole.mesh).unwrap();
+        let mut settings = classifier.settings().clone();
+        settings.cp.recut.recut_nearest = 3;
+        let classifier = classifier.with_settings(settings);
+        let mut surface = pipeline::prepare_file(&path, classifier.settings()).unwrap();
+        let first = surface.cleaned.clone();
+        let first_faces = surface.prepared.faces().len();
+        let outcome = classifier.classify_prepared(&mut surface);
+        let rounds = outcome.cleaning["recut"]["consensus"]
+            .as_array()
+            .expect("the common cuts listed");
+        assert!(!rounds.is_empty());
+        // The last cut kept part of the crown before it, which kept part
+        // of the first.
+        let kept = rounds.last().unwrap()["faces"].as_u64().unwrap() as usize;
+        assert!(kept <= first_faces);
+        let area = |m: &morphoid_core::mesh::Mesh| morphoid_core::mesh::surface_area(m);
+        let (now, before) = (area(&surface.cleaned), area(&first));
+        assert!(
+            now > 0.3 * before && now < 1.02 * before,
+            "{now} of {before}"
+        );
+        // One surface: the prepared vertices, unnormalized, are the cleaned.
+        let (scale, centroid) = (surface.prepared.scale(), surface.prepared.centroid());
+        assert_eq!(
+            surface.prepared.vertices().len(),
+            surface.cleaned.vertices.len()
+        );
+        let diagonal = morphoid_core::mesh::bbox_diagonal(&first);
+        for (p, c) in surface
+            .prepared
+            .vertices()
+            .iter()
+            .zip(&surface.cleaned.vertices)
+        {
+            for d in 0..3 {
+                assert!((p[d] * scale + centroid[d] - c[d]).abs() < 1e-9 * diagonal);
+            }
+        }
+        // In the file's units, on the first crown.
+        for c in &surface.cleaned.vertices {
+            let nearest = first
+                .vertices
+                .iter()
+                .map(|v| morphoid_core::mesh::norm(morphoid_core::mesh::sub(*v, *c)))
+                .fold(f64::INFINITY, f64::min);
+            // (the cut is cleaned again: vertices move by up to an edge)
+            assert!(nearest < 0.05 * diagonal, "{nearest} of {diagonal}");
+        }
+    }
+
     /// Of the crowns the cleaning found on a whole tooth, the one whose
     /// nearest reference is nearest is taken, and the answer is that
     /// crown's: here an alternative that is a reference's own crown (at

@@ -53,3 +53,54 @@ pub(crate) fn mean_max_distance(points: &[[f64; 3]], mesh: &Mesh) -> (f64, f64) 
 pub(crate) fn median(xs: &[f64]) -> f64 {
     morphoid_core::stats::upper_median(xs).unwrap_or(f64::NAN)
 }
+
+/// How close an extracted crown is to the crop it stands for: the mean
+/// distance both ways as a fraction of the crop's diagonal, and the ratio
+/// of their areas.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct CropFit {
+    pub(crate) mean: f64,
+    pub(crate) area_ratio: f64,
+}
+
+impl CropFit {
+    /// The crown-extraction target: mean distance under 1 % of the
+    /// diagonal, area within 10 %.
+    pub(crate) fn on_target(&self) -> bool {
+        self.mean < 0.01 && (0.9..1.1).contains(&self.area_ratio)
+    }
+}
+
+/// The fit of `extracted` to `crop` (any common units).
+#[allow(dead_code)] // used by some of the test modules only
+pub(crate) fn crop_fit(extracted: &Mesh, crop: &Mesh) -> CropFit {
+    let (m1, _) = mean_max_distance(&extracted.vertices, crop);
+    let (m2, _) = mean_max_distance(&crop.vertices, extracted);
+    CropFit {
+        mean: 0.5 * (m1 + m2) / morphoid_core::mesh::bbox_diagonal(crop),
+        area_ratio: morphoid_core::mesh::surface_area(extracted)
+            / morphoid_core::mesh::surface_area(crop),
+    }
+}
+
+/// Each crown as identified (after the cuts along the references' lines)
+/// and its fit, then how many are on target of `total` (refused count as
+/// off).
+#[allow(dead_code)] // used by some of the test modules only
+pub(crate) fn print_identified_fits(fits: &[(String, CropFit)], total: usize) {
+    for (name, f) in fits {
+        println!(
+            "{name} as identified: mean {:.4} area {:.3}",
+            f.mean, f.area_ratio
+        );
+    }
+    let off: Vec<&str> = fits
+        .iter()
+        .filter(|(_, f)| !f.on_target())
+        .map(|(n, _)| n.as_str())
+        .collect();
+    println!(
+        "crowns as identified: {} of {total} on target; off: {off:?}",
+        fits.len() - off.len(),
+    );
+}

@@ -146,7 +146,7 @@ pub(crate) fn leave_one_out_scores(
 #[allow(dead_code)] // used by some of the test modules only
 pub(crate) fn heldout_scores_classified(
     dir: &Path,
-    surfaces: &[morphoid_data::pipeline::PreparedSurface],
+    surfaces: &mut [morphoid_data::pipeline::PreparedSurface],
     originals: &[morphoid_core::cp::Prepared],
 ) -> Vec<morphoid_research::eval::RankScore> {
     use morphoid_data::library::CachedReference;
@@ -156,7 +156,7 @@ pub(crate) fn heldout_scores_classified(
         morphoid_data::table::Labels::read(&dir.join("labels.csv"), Some(&ranks)).expect("labels");
     let settings = morphoid_data::pipeline::Settings::default();
     let outcomes: Vec<morphoid_service::identify::ScanOutcome> = surfaces
-        .par_iter()
+        .par_iter_mut()
         .map(|surface| {
             let references: Vec<CachedReference> = originals
                 .iter()
@@ -175,7 +175,7 @@ pub(crate) fn heldout_scores_classified(
                 labels.clone(),
                 settings.clone(),
             )
-            .classify_prepared(&mut surface.clone())
+            .classify_prepared(surface)
         })
         .collect();
     ranks

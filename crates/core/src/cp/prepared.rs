@@ -91,6 +91,16 @@ impl Prepared {
         self.scale
     }
 
+    /// For a surface prepared from a mesh given in units where the file's
+    /// are `v · scale + centroid` (a part cut from another prepared
+    /// surface's normalized vertices): its [`Prepared::scale`] and
+    /// [`Prepared::centroid`] made to refer to the file's units. Nothing
+    /// the comparisons read changes.
+    pub fn refer_to_file_units(&mut self, scale: f64, centroid: [f64; 3]) {
+        self.centroid = [0, 1, 2].map(|d| centroid[d] + scale * self.centroid[d]);
+        self.scale *= scale;
+    }
+
     /// Disk coordinates of the vertices (the conformal flattening).
     pub fn uv(&self) -> &[[f64; 2]] {
         &self.uv

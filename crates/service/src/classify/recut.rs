@@ -17,12 +17,15 @@
 //!   the scan's genus that was not among the first nearest gets a crown cut
 //!   as its own kind is cut.
 //!
-//! Every row keeps the smallest distance it was given. Only crowns the
-//! cleaning cut from a closed surface or a volume are cut again.
+//! Every row keeps the smallest distance it was given. The crown the last
+//! common line left becomes the scan's crown (what its report shows and
+//! its landmarks are carried onto). Only crowns the cleaning cut from a
+//! closed surface or a volume are cut again.
 
 use super::{distance_row, Classifier};
 use crate::identify::DistanceRow;
 use morphoid_core::cp;
+use morphoid_core::mesh::Mesh;
 use morphoid_data::pipeline::{self, PreparedSurface};
 use rayon::prelude::*;
 
@@ -57,9 +60,11 @@ struct ConsensusCut {
     distance: f64,
 }
 
-/// One cut along a common line: the crown it left, prepared; the faces it
-/// kept; and the rows compared with that crown.
+/// One cut along a common line: the crown it left, cleaned (in the units
+/// of the crown it cut, whose normalized vertices it cut) and prepared; the
+/// faces it kept; and the rows compared with that crown.
 struct CommonLineCut {
+    cleaned: Mesh,
     crown: cp::Prepared,
     kept: usize,
     compared: Vec<(usize, cp::Comparison)>,
@@ -97,15 +102,27 @@ fn nearest_k(distances: &[Option<f64>], names: &[&str], k: usize) -> Vec<usize> 
     order
 }
 
+/// `mesh` (in units where the file's are `v · scale + centroid`) in the
+/// file's units.
+fn unnormalized(mesh: &Mesh, scale: f64, centroid: [f64; 3]) -> Mesh {
+    let vertices = mesh
+        .vertices
+        .iter()
+        .map(|v| [0, 1, 2].map(|d| v[d] * scale + centroid[d]))
+        .collect();
+    Mesh::new(vertices, mesh.faces.clone())
+}
+
 impl Classifier {
     /// For a crown cut from a whole tooth (or a volume): the two stages of
     /// the module's documentation, with `[cp] recut_nearest` references.
     /// `found[k]` is the reference index and alignment of `rows[k]`; rows
-    /// take the smaller distances. Returns what was cut, for the result.
+    /// take the smaller distances; the last common line's crown replaces
+    /// `surface`'s. Returns what was cut, for the result.
     pub(super) fn recut(
         &self,
         name: &str,
-        surface: &PreparedSurface,
+        surface: &mut PreparedSurface,
         found: &[(usize, cp::Alignment)],
         rows: &mut [DistanceRow],
     ) -> RecutReport {
@@ -140,7 +157,10 @@ impl Classifier {
             });
             voters.push((row, alignment, rim));
         }
+        // Each common cut's crown refers to the file's units, as the
+        // scan's own does.
         let mut base = surface.prepared.clone();
+        let mut last_cut = None;
         for _ in 0..CONSENSUS_ROUNDS {
             if voters.is_empty() {
                 break;
@@ -175,7 +195,17 @@ impl Classifier {
                     Some((row, alignments[row]?, cp::RimProfile::of(&reference)?))
                 })
                 .collect();
+            let (scale, centroid) = (base.scale(), base.centroid());
+            last_cut = Some(unnormalized(&round.cleaned, scale, centroid));
             base = round.crown;
+            base.refer_to_file_units(scale, centroid);
+        }
+        if let Some(cleaned) = last_cut {
+            // The crown the last common line left is the scan's crown from
+            // here on (its report, its landmarks): of the cuts tried, it is
+            // the one nearest where the library's crowns end.
+            surface.cleaned = cleaned;
+            surface.prepared = base;
         }
         report
     }
@@ -212,6 +242,7 @@ impl Classifier {
             })
             .collect();
         Some(CommonLineCut {
+            cleaned: part.cleaned,
             crown: part.prepared,
             kept,
             compared,
