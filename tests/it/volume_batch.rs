@@ -13,14 +13,16 @@ use morphoid_synth::volume::mounting::*;
 use rayon::prelude::*;
 use std::path::Path;
 
+/// One specimen of a batch: prepared (or why not), its mean distance to
+/// the true crown its box holds (in voxels), and that crown.
+type Specimen = (Result<PreparedSurface, String>, Option<f64>, Option<Mesh>);
+
 /// One batch of teeth as read back: each specimen prepared (or why not),
 /// with its mean distance to the true crown (voxels) and the crown its box
 /// holds.
 struct Batch {
     names: Vec<String>,
-    /// Each specimen prepared, its mean distance to the true crown its box
-    /// holds (in voxels), and that crown.
-    specimens: Vec<(Result<PreparedSurface, String>, Option<f64>, Option<Mesh>)>,
+    specimens: Vec<Specimen>,
     warnings: Vec<String>,
 }
 
