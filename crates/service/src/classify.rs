@@ -1574,7 +1574,9 @@ mod tests {
         assert_eq!(margin["crowns"].as_array().unwrap().len(), 3);
         assert_eq!(margin["crowns"][2]["nearest"], reference.name());
         assert!(margin["crowns"][2]["distance"].as_f64().unwrap() < 1e-6);
-        // The answer is the taken crown's, which is now the scan's.
+        // The answer is the taken crown's; the crown it replaced took its
+        // place among the alternatives. (The scan's crown is then the one
+        // the cuts along the references' lines leave: the test above.)
         let nearest = outcome
             .distances
             .iter()
@@ -1582,20 +1584,23 @@ mod tests {
             .unwrap();
         assert_eq!(nearest.reference, reference.name());
         assert_eq!(
-            surface.prepared.faces(),
-            reference.prepared().unwrap().faces()
-        );
-        assert_eq!(
             surface.alternatives[1].prepared.faces(),
             cut.prepared.faces()
+        );
+        assert_eq!(
+            surface.alternatives[0].prepared.faces(),
+            far.prepared.faces()
         );
         assert!(outcome.timings_ms.contains_key("margins"));
 
         let mut surface = cut.clone();
-        surface.alternatives = vec![far];
+        surface.alternatives = vec![far.clone()];
         let outcome = classifier.classify_prepared(&mut surface);
         assert_eq!(outcome.cleaning["margins"]["chosen"], 0);
-        assert_eq!(surface.prepared.faces(), cut.prepared.faces());
+        assert_eq!(
+            surface.alternatives[0].prepared.faces(),
+            far.prepared.faces()
+        );
 
         let mut off = settings.clone();
         off.cp.recut.recut_nearest = 0;
