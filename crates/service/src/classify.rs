@@ -1289,6 +1289,21 @@ mod tests {
         assert!(outcome.failures().is_empty());
     }
 
+    /// A synthetic crown of `genus` (`seed`) and the whole tooth built
+    /// below it, written as `dir/name`: the crown and the file.
+    fn whole_tooth_file(
+        dir: &Path,
+        name: &str,
+        genus: usize,
+        seed: u64,
+    ) -> (morphoid_core::mesh::Mesh, PathBuf) {
+        let crown = synth::crown(&synth::CROWN_GENERA[genus], seed, 600);
+        let whole = synth::whole_tooth(&crown, &synth::WholeToothParams::default(), seed).unwrap();
+        let path = dir.join(name);
+        morphoid_data::mesh_io::save(&path, &whole.mesh).unwrap();
+        (crown, path)
+    }
+
     /// An uncalibrated classifier of 10 synthetic crowns (2 per genus).
     fn small_classifier(tmp: &Path) -> (Classifier, Cache) {
         let dir = tmp.join("library");
@@ -1385,11 +1400,8 @@ mod tests {
     fn a_crown_found_on_a_whole_tooth_is_cut_again_along_its_nearest_references() {
         let tmp = tempfile::tempdir().unwrap();
         let (classifier, _) = small_classifier(tmp.path());
-        let genus = &synth::CROWN_GENERA[3];
-        let crown = synth::crown(genus, 41, 600);
-        let whole = synth::whole_tooth(&crown, &synth::WholeToothParams::default(), 41).unwrap();
-        let (whole_path, crown_path) = (tmp.path().join("whole.stl"), tmp.path().join("crown.ply"));
-        morphoid_data::mesh_io::save(&whole_path, &whole.mesh).unwrap();
+        let (crown, whole_path) = whole_tooth_file(tmp.path(), "whole.stl", 3, 41);
+        let crown_path = tmp.path().join("crown.ply");
         morphoid_data::mesh_io::save(&crown_path, &crown).unwrap();
         let with = |nearest: usize, path: &Path| {
             let mut settings = classifier.settings().clone();
@@ -1475,10 +1487,7 @@ mod tests {
     fn the_crown_cut_again_becomes_the_scans_crown_in_the_files_units() {
         let tmp = tempfile::tempdir().unwrap();
         let (classifier, _) = small_classifier(tmp.path());
-        let crown = synth::crown(&synth::CROWN_GENERA[1], 43, 600);
-        let whole = synth::whole_tooth(&crown, &synth::WholeToothParams::default(), 43).unwrap();
-        let path = tmp.path().join("whole.ply");
-        morphoid_data::mesh_io::save(&path, &whole.mesh).unwrap();
+        let (_, path) = whole_tooth_file(tmp.path(), "whole.ply", 1, 43);
         let mut settings = classifier.settings().clone();
         settings.cp.recut.recut_nearest = 3;
         let classifier = classifier.with_settings(settings);
@@ -1538,10 +1547,7 @@ mod tests {
     fn of_the_margins_found_the_crown_nearest_the_library_is_taken() {
         let tmp = tempfile::tempdir().unwrap();
         let (classifier, _) = small_classifier(tmp.path());
-        let crown = synth::crown(&synth::CROWN_GENERA[2], 57, 600);
-        let whole = synth::whole_tooth(&crown, &synth::WholeToothParams::default(), 57).unwrap();
-        let path = tmp.path().join("whole.stl");
-        morphoid_data::mesh_io::save(&path, &whole.mesh).unwrap();
+        let (_, path) = whole_tooth_file(tmp.path(), "whole.stl", 2, 57);
         let settings = classifier.settings().clone();
         let cut = pipeline::prepare_file(&path, &settings).unwrap();
         assert!(cut.cleaning.crown.is_some());

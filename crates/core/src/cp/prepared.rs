@@ -91,6 +91,15 @@ impl Prepared {
         self.scale
     }
 
+    /// The vertices in the file's units (`vertex · scale + centroid`), in
+    /// the order of [`Prepared::vertices`].
+    pub fn vertices_in_file_units(&self) -> Vec<[f64; 3]> {
+        self.vertices
+            .iter()
+            .map(|v| [0, 1, 2].map(|d| v[d] * self.scale + self.centroid[d]))
+            .collect()
+    }
+
     /// For a surface prepared from a mesh given in units where the file's
     /// are `v · scale + centroid` (a part cut from another prepared
     /// surface's normalized vertices): its [`Prepared::scale`] and

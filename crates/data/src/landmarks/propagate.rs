@@ -94,13 +94,7 @@ impl Surface {
     /// vertices scaled and translated back (`v · scale + centroid`), with
     /// the prepared triangles.
     pub fn from_normalized(p: &Prepared) -> Result<Self, PropagateError> {
-        let (scale, centroid) = (p.scale(), p.centroid());
-        let vertices = p
-            .vertices()
-            .iter()
-            .map(|v| [0, 1, 2].map(|d| v[d] * scale + centroid[d]))
-            .collect();
-        Self::new(Mesh::new(vertices, p.faces().to_vec()))
+        Self::new(Mesh::new(p.vertices_in_file_units(), p.faces().to_vec()))
     }
 
     /// The mesh.

@@ -60,12 +60,12 @@ struct ConsensusCut {
     distance: f64,
 }
 
-/// One cut along a common line: the crown it left, cleaned (in the units
-/// of the crown it cut, whose normalized vertices it cut) and prepared; the
-/// faces it kept; and the rows compared with that crown.
+/// One cut along a common line: the crown it left, prepared, and the
+/// triangles of its cleaned form; the faces it kept; and the rows compared
+/// with that crown.
 struct CommonLineCut {
-    cleaned: Mesh,
     crown: cp::Prepared,
+    cleaned_faces: Vec<[u32; 3]>,
     kept: usize,
     compared: Vec<(usize, cp::Comparison)>,
 }
@@ -100,17 +100,6 @@ fn nearest_k(distances: &[Option<f64>], names: &[&str], k: usize) -> Vec<usize> 
     });
     order.truncate(k);
     order
-}
-
-/// `mesh` (in units where the file's are `v · scale + centroid`) in the
-/// file's units.
-fn unnormalized(mesh: &Mesh, scale: f64, centroid: [f64; 3]) -> Mesh {
-    let vertices = mesh
-        .vertices
-        .iter()
-        .map(|v| [0, 1, 2].map(|d| v[d] * scale + centroid[d]))
-        .collect();
-    Mesh::new(vertices, mesh.faces.clone())
 }
 
 impl Classifier {
@@ -160,7 +149,7 @@ impl Classifier {
         // Each common cut's crown refers to the file's units, as the
         // scan's own does.
         let mut base = surface.prepared.clone();
-        let mut last_cut = None;
+        let mut last_faces = None;
         for _ in 0..CONSENSUS_ROUNDS {
             if voters.is_empty() {
                 break;
@@ -196,15 +185,15 @@ impl Classifier {
                 })
                 .collect();
             let (scale, centroid) = (base.scale(), base.centroid());
-            last_cut = Some(unnormalized(&round.cleaned, scale, centroid));
+            last_faces = Some(round.cleaned_faces);
             base = round.crown;
             base.refer_to_file_units(scale, centroid);
         }
-        if let Some(cleaned) = last_cut {
+        if let Some(faces) = last_faces {
             // The crown the last common line left is the scan's crown from
             // here on (its report, its landmarks): of the cuts tried, it is
             // the one nearest where the library's crowns end.
-            surface.cleaned = cleaned;
+            surface.cleaned = Mesh::new(base.vertices_in_file_units(), faces);
             surface.prepared = base;
         }
         report
@@ -242,8 +231,8 @@ impl Classifier {
             })
             .collect();
         Some(CommonLineCut {
-            cleaned: part.cleaned,
             crown: part.prepared,
+            cleaned_faces: part.cleaned.faces,
             kept,
             compared,
         })
