@@ -147,6 +147,13 @@ fn init_tracing(verbose: u8) {
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
         .with_target(false)
+        // `MORPHOID_LOG_SPANS=1`: each stage's span, when it closes, with
+        // its busy and idle time (where a slow scan's time goes).
+        .with_span_events(if std::env::var_os("MORPHOID_LOG_SPANS").is_some() {
+            tracing_subscriber::fmt::format::FmtSpan::CLOSE
+        } else {
+            tracing_subscriber::fmt::format::FmtSpan::NONE
+        })
         // journald and files get no colour codes.
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()));
     // Under systemd the journal stamps each line itself.
