@@ -329,11 +329,49 @@ const CREASE_SCALE: f64 = 12.0;
 /// the length) must not compete with it.
 const END_EXCLUDED: f64 = 0.15;
 
+/// How far from the axis the margin search keeps, as a share of the
+/// widest radius at each height ([`margin_vertices`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Clearance {
+    /// Half the widest radius: no small loop round the axis where it
+    /// pierces the occlusal surface or the apex competes with the margin.
+    Half,
+    /// A quarter, for a surface on which no search found a crown within
+    /// half: a crown whose outline is over twice as long as it is wide
+    /// about the axis (a long molar, or one the principal axis runs
+    /// through slanted) has its near side closer than half the far side's
+    /// radius. (Of ten synthetic whole teeth stretched to 2.2–2.9 times
+    /// their width, half finds 4 crowns, a quarter 8 and cuts 2 wrong, a
+    /// tenth no more.)
+    Quarter,
+}
+
+impl Clearance {
+    /// The share of the widest radius at a vertex's height it keeps from
+    /// the axis.
+    fn share(self) -> f64 {
+        match self {
+            Clearance::Half => 0.5,
+            Clearance::Quarter => 0.25,
+        }
+    }
+
+    /// The share of the widest radius of all it keeps from the axis
+    /// (three fifths of [`Clearance::share`]).
+    fn share_of_widest(self) -> f64 {
+        0.6 * self.share()
+    }
+}
+
 /// Vertices the margin may pass through along `cyl`: not at the very ends
-/// of the tooth, and away from the axis (at least half the widest radius at
-/// their height), so that no small loop round the axis where it pierces the
-/// occlusal surface or the apex competes with the margin.
-fn margin_vertices(mesh: &Mesh, cyl: &Cylinder, neck: Option<&NeckHeights>) -> Vec<bool> {
+/// of the tooth, and away from the axis (`clearance` of the widest radius
+/// at their height).
+fn margin_vertices(
+    mesh: &Mesh,
+    cyl: &Cylinder,
+    neck: Option<&NeckHeights>,
+    clearance: Clearance,
+) -> Vec<bool> {
     const BINS: usize = 50;
     let polar: Vec<(f64, f64)> = mesh
         .vertices
@@ -356,8 +394,8 @@ fn margin_vertices(mesh: &Mesh, cyl: &Cylinder, neck: Option<&NeckHeights>) -> V
         .map(|(&(z, r), &p)| {
             let t = (z - zmin) / length;
             (END_EXCLUDED..=1.0 - END_EXCLUDED).contains(&t)
-                && r >= 0.5 * widest[bin_of(z)]
-                && r >= 0.3 * widest_all
+                && r >= clearance.share() * widest[bin_of(z)]
+                && r >= clearance.share_of_widest() * widest_all
                 && neck.is_none_or(|n| (t - n.at(cyl.polar(p).0)).abs() <= NECK_WINDOW)
         })
         .collect()
@@ -404,17 +442,18 @@ struct MarginLoop {
 }
 
 /// The cheapest loop round the axis `axis` through `centre` (see
-/// [`cycle`]).
+/// [`cycle`]), `clearance` away from it.
 fn margin_loop(
     mesh: &Mesh,
     geo: &SurfaceGeometry,
     centre: [f64; 3],
     axis: [f64; 3],
     neck: Option<&NeckHeights>,
+    clearance: Clearance,
 ) -> Option<MarginLoop> {
     let cyl = Cylinder::new(centre, axis);
     let angles: Vec<f64> = mesh.vertices.iter().map(|&p| cyl.polar(p).0).collect();
-    let allowed = margin_vertices(mesh, &cyl, neck);
+    let allowed = margin_vertices(mesh, &cyl, neck, clearance);
     let heights: Vec<f64> = mesh.vertices.iter().map(|&p| cyl.height(p)).collect();
     let zmin = heights.iter().copied().fold(f64::MAX, f64::min);
     let zmax = heights.iter().copied().fold(f64::MIN, f64::max);
@@ -456,7 +495,7 @@ fn margin_loop(
         // sector whose outline bends at the furcation, not at the neck):
         // the loop may leave the window there, still drawn to the neck by
         // the edges' weights.
-        None if neck.is_some() => search(&margin_vertices(mesh, &cyl, None))?,
+        None if neck.is_some() => search(&margin_vertices(mesh, &cyl, None, clearance))?,
         None => return None,
     };
     let points: Vec<[f64; 3]> = found
@@ -940,8 +979,9 @@ fn margin_candidate(
     centre: [f64; 3],
     axis: [f64; 3],
     neck: Option<&NeckHeights>,
+    clearance: Clearance,
 ) -> Result<Candidate, Rejection> {
-    let Some(first) = margin_loop(smoothed, geo, centre, axis, neck) else {
+    let Some(first) = margin_loop(smoothed, geo, centre, axis, neck, clearance) else {
         tracing::debug!(neck = neck.is_some(), "no winding loop");
         return Err(Rejection {
             score: 0.0,
@@ -964,6 +1004,7 @@ fn margin_candidate(
             first.centre,
             first.normal,
             neck_again.as_ref(),
+            clearance,
         )
     };
     let found = match again {
@@ -1031,19 +1072,35 @@ pub(super) fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
     // outcomes are taken in the order of the searches, as one after
     // another would give them.
     let span = tracing::Span::current();
-    let outcomes: Vec<Result<Candidate, Rejection>> = margin_searches(&smoothed, centre, axes)
-        .par_iter()
-        .map(|(axis, neck)| {
-            let _in_crown = span.enter();
-            margin_candidate(&smoothed, &geo, centre, *axis, neck.as_ref())
-        })
-        .collect();
-    let mut candidates: Vec<Candidate> = Vec::new();
-    let mut reasons = Vec::new();
-    for outcome in outcomes {
-        match outcome {
-            Ok(c) => candidates.push(c),
-            Err(r) => reasons.push(r),
+    let searches = margin_searches(&smoothed, centre, axes);
+    let search_all = |clearance: Clearance| -> (Vec<Candidate>, Vec<Rejection>) {
+        let outcomes: Vec<Result<Candidate, Rejection>> = searches
+            .par_iter()
+            .map(|(axis, neck)| {
+                let _in_crown = span.enter();
+                margin_candidate(&smoothed, &geo, centre, *axis, neck.as_ref(), clearance)
+            })
+            .collect();
+        let mut candidates: Vec<Candidate> = Vec::new();
+        let mut reasons = Vec::new();
+        for outcome in outcomes {
+            match outcome {
+                Ok(c) => candidates.push(c),
+                Err(r) => reasons.push(r),
+            }
+        }
+        (candidates, reasons)
+    };
+    let (mut candidates, mut reasons) = search_all(Clearance::Half);
+    // Only a surface on which no search found a crown is searched again,
+    // nearer the axis: one with any keeps the choice among them as it was,
+    // and one refused again is told why the first searches refused it.
+    if candidates.is_empty() {
+        tracing::debug!("no crown about any axis: searched again nearer the axis");
+        let (wide, _) = search_all(Clearance::Quarter);
+        if !wide.is_empty() {
+            candidates = wide;
+            reasons.clear();
         }
     }
     let mut ranked = ranked_candidates(candidates).into_iter();
