@@ -1202,6 +1202,28 @@ mod tests {
     }
 
     #[test]
+    fn a_closed_shell_on_the_crowns_side_is_not_crown() {
+        use crate::testing::synth as g;
+        // A grid (the crown, a disk) and, beside it, a closed sphere (a
+        // shell inside the tooth), both on the crown's side of the cut.
+        let disk = g::square_grid(12);
+        let shell = g::closed_sphere(400);
+        let offset = disk.vertices.len() as u32;
+        let mut vertices = disk.vertices.clone();
+        vertices.extend(shell.vertices.iter().map(|p| [p[0] + 5.0, p[1], p[2]]));
+        let mut faces = disk.faces.clone();
+        faces.extend(shell.faces.iter().map(|f| f.map(|v| v + offset)));
+        let both = Mesh::new(vertices, faces);
+        let (crown, loops, euler) = crown_faces(&both, &vec![true; both.faces.len()]);
+        assert_eq!((loops, euler), (1, 1));
+        assert_eq!(crown.faces.len(), disk.faces.len());
+        assert_eq!(crown.vertices.len(), disk.vertices.len());
+        // A crown with no shell is kept whole.
+        let (alone, ..) = crown_faces(&disk, &vec![true; disk.faces.len()]);
+        assert_eq!(alone.faces, disk.faces);
+    }
+
+    #[test]
     fn cuts_that_differ_by_under_a_tenth_of_the_smaller_crown_are_one() {
         let a: Vec<bool> = (0..100).map(|i| i < 50).collect();
         let mut b = a.clone();
