@@ -880,7 +880,7 @@ fn crown_faces(oriented: &Mesh, inside: &[bool]) -> (Mesh, usize, i64) {
         .zip(inside)
         .filter_map(|(f, &k)| k.then_some(*f))
         .collect();
-    let crown = without_closed_components(&super::faces::remove_unreferenced_vertices(&Mesh::new(
+    let crown = without_closed_components(super::faces::remove_unreferenced_vertices(&Mesh::new(
         oriented.vertices.clone(),
         faces,
     )));
@@ -894,22 +894,19 @@ fn crown_faces(oriented: &Mesh, inside: &[bool]) -> (Mesh, usize, i64) {
 /// that falls on the crown's side of the cut is not crown. Measured: the
 /// two-rooted export of i23 was refused, its crown a disk and a closed
 /// shell (one boundary loop, Euler characteristic 3).
-fn without_closed_components(part: &Mesh) -> Mesh {
-    let (labels, count) = super::components::face_components(part);
+fn without_closed_components(part: Mesh) -> Mesh {
+    let (labels, count) = super::components::face_components(&part);
     if count < 2 {
-        return part.clone();
+        return part;
     }
-    // Faces per undirected edge: an edge of one face is on a boundary.
-    let mut uses: std::collections::HashMap<(u32, u32), u32> = std::collections::HashMap::new();
-    let edge = |a: u32, b: u32| (a.min(b), a.max(b));
-    for f in &part.faces {
-        for k in 0..3 {
-            *uses.entry(edge(f[k], f[(k + 1) % 3])).or_default() += 1;
-        }
-    }
+    // A component is open where one of its faces has no triangle across
+    // an edge.
     let mut open = vec![false; count];
-    for (f, &l) in part.faces.iter().zip(&labels) {
-        if (0..3).any(|k| uses.get(&edge(f[k], f[(k + 1) % 3])) == Some(&1)) {
+    for (across, &l) in crate::mesh::triangle_adjacency(&part.faces)
+        .iter()
+        .zip(&labels)
+    {
+        if across.contains(&crate::mesh::NO_TRIANGLE) {
             open[l as usize] = true;
         }
     }
@@ -919,7 +916,7 @@ fn without_closed_components(part: &Mesh) -> Mesh {
         .zip(&labels)
         .filter_map(|(f, &l)| open[l as usize].then_some(*f))
         .collect();
-    super::faces::remove_unreferenced_vertices(&Mesh::new(part.vertices.clone(), faces))
+    super::faces::remove_unreferenced_vertices(&Mesh::new(part.vertices, faces))
 }
 
 /// The crowns of `others` (ranked, after `best`) that are disks and cut
