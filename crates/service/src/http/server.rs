@@ -161,7 +161,7 @@ impl Server {
         let local = listener
             .local_addr()
             .map_err(|source| HttpError::Bind { addr, source })?;
-        let niceness = crate::priority::background_niceness();
+        let niceness = crate::priority::console_niceness();
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(WORKER_THREADS)
             .max_blocking_threads(BLOCKING_THREADS)
