@@ -377,24 +377,30 @@ fn decimate_if_dense(m: &Mesh, opts: &CleanOptions, report: &mut CleanReport) ->
         return None;
     }
     report.predecimated_faces = m.faces.len();
+    let _span = tracing::debug_span!("decimate dense", faces = m.faces.len()).entered();
     // Pinched vertices (two sheets of an isosurface through one vertex)
     // are split and debris dropped first: collapsing edges round a pinch
     // can fold the surface into a non-orientable one.
-    let (repaired, _) = manifold::repair_nonmanifold_edges(m);
-    let (split, _) = manifold::split_nonmanifold_vertices(&repaired);
-    drop(repaired);
-    let (kept, dropped) = components::largest_component_by_area(&split);
-    drop(split);
-    report.dropped_components += dropped;
-    let kept = faces::remove_unreferenced_vertices(&kept);
+    let kept = {
+        let _s = tracing::debug_span!("repair").entered();
+        let (repaired, _) = manifold::repair_nonmanifold_edges(m);
+        let (split, _) = manifold::split_nonmanifold_vertices(&repaired);
+        drop(repaired);
+        let (kept, dropped) = components::largest_component_by_area(&split);
+        drop(split);
+        report.dropped_components += dropped;
+        faces::remove_unreferenced_vertices(&kept)
+    };
     // A whole tooth this dense is an isosurface export: its voxel
     // staircase is smoothed away before the decimation, which would keep
     // the stairs' corners as sharp features.
     let kept = if is_whole(&kept, opts.crown) {
+        let _s = tracing::debug_span!("smooth staircase").entered();
         crown::staircase_smoothed(&kept)
     } else {
         kept
     };
+    let _s = tracing::debug_span!("decimate").entered();
     decimated_orientable(&kept, early_faces)
 }
 
