@@ -29,6 +29,33 @@ pub(super) fn face_components(mesh: &Mesh) -> (Vec<u32>, usize) {
     (labels, count as usize)
 }
 
+/// `mesh` without its closed components (those in which every edge has a
+/// triangle on each side); unreferenced vertices dropped.
+pub(super) fn without_closed_components(mesh: Mesh) -> Mesh {
+    let (labels, count) = face_components(&mesh);
+    if count < 2 {
+        return mesh;
+    }
+    // A component is open where one of its faces has no triangle across
+    // an edge.
+    let mut open = vec![false; count];
+    for (across, &l) in crate::mesh::triangle_adjacency(&mesh.faces)
+        .iter()
+        .zip(&labels)
+    {
+        if across.contains(&crate::mesh::NO_TRIANGLE) {
+            open[l as usize] = true;
+        }
+    }
+    let faces: Vec<[u32; 3]> = mesh
+        .faces
+        .iter()
+        .zip(&labels)
+        .filter_map(|(f, &l)| open[l as usize].then_some(*f))
+        .collect();
+    super::faces::remove_unreferenced_vertices(&Mesh::new(mesh.vertices, faces))
+}
+
 /// Keep the connected component of largest area (ties: the one met first);
 /// unreferenced vertices are left for the caller to drop. Returns the mesh
 /// and the number of components dropped.

@@ -880,43 +880,16 @@ fn crown_faces(oriented: &Mesh, inside: &[bool]) -> (Mesh, usize, i64) {
         .zip(inside)
         .filter_map(|(f, &k)| k.then_some(*f))
         .collect();
-    let crown = without_closed_components(super::faces::remove_unreferenced_vertices(&Mesh::new(
-        oriented.vertices.clone(),
-        faces,
-    )));
+    // A closed shell inside the tooth (a pulp cavity, a void an isosurface
+    // closed) that falls on the crown's side of the cut is not crown.
+    // Measured: the two-rooted export of i23 was refused, its crown a disk
+    // and a closed shell (one boundary loop, Euler characteristic 3).
+    let crown = super::components::without_closed_components(
+        super::faces::remove_unreferenced_vertices(&Mesh::new(oriented.vertices.clone(), faces)),
+    );
     let loops = boundary_loops(&crown).len();
     let euler = euler_characteristic(&crown);
     (crown, loops, euler)
-}
-
-/// `part` without its closed components (those with no boundary edge): a
-/// shell inside the tooth (a pulp cavity, a void an isosurface closed)
-/// that falls on the crown's side of the cut is not crown. Measured: the
-/// two-rooted export of i23 was refused, its crown a disk and a closed
-/// shell (one boundary loop, Euler characteristic 3).
-fn without_closed_components(part: Mesh) -> Mesh {
-    let (labels, count) = super::components::face_components(&part);
-    if count < 2 {
-        return part;
-    }
-    // A component is open where one of its faces has no triangle across
-    // an edge.
-    let mut open = vec![false; count];
-    for (across, &l) in crate::mesh::triangle_adjacency(&part.faces)
-        .iter()
-        .zip(&labels)
-    {
-        if across.contains(&crate::mesh::NO_TRIANGLE) {
-            open[l as usize] = true;
-        }
-    }
-    let faces: Vec<[u32; 3]> = part
-        .faces
-        .iter()
-        .zip(&labels)
-        .filter_map(|(f, &l)| open[l as usize].then_some(*f))
-        .collect();
-    super::faces::remove_unreferenced_vertices(&Mesh::new(part.vertices, faces))
 }
 
 /// The crowns of `others` (ranked, after `best`) that are disks and cut
