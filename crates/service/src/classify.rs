@@ -760,7 +760,7 @@ impl Classifier {
         let (mut distances, mut found) = self.compared_rows(name, &surface.prepared, &screened);
         let compare_ms = t.elapsed().as_secs_f64() * 1e3;
         let t = Instant::now();
-        let margin = self.choose_margin(surface, &distances);
+        let margin = self.choose_margin(surface, &distances, &found);
         if margin.as_ref().is_some_and(|m| m.changed()) {
             screened = self.screened(&surface.prepared);
             (distances, found) = self.compared_rows(name, &surface.prepared, &screened);
@@ -1618,6 +1618,81 @@ mod tests {
             .classify_prepared(&mut surface);
         assert!(outcome.cleaning.get("margins").is_none());
         assert_eq!(surface.prepared.faces(), cut.prepared.faces());
+    }
+
+    /// `[cp] recut_among = k`: the other crowns are compared with the k
+    /// references nearest the crown as cut, each common cut with those
+    /// nearest so far and the references that voted on it; with 0, each
+    /// with the screen's choice (every reference, in a library this
+    /// small).
+    #[test]
+    fn recut_among_bounds_the_references_the_other_crowns_and_common_cuts_meet() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (classifier, _) = small_classifier(tmp.path());
+        let n = classifier.references().len();
+        let (_, path) = whole_tooth_file(tmp.path(), "whole.ply", 1, 43);
+        let cut = pipeline::prepare_file(&path, classifier.settings()).unwrap();
+        assert!(cut.cleaning.crown.is_some());
+        // One other crown to weigh: the scan's own, lowered a little.
+        let lowered = morphoid_core::mesh::Mesh::new(
+            cut.cleaned
+                .vertices
+                .iter()
+                .map(|p| [p[0], p[1], 0.8 * p[2]])
+                .collect(),
+            cut.cleaned.faces.clone(),
+        );
+        let mut other = cp::prepare(&lowered, &classifier.settings().cp.prepare).unwrap();
+        other.set_name(cut.prepared.name());
+        let alternative = pipeline::AlternativeCut {
+            cleaned: lowered,
+            prepared: other,
+        };
+        let compared = |among: usize| {
+            let mut settings = classifier.settings().clone();
+            settings.cp.recut.recut_nearest = 3;
+            settings.cp.recut.recut_among = among;
+            let mut surface = cut.clone();
+            surface.alternatives = vec![alternative.clone()];
+            let outcome = classifier
+                .clone()
+                .with_settings(settings)
+                .classify_prepared(&mut surface);
+            let count = |v: &serde_json::Value| v["compared"].as_u64().unwrap() as usize;
+            let crowns = outcome.cleaning["margins"]["crowns"]
+                .as_array()
+                .unwrap()
+                .clone();
+            let rounds = outcome.cleaning["recut"]["consensus"]
+                .as_array()
+                .unwrap()
+                .clone();
+            assert!(!rounds.is_empty());
+            assert_eq!(
+                count(&crowns[0]),
+                n,
+                "the crown as cut meets every reference"
+            );
+            let voters = |r: &serde_json::Value| r["references"].as_array().unwrap().len();
+            (
+                crowns[1..].iter().map(count).collect::<Vec<_>>(),
+                rounds
+                    .iter()
+                    .map(|r| (count(r), voters(r)))
+                    .collect::<Vec<_>>(),
+            )
+        };
+        let (others, rounds) = compared(2);
+        assert_eq!(others, vec![2]);
+        for (c, voters) in rounds {
+            assert!(
+                (2..=2 + voters).contains(&c),
+                "{c} compared, {voters} voters"
+            );
+        }
+        let (others, rounds) = compared(0);
+        assert_eq!(others, vec![n]);
+        assert!(rounds.iter().all(|&(c, _)| c == n), "{rounds:?}");
     }
 
     /// References are held in the cache, not in memory; one whose entry

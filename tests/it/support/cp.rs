@@ -154,7 +154,14 @@ pub(crate) fn heldout_scores_classified(
     let ranks: Vec<String> = ["order", "family", "genus"].map(String::from).to_vec();
     let labels =
         morphoid_data::table::Labels::read(&dir.join("labels.csv"), Some(&ranks)).expect("labels");
-    let settings = morphoid_data::pipeline::Settings::default();
+    let mut settings = morphoid_data::pipeline::Settings::default();
+    // MORPHOID_RECUT_AMONG=N: identified with `[cp] recut_among = N`.
+    if let Some(n) = std::env::var("MORPHOID_RECUT_AMONG")
+        .ok()
+        .and_then(|v| v.parse().ok())
+    {
+        settings.cp.recut.recut_among = n;
+    }
     let outcomes: Vec<morphoid_service::identify::ScanOutcome> = surfaces
         .par_iter_mut()
         .map(|surface| {

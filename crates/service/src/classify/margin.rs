@@ -5,23 +5,26 @@
 //! two-rooted exports a loop round a slanted axis outranks the level one
 //! at the margin. The references know what a crown is: each other crown
 //! the cleaning found ([`PreparedSurface::alternatives`]) is compared with
-//! the references the screen keeps for it, and the crown whose nearest
+//! the references the screen keeps for it (or, with `[cp] recut_among`,
+//! the references nearest the crown as cut), and the crown whose nearest
 //! reference is nearest is the scan's. Only crowns cut from a whole tooth
 //! have alternatives.
 
+use super::recut::nearest_rows;
 use super::Classifier;
 use crate::identify::DistanceRow;
 use morphoid_core::cp;
 use morphoid_data::pipeline::PreparedSurface;
 use rayon::prelude::*;
 
-/// One crown weighed: its faces, and its nearest reference with the
-/// distance.
+/// One crown weighed: its faces, its nearest reference with the
+/// distance, and how many references it was compared with.
 #[derive(Debug, Clone, serde::Serialize)]
 struct WeighedCrown {
     faces: usize,
     nearest: String,
     distance: f64,
+    compared: usize,
 }
 
 /// The crowns weighed (the result's `cleaning.margins`): the cleaning's
@@ -43,13 +46,16 @@ impl MarginChoice {
 impl Classifier {
     /// For a scan whose cleaning found other crowns: each compared with
     /// the references the screen keeps for it (screening on, whatever the
-    /// library's size), beside `rows`, the comparison of the crown as cut.
-    /// The crown with the nearest reference is swapped into `surface`.
-    /// `None` when there was nothing to weigh.
+    /// library's size), or with the `[cp] recut_among` references nearest
+    /// the crown as cut, beside `rows`, the comparison of the crown as cut
+    /// (`found[k]`: the reference index of `rows[k]`). The crown with the
+    /// nearest reference is swapped into `surface`. `None` when there was
+    /// nothing to weigh.
     pub(super) fn choose_margin(
         &self,
         surface: &mut PreparedSurface,
         rows: &[DistanceRow],
+        found: &[(usize, cp::Alignment)],
     ) -> Option<MarginChoice> {
         if surface.alternatives.is_empty() || self.settings.cp.recut.recut_nearest == 0 {
             return None;
@@ -57,10 +63,25 @@ impl Classifier {
         let first = rows
             .iter()
             .min_by(|a, b| a.distance.total_cmp(&b.distance))?;
+        let among = match self.settings.cp.recut.recut_among {
+            0 => None,
+            k => Some(
+                nearest_rows(rows, k)
+                    .into_iter()
+                    .filter_map(|row| found.get(row).map(|f| f.0))
+                    .collect::<Vec<usize>>(),
+            ),
+        };
         let weighed: Vec<Option<WeighedCrown>> = surface
             .alternatives
             .par_iter()
-            .map(|a| self.nearest_screened(&a.prepared))
+            .map(|a| {
+                let candidates = match &among {
+                    Some(among) => among.clone(),
+                    None => self.screened_crown(&a.prepared, &self.signatures),
+                };
+                self.nearest_among(&a.prepared, candidates)
+            })
             .collect();
         // The alternative with the nearest reference, if nearer than the
         // crown as cut.
@@ -76,6 +97,7 @@ impl Classifier {
             faces: surface.prepared.faces().len(),
             nearest: first.reference.clone(),
             distance: first.distance,
+            compared: rows.len(),
         })];
         crowns.extend(weighed);
         if let Some((k, _)) = best {
@@ -90,11 +112,11 @@ impl Classifier {
         Some(MarginChoice { crowns, chosen })
     }
 
-    /// The nearest reference to `crown` among those the screen keeps for
-    /// it; `None` when none could be compared.
-    fn nearest_screened(&self, crown: &cp::Prepared) -> Option<WeighedCrown> {
-        let (distance, i) = self
-            .screened_crown(crown, &self.signatures)
+    /// The nearest reference to `crown` among the references `among`;
+    /// `None` when none could be compared.
+    fn nearest_among(&self, crown: &cp::Prepared, among: Vec<usize>) -> Option<WeighedCrown> {
+        let compared = among.len();
+        let (distance, i) = among
             .into_par_iter()
             .filter_map(|i| {
                 let reference = self.references[i].prepared().ok()?;
@@ -111,6 +133,7 @@ impl Classifier {
             faces: crown.faces().len(),
             nearest: self.references[i].name().to_string(),
             distance,
+            compared,
         })
     }
 }

@@ -12,7 +12,8 @@
 //! - **the line they agree on**: the scan keeps the faces that lie above
 //!   the crop lines of at least half of those references, and that crown is
 //!   compared with the references the screen keeps for it (its signature
-//!   is the crown's, no longer the neck's); its nearest references then
+//!   is the crown's, no longer the neck's), or with the `[cp] recut_among`
+//!   references nearest the scan so far; its nearest references then
 //!   vote on the next such cut ([`CONSENSUS_ROUNDS`]). A reference of
 //!   the scan's genus that was not among the first nearest gets a crown cut
 //!   as its own kind is cut.
@@ -51,11 +52,13 @@ struct Recut {
 
 /// One cut along the line the nearest references agree on: who voted, the
 /// faces it kept of the prepared crown it cut (of the scan's first, then
-/// of the round before's), and the nearest reference after it.
+/// of the round before's), how many references it was compared with, and
+/// the nearest reference after it.
 #[derive(Debug, Clone, serde::Serialize)]
 struct ConsensusCut {
     references: Vec<String>,
     faces: usize,
+    compared: usize,
     nearest: String,
     distance: f64,
 }
@@ -84,6 +87,14 @@ impl RecutReport {
     pub(super) fn is_empty(&self) -> bool {
         self.references.is_empty() && self.consensus.is_empty()
     }
+}
+
+/// The indices of the `k` nearest of `rows` (smallest distance, ties by
+/// name).
+pub(super) fn nearest_rows(rows: &[DistanceRow], k: usize) -> Vec<usize> {
+    let distances: Vec<Option<f64>> = rows.iter().map(|r| Some(r.distance)).collect();
+    let names: Vec<&str> = rows.iter().map(|r| r.reference.as_str()).collect();
+    nearest_k(&distances, &names, k)
 }
 
 /// The indices of the `k` smallest of `distances` (`None`: not compared),
@@ -154,7 +165,12 @@ impl Classifier {
             if voters.is_empty() {
                 break;
             }
-            let Some(round) = self.cut_along_common_line(name, &base, found, &voters, &names)
+            let among = match self.settings.cp.recut.recut_among {
+                0 => None,
+                k => Some(nearest_rows(rows, k)),
+            };
+            let Some(round) =
+                self.cut_along_common_line(name, &base, found, &voters, among, &names)
             else {
                 break;
             };
@@ -174,6 +190,7 @@ impl Classifier {
             report.consensus.push(ConsensusCut {
                 references: voters.iter().map(|v| names[v.0].to_string()).collect(),
                 faces: round.kept,
+                compared: round.compared.len(),
                 nearest: names[nearest].to_string(),
                 distance: distances[nearest].unwrap_or(f64::NAN),
             });
@@ -200,14 +217,16 @@ impl Classifier {
     }
 
     /// `base` cut where at least half of the `voters`' crop lines agree,
-    /// prepared, and compared with the rows [`Classifier::screened_rows`]
-    /// keeps for it; `None` when the cut cannot be prepared.
+    /// prepared, and compared with the rows `among` (`None`: those
+    /// [`Classifier::screened_rows`] keeps for it) and the voters' rows;
+    /// `None` when the cut cannot be prepared.
     fn cut_along_common_line(
         &self,
         name: &str,
         base: &cp::Prepared,
         found: &[(usize, cp::Alignment)],
         voters: &[(usize, cp::Alignment, cp::RimProfile)],
+        among: Option<Vec<usize>>,
         names: &[&str],
     ) -> Option<CommonLineCut> {
         let lines: Vec<(cp::Alignment, cp::RimProfile)> =
@@ -215,8 +234,16 @@ impl Classifier {
         let cut = cp::cut_along_rims(base, &lines);
         let kept = cut.faces.len();
         let part = pipeline::prepare_mesh(&cut, name, &self.settings).ok()?;
-        let compared = self
-            .screened_rows(&part.prepared, found, voters)
+        let rows = match among {
+            Some(mut rows) => {
+                rows.extend(voters.iter().map(|v| v.0));
+                rows.sort_unstable();
+                rows.dedup();
+                rows
+            }
+            None => self.screened_rows(&part.prepared, found, voters),
+        };
+        let compared = rows
             .into_par_iter()
             .filter_map(|row| {
                 let reference = match self.references[found[row].0].prepared() {
