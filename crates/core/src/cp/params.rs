@@ -587,7 +587,7 @@ mod tests {
         .collect();
         want.sort();
         assert_eq!(flat_keys(&json), want);
-        assert_eq!(want.len(), 27);
+        assert_eq!(want.len(), 28);
         assert!(json.as_object().unwrap().values().all(|v| !v.is_object()));
     }
 
