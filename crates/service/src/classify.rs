@@ -1538,6 +1538,18 @@ mod tests {
         }
     }
 
+    /// `mesh` with its heights (z) scaled by `factor`: another crown of
+    /// the same scan, cut differently.
+    fn squashed(mesh: &morphoid_core::mesh::Mesh, factor: f64) -> morphoid_core::mesh::Mesh {
+        morphoid_core::mesh::Mesh::new(
+            mesh.vertices
+                .iter()
+                .map(|p| [p[0], p[1], factor * p[2]])
+                .collect(),
+            mesh.faces.clone(),
+        )
+    }
+
     /// Of the crowns the cleaning found on a whole tooth, the one whose
     /// nearest reference is nearest is taken, and the answer is that
     /// crown's: here an alternative that is a reference's own crown (at
@@ -1562,14 +1574,7 @@ mod tests {
         };
         let near = own(&reference.prepared().unwrap(), &cut.cleaned);
         // A far crown: the scan's own, flattened to a tenth of its height.
-        let flat = morphoid_core::mesh::Mesh::new(
-            cut.cleaned
-                .vertices
-                .iter()
-                .map(|p| [p[0], p[1], 0.1 * p[2]])
-                .collect(),
-            cut.cleaned.faces.clone(),
-        );
+        let flat = squashed(&cut.cleaned, 0.1);
         let far = own(&cp::prepare(&flat, &settings.cp.prepare).unwrap(), &flat);
 
         let mut surface = cut.clone();
@@ -1634,14 +1639,7 @@ mod tests {
         let cut = pipeline::prepare_file(&path, classifier.settings()).unwrap();
         assert!(cut.cleaning.crown.is_some());
         // One other crown to weigh: the scan's own, lowered a little.
-        let lowered = morphoid_core::mesh::Mesh::new(
-            cut.cleaned
-                .vertices
-                .iter()
-                .map(|p| [p[0], p[1], 0.8 * p[2]])
-                .collect(),
-            cut.cleaned.faces.clone(),
-        );
+        let lowered = squashed(&cut.cleaned, 0.8);
         let mut other = cp::prepare(&lowered, &classifier.settings().cp.prepare).unwrap();
         other.set_name(cut.prepared.name());
         let alternative = pipeline::AlternativeCut {

@@ -75,12 +75,12 @@ impl Classifier {
         let weighed: Vec<Option<WeighedCrown>> = surface
             .alternatives
             .par_iter()
-            .map(|a| {
-                let candidates = match &among {
-                    Some(among) => among.clone(),
-                    None => self.screened_crown(&a.prepared, &self.signatures),
-                };
-                self.nearest_among(&a.prepared, candidates)
+            .map(|a| match &among {
+                Some(among) => self.nearest_among(&a.prepared, among),
+                None => self.nearest_among(
+                    &a.prepared,
+                    &self.screened_crown(&a.prepared, &self.signatures),
+                ),
             })
             .collect();
         // The alternative with the nearest reference, if nearer than the
@@ -114,10 +114,10 @@ impl Classifier {
 
     /// The nearest reference to `crown` among the references `among`;
     /// `None` when none could be compared.
-    fn nearest_among(&self, crown: &cp::Prepared, among: Vec<usize>) -> Option<WeighedCrown> {
-        let compared = among.len();
+    fn nearest_among(&self, crown: &cp::Prepared, among: &[usize]) -> Option<WeighedCrown> {
         let (distance, i) = among
-            .into_par_iter()
+            .par_iter()
+            .copied()
             .filter_map(|i| {
                 let reference = self.references[i].prepared().ok()?;
                 Some((
@@ -133,7 +133,7 @@ impl Classifier {
             faces: crown.faces().len(),
             nearest: self.references[i].name().to_string(),
             distance,
-            compared,
+            compared: among.len(),
         })
     }
 }

@@ -134,9 +134,8 @@ impl Classifier {
         let _s = tracing::info_span!("recut", scan = %name, references = k).entered();
         let names: Vec<String> = rows.iter().map(|r| r.reference.clone()).collect();
         let names: Vec<&str> = names.iter().map(String::as_str).collect();
-        let first: Vec<Option<f64>> = rows.iter().map(|r| Some(r.distance)).collect();
         let refined: Vec<(usize, cp::Comparison, cp::Alignment, cp::RimProfile)> =
-            nearest_k(&first, &names, k)
+            nearest_rows(rows, k)
                 .par_iter()
                 .filter_map(|&row| {
                     let (i, alignment) = found[row];
@@ -234,15 +233,10 @@ impl Classifier {
         let cut = cp::cut_along_rims(base, &lines);
         let kept = cut.faces.len();
         let part = pipeline::prepare_mesh(&cut, name, &self.settings).ok()?;
-        let rows = match among {
-            Some(mut rows) => {
-                rows.extend(voters.iter().map(|v| v.0));
-                rows.sort_unstable();
-                rows.dedup();
-                rows
-            }
-            None => self.screened_rows(&part.prepared, found, voters),
-        };
+        let mut rows = among.unwrap_or_else(|| self.screened_rows(&part.prepared, found));
+        rows.extend(voters.iter().map(|v| v.0));
+        rows.sort_unstable();
+        rows.dedup();
         let compared = rows
             .into_par_iter()
             .filter_map(|row| {
@@ -265,23 +259,13 @@ impl Classifier {
         })
     }
 
-    /// The rows of `found` a crown cut again is compared with: those the
-    /// screen keeps for it (screening on, whatever the library's size:
-    /// the crown's own signature, now that its neck is gone, and the
-    /// screen's settings) and the rows that voted on its cut.
-    fn screened_rows(
-        &self,
-        crown: &cp::Prepared,
-        found: &[(usize, cp::Alignment)],
-        voters: &[(usize, cp::Alignment, cp::RimProfile)],
-    ) -> Vec<usize> {
+    /// The rows of `found` the screen keeps for a crown cut again
+    /// (screening on, whatever the library's size: the crown's own
+    /// signature, now that its neck is gone, and the screen's settings).
+    fn screened_rows(&self, crown: &cp::Prepared, found: &[(usize, cp::Alignment)]) -> Vec<usize> {
         let signatures: Vec<&cp::Signature> =
             found.iter().map(|&(i, _)| &self.signatures[i]).collect();
-        let mut rows = self.screened_crown(crown, &signatures);
-        rows.extend(voters.iter().map(|v| v.0));
-        rows.sort_unstable();
-        rows.dedup();
-        rows
+        self.screened_crown(crown, &signatures)
     }
 
     /// The scan cut along the crop line of reference `i`, starting from
