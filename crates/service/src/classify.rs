@@ -582,12 +582,14 @@ impl Classifier {
         });
         let load_ms = loaded.load_ms;
         tracing::info!(
-            "{}: {} specimens, identified one by one",
+            "{}: {} specimens, each identified on its own",
             path.display(),
             loaded.specimens.len()
         );
+        // Side by side: one specimen's serial steps (cutting, preparing a
+        // crown again) leave a core to another's comparisons.
         let specimens = pipeline::prepare_specimens(loaded, path, &self.settings)
-            .into_iter()
+            .into_par_iter()
             .enumerate()
             .map(|(i, (position, prepared))| {
                 let result = prepared
