@@ -236,7 +236,7 @@ mod tests {
                 state = state
                     .wrapping_mul(6364136223846793005)
                     .wrapping_add(1442695040888963407);
-                (state >> 33) % 3 != 0
+                !(state >> 33).is_multiple_of(3)
             })
             .collect();
         let at = |p: [usize; 3]| mask[p[0] + dims[0] * (p[1] + dims[1] * p[2])];
