@@ -27,6 +27,8 @@ fn the_systemd_unit_verifies_cleanly() {
         // The console on loopback, nothing else on the network.
         "IPAddressDeny=any",
         "IPAddressAllow=localhost",
+        // The light console's threads back at the daemon's priority.
+        "LimitNICE=+0",
     ] {
         assert!(unit.contains(key), "{key} missing");
     }

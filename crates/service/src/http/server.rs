@@ -161,12 +161,14 @@ impl Server {
         let local = listener
             .local_addr()
             .map_err(|source| HttpError::Bind { addr, source })?;
-        let niceness = crate::priority::console_niceness();
+        let priority = crate::priority::ConsolePriority::start();
+        let leaving = priority.clone();
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(WORKER_THREADS)
             .max_blocking_threads(BLOCKING_THREADS)
             .thread_name("morphoid-http")
-            .on_thread_start(move || crate::priority::set_thread_niceness(niceness, "console"))
+            .on_thread_start(move || priority.enter())
+            .on_thread_stop(move || leaving.leave())
             .enable_all()
             .build()
             .map_err(|source| HttpError::Start {
