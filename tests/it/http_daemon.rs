@@ -3,6 +3,7 @@
 //! identified) and stops with it.
 
 use crate::support::daemon::{env, genus, put, scan_bytes, thread_niceness, wait_until, Daemon};
+use crate::support::faults::running_as_root;
 use std::time::Duration;
 
 #[test]
@@ -215,16 +216,4 @@ fn http_the_console_follows_the_running_daemon() {
         client.get(format!("{base}/healthz")).send().is_err(),
         "still served after the stop"
     );
-}
-
-/// Whether this process runs as root (then the daemon it starts may give
-/// its threads back a higher priority).
-fn running_as_root() -> bool {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|status| {
-            let uid = status.lines().find(|l| l.starts_with("Uid:"))?;
-            uid.split_whitespace().nth(1).map(|u| u == "0")
-        })
-        .unwrap_or(false)
 }

@@ -69,9 +69,14 @@ fn niceness_below(steps: i32) -> i32 {
 /// refusal leaves it at the daemon's priority, which is only slower for
 /// identification under load; `what` names the thread in the debug line.
 pub(crate) fn set_thread_niceness(niceness: i32, what: &str) {
-    let thread = rustix::thread::gettid();
-    if let Err(e) = rustix::process::setpriority_process(Some(thread), niceness) {
-        tracing::debug!("{what} thread stays at the daemon's priority: {e}");
+    set_niceness_of(rustix::thread::gettid(), niceness, what);
+}
+
+/// Give thread `tid` of this process the nice value `niceness`; a refusal
+/// is logged (debug) and leaves it where it was.
+fn set_niceness_of(tid: rustix::process::Pid, niceness: i32, what: &str) {
+    if let Err(e) = rustix::process::setpriority_process(Some(tid), niceness) {
+        tracing::debug!("{what} thread keeps its priority: {e}");
     }
 }
 
@@ -101,9 +106,8 @@ fn thread_times_ns(tid: rustix::process::Pid) -> Option<[u64; 2]> {
 /// Whether a thread of this process may be given back a lower nice value
 /// than it was given (root, `CAP_SYS_NICE`, or an `RLIMIT_NICE` that
 /// allows the daemon's own; systemd's `LimitNICE=`). Tried on a thread of
-/// its own, which ends.
-fn niceness_can_return() -> bool {
-    let base = rustix::process::getpriority_process(None).unwrap_or(0);
+/// its own, which ends; `base` is the daemon's nice value.
+fn niceness_can_return(base: i32) -> bool {
     if base >= 19 {
         return false;
     }
@@ -163,7 +167,8 @@ impl ConsolePriority {
     /// thread back its priority and read its times.
     pub(crate) fn start() -> Self {
         let base = rustix::process::getpriority_process(None).unwrap_or(0);
-        let adaptive = niceness_can_return() && thread_times_ns(rustix::thread::gettid()).is_some();
+        let adaptive =
+            niceness_can_return(base) && thread_times_ns(rustix::thread::gettid()).is_some();
         let inner = std::sync::Arc::new(ConsoleThreads {
             threads: std::sync::Mutex::new(Vec::new()),
             busy: std::sync::atomic::AtomicBool::new(!adaptive),
@@ -241,9 +246,7 @@ fn govern(weak: &std::sync::Weak<ConsoleThreads>) {
                 .store(now_busy, std::sync::atomic::Ordering::Relaxed);
             let niceness = inner.niceness();
             for (tid, _) in threads.iter() {
-                if let Err(e) = rustix::process::setpriority_process(Some(*tid), niceness) {
-                    tracing::debug!("a console thread keeps its priority: {e}");
-                }
+                set_niceness_of(*tid, niceness, "console");
             }
             tracing::debug!(
                 ran,

@@ -16,7 +16,7 @@ use std::process::Command;
 /// and gives false, and the test returns early.
 #[track_caller]
 pub(crate) fn have_root(test: &str) -> bool {
-    if libc_geteuid() == 0 {
+    if running_as_root() {
         return true;
     }
     super::missing(
@@ -28,9 +28,10 @@ pub(crate) fn have_root(test: &str) -> bool {
     false
 }
 
-fn libc_geteuid() -> u32 {
+/// Whether the tests run as root (effective user id 0).
+pub(crate) fn running_as_root() -> bool {
     // SAFETY: geteuid cannot fail and touches no memory.
-    unsafe { libc::geteuid() }
+    unsafe { libc::geteuid() == 0 }
 }
 
 fn run(cmd: &str, args: &[&str]) {
