@@ -42,12 +42,18 @@ impl BlockAverage {
     /// Add the next slice (`in_dims[0] * in_dims[1]` values, x fastest).
     pub fn push(&mut self, slice: &[f32]) {
         let [w, h, _] = self.in_dims;
-        let ow = self.grid.dims[0];
-        for y in 0..h {
-            let row = &slice[y * w..(y + 1) * w];
-            let orow = (y / self.factor) * ow;
-            for (x, &v) in row.iter().enumerate() {
-                self.plane[orow + x / self.factor] += f64::from(v);
+        let (f, ow) = (self.factor, self.grid.dims[0]);
+        // Each row's values are added block by block, in x order (the
+        // sums of a division per value, without the division).
+        for (y, row) in slice.chunks_exact(w.max(1)).take(h).enumerate() {
+            let orow = (y / f) * ow;
+            let Some(out) = self.plane.get_mut(orow..orow + ow) else {
+                break;
+            };
+            for (cell, block) in out.iter_mut().zip(row.chunks(f)) {
+                for &v in block {
+                    *cell += f64::from(v);
+                }
             }
         }
         self.next_slice += 1;

@@ -224,22 +224,39 @@ fn reduce_source(
     // A batch's specimens are each made again from a finer grid.
     let fine = morphoid_core::volume::detail_factor(info.dims);
     let mut detail = (fine < factor).then(|| BlockAverage::new(info.dims, info.voxel_size, fine));
-    let mut slice = Vec::new();
-    for _ in 0..info.dims[2] {
-        source.next_slice(&mut slice)?;
-        if slice.len() != info.dims[0] * info.dims[1] {
-            return Err(VolumeError::Invalid {
+    let expected = info.dims[0] * info.dims[1];
+    let check = |slice: &[f32]| {
+        if slice.len() == expected {
+            Ok(())
+        } else {
+            Err(VolumeError::Invalid {
                 path: path.to_path_buf(),
-                problem: format!(
-                    "a slice has {} samples, {} expected",
-                    slice.len(),
-                    info.dims[0] * info.dims[1]
-                ),
-            });
+                problem: format!("a slice has {} samples, {expected} expected", slice.len()),
+            })
         }
-        reducer.push(&slice);
-        if let Some(d) = &mut detail {
-            d.push(&slice);
+    };
+    let (mut slice, mut next) = (Vec::new(), Vec::new());
+    source.next_slice(&mut slice)?;
+    check(&slice)?;
+    for k in 1..=info.dims[2] {
+        // The next slice is read (decoded, hashed) while this one is
+        // added into the grids: the two take about as long.
+        let (read, ()) = rayon::join(
+            || match k < info.dims[2] {
+                true => source.next_slice(&mut next),
+                false => Ok(()),
+            },
+            || {
+                reducer.push(&slice);
+                if let Some(d) = &mut detail {
+                    d.push(&slice);
+                }
+            },
+        );
+        read?;
+        if k < info.dims[2] {
+            check(&next)?;
+            std::mem::swap(&mut slice, &mut next);
         }
     }
     let content = source.content()?;

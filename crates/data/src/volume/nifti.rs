@@ -22,13 +22,13 @@ pub(crate) fn open(path: &Path, hash: Option<SharedHash>) -> Result<RawSlices, V
 /// Read a NIfTI-1 header from `file` (the file `path`: gzipped when its
 /// name ends in `.gz`; it names errors) and position at the first slice;
 /// `hash` is what the bytes are hashed into below `file` (if anything).
-pub(crate) fn from_reader<R: BufRead + 'static>(
+pub(crate) fn from_reader<R: BufRead + Send + 'static>(
     path: &Path,
     file: R,
     hash: Option<SharedHash>,
 ) -> Result<RawSlices, VolumeError> {
     let gz = path.to_string_lossy().to_ascii_lowercase().ends_with(".gz");
-    let mut reader: Box<dyn Read> = if gz {
+    let mut reader: Box<dyn Read + Send> = if gz {
         Box::new(flate2::bufread::MultiGzDecoder::new(file))
     } else {
         Box::new(file)

@@ -39,7 +39,7 @@ pub(crate) fn open(path: &Path, hash: Option<SharedHash>) -> Result<RawSlices, V
 /// Read an NRRD header from `reader` (the file `path`, which names
 /// errors) and position at the first slice; `hash` is what the bytes are
 /// hashed into below `reader` (if anything).
-pub(crate) fn from_reader<R: BufRead + 'static>(
+pub(crate) fn from_reader<R: BufRead + Send + 'static>(
     path: &Path,
     mut reader: R,
     hash: Option<SharedHash>,
@@ -235,11 +235,11 @@ fn direction_lengths(value: &str) -> Vec<f64> {
 
 /// The samples that follow the header in `reader`, decoded as `encoding`
 /// says (raw or gzip).
-fn decoded<R: BufRead + 'static>(
+fn decoded<R: BufRead + Send + 'static>(
     path: &Path,
     reader: R,
     encoding: &str,
-) -> Result<Box<dyn Read>, VolumeError> {
+) -> Result<Box<dyn Read + Send>, VolumeError> {
     Ok(match encoding {
         "raw" => Box::new(reader),
         "gzip" | "gz" => Box::new(flate2::bufread::MultiGzDecoder::new(reader)),

@@ -85,8 +85,9 @@ pub(crate) fn plausible_voxel_size(v: f64) -> bool {
     v.is_finite() && (1e-9..=1e9).contains(&v)
 }
 
-/// A reader that yields the slices of a volume in order.
-pub(crate) trait SliceSource {
+/// A reader that yields the slices of a volume in order (on any thread:
+/// the next slice is read while the last is reduced).
+pub(crate) trait SliceSource: Send {
     /// Size and sampling.
     fn info(&self) -> &VolumeInfo;
     /// Read the next slice (`dims[0] * dims[1]` values, x fastest) into `out`.
@@ -153,7 +154,7 @@ pub(crate) struct RawSlices {
     path: PathBuf,
     kind: SampleType,
     little: bool,
-    reader: Box<dyn Read>,
+    reader: Box<dyn Read + Send>,
     bytes: Vec<u8>,
     /// The hash of the file's bytes as they are read, when asked for.
     hash: Option<SharedHash>,
@@ -170,7 +171,7 @@ impl RawSlices {
         path: &Path,
         kind: SampleType,
         little: bool,
-        reader: Box<dyn Read>,
+        reader: Box<dyn Read + Send>,
         hash: Option<SharedHash>,
     ) -> Result<Self, VolumeError> {
         check_volume_size(path, info.dims)?;
