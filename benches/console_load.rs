@@ -368,12 +368,12 @@ fn main() -> Result<()> {
         print_latencies(&rows, load.think);
         let requests = load.samples.len().max(1) as f64;
         println!(
-            "CPU meanwhile: console {:.1} s ({:.2} ms a request), identification and the rest of the daemon {:.1} s, load client {:.1} s ({:.2} ms a request)",
+            "CPU meanwhile: console {:.1} s ({:.0} µs a request), identification and the rest of the daemon {:.1} s, load client {:.1} s ({:.0} µs a request)",
             load.cpu.console,
-            load.cpu.console * 1000.0 / requests,
+            load.cpu.console * 1e6 / requests,
             load.cpu.daemon_rest,
             load.cpu.client,
-            load.cpu.client * 1000.0 / requests
+            load.cpu.client * 1e6 / requests
         );
         let ratio = load.identified.per_minute() / unloaded;
         println!(
