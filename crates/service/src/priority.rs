@@ -60,7 +60,14 @@ pub(crate) fn background_niceness() -> i32 {
 
 /// The nice value `steps` below the calling process's, at most 19.
 fn niceness_below(steps: i32) -> i32 {
-    let base = rustix::process::getpriority_process(None).unwrap_or(0);
+    steps_below(
+        rustix::process::getpriority_process(None).unwrap_or(0),
+        steps,
+    )
+}
+
+/// The nice value `steps` below `base`, at most 19.
+fn steps_below(base: i32, steps: i32) -> i32 {
     (base + steps).min(19)
 }
 
@@ -173,7 +180,7 @@ impl ConsolePriority {
             threads: std::sync::Mutex::new(Vec::new()),
             busy: std::sync::atomic::AtomicBool::new(!adaptive),
             base,
-            low: niceness_below(CONSOLE_NICENESS),
+            low: steps_below(base, CONSOLE_NICENESS),
         });
         if adaptive {
             let weak = std::sync::Arc::downgrade(&inner);

@@ -238,13 +238,17 @@ fn reduce_source(
     let (mut slice, mut next) = (Vec::new(), Vec::new());
     source.next_slice(&mut slice)?;
     check(&slice)?;
-    for k in 1..=info.dims[2] {
+    for k in 0..info.dims[2] {
+        let more = k + 1 < info.dims[2];
         // The next slice is read (decoded, hashed) while this one is
         // added into the grids: the two take about as long.
         let (read, ()) = rayon::join(
-            || match k < info.dims[2] {
-                true => source.next_slice(&mut next),
-                false => Ok(()),
+            || {
+                if more {
+                    source.next_slice(&mut next)
+                } else {
+                    Ok(())
+                }
             },
             || {
                 reducer.push(&slice);
@@ -254,7 +258,7 @@ fn reduce_source(
             },
         );
         read?;
-        if k < info.dims[2] {
+        if more {
             check(&next)?;
             std::mem::swap(&mut slice, &mut next);
         }
