@@ -54,7 +54,7 @@ pub(super) fn procrustes_descent(
         }) else {
             break;
         };
-        match evaluate_images(s, t, &corrected, h, &weights) {
+        match evaluate_images(s, t, &corrected, h, &weights, Some(&d.correspondence)) {
             Some((f, corr)) if f.residual < fit.residual => {
                 fit = f;
                 d.correspondence = corr;

@@ -108,24 +108,31 @@ pub(super) fn evaluate_map(
     weights: &[f64],
 ) -> Option<(RigidFit, Correspondence)> {
     let images: Vec<[f64; 2]> = s.uv.iter().map(|&z| map(z)).collect();
-    evaluate_images(s, t, &images, handedness, weights)
+    evaluate_images(s, t, &images, handedness, weights, None)
 }
 
 /// Evaluate given images (points of `t`'s disk, one per vertex of `s`) as
-/// in [`evaluate_map`].
+/// in [`evaluate_map`]. `near`, when given, is a correspondence whose
+/// images lie near these (the map these were moved from): each vertex's
+/// image is searched from its triangle there.
 pub(super) fn evaluate_images(
     s: &Prepared,
     t: &Prepared,
     images: &[[f64; 2]],
     handedness: Handedness,
     weights: &[f64],
+    near: Option<&Correspondence>,
 ) -> Option<(RigidFit, Correspondence)> {
     let mut mom = Moments::default();
     let mut corr: Correspondence = vec![(NO_TRIANGLE, [0.0; 3]); s.vertices.len()];
-    // Each vertex's image is searched from its sweep parent's triangle, one
-    // edge away.
+    // Each vertex's image is searched from its triangle under the map these
+    // images were moved from (a small move: a step or none), else from its
+    // sweep parent's triangle, one edge away (three steps on average).
     for &[v, parent] in &s.sweep {
-        let hint = corr.get(parent as usize).map_or(NO_TRIANGLE, |c| c.0);
+        let hint = match near.and_then(|n| n.get(v as usize)) {
+            Some(&(f, _)) if f != NO_TRIANGLE => f,
+            _ => corr.get(parent as usize).map_or(NO_TRIANGLE, |c| c.0),
+        };
         let (Some(&w), Some(&x), Some(&a)) = (
             images.get(v as usize),
             s.vertices.get(v as usize),
@@ -237,6 +244,8 @@ mod tests {
     fn images_for_fewer_vertices_are_refused() {
         let s = crown(0, 1);
         let short = &s.uv[..s.uv.len() - 1];
-        assert!(evaluate_images(&s, &s, short, Handedness::Proper, &s.vertex_areas).is_none());
+        assert!(
+            evaluate_images(&s, &s, short, Handedness::Proper, &s.vertex_areas, None).is_none()
+        );
     }
 }
