@@ -191,7 +191,8 @@ impl NearestHints {
         }
     }
 
-    /// A copy of the triangles of the evaluated point nearest `x`.
+    /// A copy of the triangles of the evaluated point nearest `x` (there
+    /// is always one: [`NearestHints::new`] takes the first).
     fn nearest(&self, x: [f64; 3]) -> Vec<u32> {
         let d2 = |y: &[f64; 3]| (0..3).map(|k| (x[k] - y[k]).powi(2)).sum::<f64>();
         self.recent
