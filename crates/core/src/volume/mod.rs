@@ -31,6 +31,7 @@ pub(crate) use threshold::enamel_threshold;
 pub use threshold::Thresholds;
 
 use crate::mesh::{isosurface, surface_area, Grid, Mesh};
+use rayon::prelude::*;
 use refine::refined_surface;
 use std::time::Instant;
 
@@ -117,45 +118,32 @@ pub fn grid_surface(
         foreground: fg,
         enamel: enamel_threshold(&interior),
     };
-    let fg = fg as f32;
     let mut report = GridSurfaceReport {
         segment_ms: ms(t),
         ..Default::default()
     };
-    let mut out = Vec::with_capacity(masks.len());
-    for (mask, bbox) in masks.iter().zip(boxes) {
-        let t = Instant::now();
-        // A batch's specimens each at its own resolution, from the finer
-        // grid when there is one.
-        let refined = detail
-            .filter(|_| masks.len() > 1)
-            .and_then(|d| refined_surface(d, grid, mask, f64::from(fg), opts.working_voxels));
-        let closed = refined.unwrap_or_else(|| masked_isosurface(grid, mask, fg));
-        report.isosurface_ms += ms(t);
-        let t = Instant::now();
-        report.isosurface_faces += closed.faces.len();
-        report.isosurface_area += surface_area(&closed);
-        let mesh = match th.enamel.filter(|_| opts.enamel) {
-            Some(level) => {
-                let step = grid.spacing.iter().copied().fold(f64::MAX, f64::min);
-                let normals = crate::mesh::vertex_normals(&closed.vertices, &closed.faces);
-                let depths = [1.0, 1.5, 2.0, 2.5, 3.0].map(|d| d * step);
-                let values = enamel::density_below_surface(&closed, &normals, grid, &depths, level);
-                let values = enamel::smooth_vertex_values(&closed, &values);
-                let (crown, parts) = largest_part(&cut_at_zero_level(&closed, &values));
-                if crown.faces.is_empty() {
-                    closed
-                } else {
-                    report.enamel_found = true;
-                    report.crown_area += surface_area(&crown);
-                    report.enamel_regions += parts;
-                    crown
-                }
-            }
-            None => closed,
-        };
-        report.crown_ms += ms(t);
-        out.push((mesh, bbox));
+    // Each specimen's surface on its own (a batch's side by side), in
+    // order; the report adds them up in that order.
+    let several = masks.len() > 1;
+    let made: Vec<SpecimenSurface> = masks
+        .par_iter()
+        .zip(boxes)
+        .map(|(mask, bbox)| {
+            specimen_surface(grid, detail.filter(|_| several), mask, bbox, &th, opts)
+        })
+        .collect();
+    let mut out = Vec::with_capacity(made.len());
+    for m in made {
+        report.isosurface_ms += m.isosurface_ms;
+        report.isosurface_faces += m.isosurface_faces;
+        report.isosurface_area += m.isosurface_area;
+        if let Some((area, parts)) = m.enamel {
+            report.enamel_found = true;
+            report.crown_area += area;
+            report.enamel_regions += parts;
+        }
+        report.crown_ms += m.crown_ms;
+        out.push((m.mesh, m.bbox));
     }
     Ok(GridSurfaces {
         specimens: out,
@@ -163,6 +151,67 @@ pub fn grid_surface(
         segmentation: seg,
         report,
     })
+}
+
+/// One specimen's surface and what making it took, for
+/// [`GridSurfaceReport`].
+struct SpecimenSurface {
+    mesh: Mesh,
+    bbox: [[usize; 3]; 2],
+    isosurface_ms: f64,
+    isosurface_faces: usize,
+    isosurface_area: f64,
+    /// The crown's area and regions, when it was cut over enamel.
+    enamel: Option<(f64, usize)>,
+    crown_ms: f64,
+}
+
+/// The surface of the specimen `mask` (its box `bbox`) on `grid`: from
+/// `detail` when given (a batch's specimens, each at its own resolution),
+/// else the working grid's isosurface; cut over enamel when `opts` ask.
+fn specimen_surface(
+    grid: &Grid,
+    detail: Option<&Grid>,
+    mask: &[bool],
+    bbox: [[usize; 3]; 2],
+    th: &Thresholds,
+    opts: &VolumeOptions,
+) -> SpecimenSurface {
+    let t = Instant::now();
+    let fg = th.foreground as f32;
+    let refined =
+        detail.and_then(|d| refined_surface(d, grid, mask, f64::from(fg), opts.working_voxels));
+    let closed = refined.unwrap_or_else(|| masked_isosurface(grid, mask, fg));
+    let isosurface_ms = ms(t);
+    let t = Instant::now();
+    let (isosurface_faces, isosurface_area) = (closed.faces.len(), surface_area(&closed));
+    let mut enamel = None;
+    let mesh = match th.enamel.filter(|_| opts.enamel) {
+        Some(level) => {
+            let step = grid.spacing.iter().copied().fold(f64::MAX, f64::min);
+            let normals = crate::mesh::vertex_normals(&closed.vertices, &closed.faces);
+            let depths = [1.0, 1.5, 2.0, 2.5, 3.0].map(|d| d * step);
+            let values = enamel::density_below_surface(&closed, &normals, grid, &depths, level);
+            let values = enamel::smooth_vertex_values(&closed, &values);
+            let (crown, parts) = largest_part(&cut_at_zero_level(&closed, &values));
+            if crown.faces.is_empty() {
+                closed
+            } else {
+                enamel = Some((surface_area(&crown), parts));
+                crown
+            }
+        }
+        None => closed,
+    };
+    SpecimenSurface {
+        mesh,
+        bbox,
+        isosurface_ms,
+        isosurface_faces,
+        isosurface_area,
+        enamel,
+        crown_ms: ms(t),
+    }
 }
 
 /// The closed surface of the samples of `mask` on `grid`: the grey values

@@ -26,6 +26,7 @@ use super::shape::{
 };
 use super::split::{separate_at_necks, Separation};
 use super::threshold::{foreground_threshold, multi_otsu, Histogram};
+use rayon::prelude::*;
 
 /// Half-side (working samples) of the cube opening that separates thin
 /// parts: what is thinner than `2 * THIN_RADIUS + 1` samples everywhere is
@@ -975,10 +976,14 @@ fn fill_specimen_cavities(
     dims: [usize; 3],
     report: &mut SegmentReport,
 ) -> Vec<Vec<bool>> {
-    specimens
+    // Each specimen's cavities on their own (a batch's side by side).
+    let filled: Vec<(Vec<bool>, usize, usize)> = specimens
+        .into_par_iter()
+        .map(|s| fill_cavities(s, dims))
+        .collect();
+    filled
         .into_iter()
-        .map(|s| {
-            let (mask, cavities, filled) = fill_cavities(s, dims);
+        .map(|(mask, cavities, filled)| {
             report.filled_cavities += cavities;
             report.filled_voxels += filled;
             mask
