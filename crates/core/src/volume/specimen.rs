@@ -661,24 +661,34 @@ fn classify_objects(
     let mut candidates: Vec<u32> = vec![spec_label];
     let mut mount: Vec<Option<String>> = vec![None; view.stats.len()];
     let own = material_of(values, dims, &select(&view.labels, spec_label));
-    for (l, s) in view.stats.iter().enumerate() {
-        if l as u32 == spec_label || s.voxels < MIN_SPECIMEN_VOXELS {
-            continue;
-        }
-        let region = select(&view.labels, l as u32);
-        // Another specimen is of the same dense material; a lump of
-        // mounting material that reaches this level is much lighter.
-        mount[l] = mount_like(values, dims, &region, view, l as u32, background).or_else(|| {
-            let m = material_of(values, dims, &region)?;
-            too_light(&m, own.as_ref()?, background).map(|r| {
-                format!(
-                    "lighter than the specimen's material ({r:.2} of its contrast, under \
-                     {DENSE_SHARE}): mounting material"
-                )
-            })
-        });
-        if mount[l].is_none() {
+    // Each object judged on its own (side by side), then taken in order.
+    let judged: Vec<(usize, Option<String>)> = view
+        .stats
+        .par_iter()
+        .enumerate()
+        .filter(|&(l, s)| l as u32 != spec_label && s.voxels >= MIN_SPECIMEN_VOXELS)
+        .map(|(l, _)| {
+            let region = select(&view.labels, l as u32);
+            // Another specimen is of the same dense material; a lump of
+            // mounting material that reaches this level is much lighter.
+            let why = mount_like(values, dims, &region, view, l as u32, background).or_else(|| {
+                let m = material_of(values, dims, &region)?;
+                too_light(&m, own.as_ref()?, background).map(|r| {
+                    format!(
+                        "lighter than the specimen's material ({r:.2} of its contrast, under \
+                         {DENSE_SHARE}): mounting material"
+                    )
+                })
+            });
+            (l, why)
+        })
+        .collect();
+    for (l, why) in judged {
+        if why.is_none() {
             candidates.push(l as u32);
+        }
+        if let Some(m) = mount.get_mut(l) {
+            *m = why;
         }
     }
     let largest = candidates
@@ -700,9 +710,18 @@ fn cut_at_necks(
     warnings: &mut Vec<String>,
 ) -> Vec<Vec<bool>> {
     let mut cores: Vec<Vec<bool>> = Vec::new();
-    for &l in kept_labels {
-        let core = select(&view.labels, l);
-        match separate_at_necks(&core, dims) {
+    // Each object's necks looked for on their own (side by side), then
+    // taken in order.
+    let separated: Vec<(u32, Vec<bool>, Separation)> = kept_labels
+        .par_iter()
+        .map(|&l| {
+            let core = select(&view.labels, l);
+            let separation = separate_at_necks(&core, dims);
+            (l, core, separation)
+        })
+        .collect();
+    for (l, core, separation) in separated {
+        match separation {
             Separation::Cut { parts, radius } => {
                 warnings.push(format!(
                     "an object of {} samples was cut at a neck {} samples wide into {} \
