@@ -21,11 +21,8 @@
 //!   ([`Candidate::merit`]); it is accepted as a tooth's margin only when
 //!   the cut is a real crease (mean turn at least [`MIN_CREASE_DEGREES`],
 //!   along crease edges for most of its length, [`MIN_CREASE_COVERAGE`]),
-//!   leaves a crown that is not flat and a root part that tapers and
-//!   reaches farther from the cut than the crown does (the roots hang
-//!   below the margin, [`root_reach`]: a loop round one root leaves the
-//!   other with the crown), and the crown is a disk: a sphere, an
-//!   ellipsoid or a box is refused.
+//!   leaves a crown that is not flat and a root part that tapers, and the
+//!   crown is a disk: a sphere, an ellipsoid or a box is refused.
 //!
 //! Handles or tunnels below the margin go with the roots and are
 //! reported; handles in the crown are an error.
@@ -39,10 +36,7 @@ mod geometry;
 mod neck;
 
 use crate::mesh::{bbox_diagonal, boundary_loops, euler_characteristic, norm, sub, Mesh};
-use geometry::{
-    area_weighted_axes, directed_hausdorff, signed_volume6, taubin_smoothed, Cylinder,
-    SurfaceGeometry,
-};
+use geometry::{area_weighted_axes, signed_volume6, taubin_smoothed, Cylinder, SurfaceGeometry};
 use neck::{neck_heights, NeckHeights};
 use rayon::prelude::*;
 
@@ -126,11 +120,6 @@ pub struct CrownReport {
     /// closes them.
     #[serde(default)]
     pub revoxelized: bool,
-    /// How far the part removed reaches from the cut, over how far the
-    /// crown does ([`root_reach`]; 0 in reports written before it was
-    /// measured).
-    #[serde(default)]
-    pub root_reach: f64,
 }
 
 /// Why no crown could be cut from a closed surface.
@@ -197,14 +186,6 @@ pub enum CrownRefusal {
     /// The other side does not narrow towards an apex.
     #[error("the part below the best margin line does not taper to a root apex")]
     NoTaper,
-    /// The part cut off does not reach far enough from the cut (see
-    /// [`MIN_ROOT_REACH`]).
-    #[error("the part below the best margin line reaches only {ratio:.2} times as far from it as the part above: the line runs round one root or slants across the neck, not round the crown")]
-    ShortRoots {
-        /// How far the part below reaches from the cut, over how far
-        /// the part above does.
-        ratio: f64,
-    },
     /// The cut dips below [`MIN_CUT_HEIGHT`].
     #[error("the best margin line found dips to {:.0} % of the tooth's length above the apex, where no cervical margin lies: the tooth's axis was not found", 100.0 * .height)]
     TooLow {
@@ -729,7 +710,6 @@ fn judge(
     if !(apex_radius < 0.75 * cut_radius) {
         return Err(CrownRefusal::NoTaper);
     }
-    let reach = root_reach(mesh, inside, &cut_points);
     let folding_ratio =
         folding(mesh, geo, inside, true) / folding(mesh, geo, inside, false).max(f64::MIN_POSITIVE);
     let scale = |z: f64| (z - zmin) / (zmax - zmin);
@@ -758,41 +738,7 @@ fn judge(
         // Set by the caller, which knows the neck it followed.
         neck_bulge: 0.0,
         revoxelized: false,
-        root_reach: reach,
     })
-}
-
-/// The least [`root_reach`] of a margin: a tooth's roots are longer than
-/// its crown is tall, so below the margin the surface reaches farther from
-/// it than above. A loop round one root, or one slanting across the neck,
-/// leaves a root or a side of one with the crown. (On the two-rooted
-/// 300-voxel exports of the 116 PNAS teeth, before this test, the cuts
-/// chosen that were such loops or slants measured 0.68–1.03, every other
-/// cut 1.39 or more.)
-const MIN_ROOT_REACH: f64 = 1.2;
-
-/// How far the part of the surface off the crown (`inside` false) reaches
-/// from the cut through `cut_points`, over how far the crown reaches: the
-/// ratio of their directed Hausdorff distances to the cut.
-fn root_reach(mesh: &Mesh, inside: &[bool], cut_points: &[[f64; 3]]) -> f64 {
-    const CROWN: u8 = 1;
-    const REST: u8 = 2;
-    let mut sides = vec![0u8; mesh.vertices.len()];
-    for (face, &k) in mesh.faces.iter().zip(inside) {
-        for &v in face {
-            sides[v as usize] |= if k { CROWN } else { REST };
-        }
-    }
-    let side = |which: u8| -> Vec<[f64; 3]> {
-        sides
-            .iter()
-            .zip(&mesh.vertices)
-            .filter(|(&s, _)| s == which)
-            .map(|(_, &p)| p)
-            .collect()
-    };
-    let crown = directed_hausdorff(&side(CROWN), cut_points);
-    directed_hausdorff(&side(REST), cut_points) / crown.max(f64::MIN_POSITIVE)
 }
 
 /// How the surface turns along a cut, and where the cut runs.
@@ -1071,26 +1017,18 @@ fn margin_candidate(
         _ => first,
     };
     // A line that dips where no margin lies ran round a wrong axis or the
-    // roots, and one that leaves more with the crown than below it ran
-    // round one root: neither can be the margin, whatever its merit. (The
-    // side the crown is on was chosen first: a loop refused is not taken
-    // the other way up.)
+    // roots: it cannot be the margin, whatever its merit.
     let candidate = crown_of_loop(smoothed, geo, &found, neck.is_some()).and_then(|c| {
-        let reason = if c.report.cut_height_min < MIN_CUT_HEIGHT {
-            CrownRefusal::TooLow {
-                height: c.report.cut_height_min,
-            }
-        } else if !(c.report.root_reach >= MIN_ROOT_REACH) {
-            CrownRefusal::ShortRoots {
-                ratio: c.report.root_reach,
-            }
+        if c.report.cut_height_min < MIN_CUT_HEIGHT {
+            Err(Rejection {
+                score: found.score,
+                reason: CrownRefusal::TooLow {
+                    height: c.report.cut_height_min,
+                },
+            })
         } else {
-            return Ok(c);
-        };
-        Err(Rejection {
-            score: found.score,
-            reason,
-        })
+            Ok(c)
+        }
     });
     match candidate {
         Ok(mut c) => {
@@ -1272,45 +1210,6 @@ mod tests {
     }
 
     #[test]
-    fn a_caps_rest_reaches_farther_from_the_cut_than_the_cap() {
-        use crate::testing::synth as g;
-        // The unit sphere cut at z = 0.6: the rest reaches from the ring
-        // (radius 0.8) to the far pole, √(0.8² + 1.6²) ≈ 1.79; the cap
-        // to its own pole, √(0.8² + 0.4²) ≈ 0.89.
-        let sphere = g::closed_sphere(2000);
-        let height = |f: &[u32; 3]| {
-            f.iter()
-                .map(|&v| sphere.vertices[v as usize][2])
-                .sum::<f64>()
-                / 3.0
-        };
-        let cap: Vec<bool> = sphere.faces.iter().map(|f| height(f) > 0.6).collect();
-        let mut on_cut = vec![(false, false); sphere.vertices.len()];
-        for (f, &k) in sphere.faces.iter().zip(&cap) {
-            for &v in f {
-                if k {
-                    on_cut[v as usize].0 = true;
-                } else {
-                    on_cut[v as usize].1 = true;
-                }
-            }
-        }
-        let cut: Vec<[f64; 3]> = on_cut
-            .iter()
-            .zip(&sphere.vertices)
-            .filter(|(&(a, b), _)| a && b)
-            .map(|(_, &p)| p)
-            .collect();
-        let reach = root_reach(&sphere, &cap, &cut);
-        assert!((1.8..2.2).contains(&reach), "{reach}");
-        // Kept the other way round, the "crown" is the longer part.
-        let rest: Vec<bool> = cap.iter().map(|&k| !k).collect();
-        let reach = root_reach(&sphere, &rest, &cut);
-        assert!((0.45..0.56).contains(&reach), "{reach}");
-        assert!(reach < MIN_ROOT_REACH);
-    }
-
-    #[test]
     fn refusals_print_what_they_measured() {
         let said = |r: CrownRefusal| CrownError::NoCrown(r).to_string();
         assert_eq!(
@@ -1324,10 +1223,6 @@ mod tests {
         assert_eq!(
             CrownRefusal::CrownShare { share: 0.956 }.to_string(),
             "the best margin line leaves 96 % of the surface as crown"
-        );
-        assert_eq!(
-            CrownRefusal::ShortRoots { ratio: 0.684 }.to_string(),
-            "the part below the best margin line reaches only 0.68 times as far from it as the part above: the line runs round one root or slants across the neck, not round the crown"
         );
         assert!(said(CrownRefusal::TooLow { height: 0.12 }).starts_with(
             "no recognisable tooth crown on this closed surface (the best margin line found dips to 12 % of the tooth's length above the apex,"
