@@ -996,15 +996,15 @@ fn fill_specimen_cavities(
     report: &mut SegmentReport,
 ) -> Vec<Vec<bool>> {
     // Each specimen's cavities on their own (a batch's side by side).
-    let filled: Vec<(Vec<bool>, usize, usize)> = specimens
+    let per_specimen: Vec<(Vec<bool>, usize, usize)> = specimens
         .into_par_iter()
         .map(|s| fill_cavities(s, dims))
         .collect();
-    filled
+    per_specimen
         .into_iter()
-        .map(|(mask, cavities, filled)| {
+        .map(|(mask, cavities, voxels)| {
             report.filled_cavities += cavities;
-            report.filled_voxels += filled;
+            report.filled_voxels += voxels;
             mask
         })
         .collect()
