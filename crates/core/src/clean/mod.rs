@@ -296,8 +296,36 @@ fn make_disk_of(
         // whole margin search). The same solid without them is searched
         // first; the surface as it is only when that fails.
         if !revoxelized && euler_characteristic(&closed) < 2 {
+            let before = report.clone();
             if let Some(disk) = revoxelized_disk(&closed, report, crown) {
-                return Ok(disk);
+                if !report.crown.as_ref().is_some_and(crown::roots_short) {
+                    return Ok(disk);
+                }
+                // The solid's best margin leaves a root with the crown:
+                // the surface as it is (its handles go with the roots)
+                // may be cut where the roots hang below. It is taken only
+                // when that is clearly so.
+                let mut as_is = before;
+                let better = cut_whole_tooth(&closed, filled, &mut as_is)
+                    .ok()
+                    .filter(|_| match (&as_is.crown, &report.crown) {
+                        (Some(a), Some(r)) => crown::roots_clearly_longer(a, r),
+                        _ => false,
+                    })
+                    .and_then(|(m8, alternatives)| {
+                        let disk = outward_disk(&m8, &mut as_is).ok()?;
+                        Some((disk, alternatives))
+                    });
+                let Some((disk_as_is, alternatives)) = better else {
+                    return Ok(disk);
+                };
+                tracing::debug!("the surface as it is leaves the roots below its margin");
+                *report = as_is;
+                let alternatives = alternatives
+                    .par_iter()
+                    .filter_map(|a| outward_disk(a, &mut CleanReport::default()).ok())
+                    .collect();
+                return Ok((disk_as_is, alternatives));
             }
         }
         cut_whole_tooth(&closed, filled, report)?

@@ -179,3 +179,36 @@ fn taubin_step(points: &[[f64; 3]], p: [f64; 3], near: &[u32], factor: f64) -> [
     });
     [0, 1, 2].map(|d| p[d] + factor * (mean[d] / n - p[d]))
 }
+
+/// The directed Hausdorff distance from `points` to `from`: the farthest
+/// any of `points` lies from its nearest point of `from` (0 when either is
+/// empty).
+pub(super) fn directed_hausdorff(points: &[[f64; 3]], from: &[[f64; 3]]) -> f64 {
+    use kiddo::immutable::float::kdtree::ImmutableKdTree;
+    use kiddo::SquaredEuclidean;
+    if from.is_empty() {
+        return 0.0;
+    }
+    let tree: ImmutableKdTree<f64, u32, 3, 32> = ImmutableKdTree::new_from_slice(from);
+    points
+        .par_iter()
+        .map(|p| tree.nearest_one::<SquaredEuclidean>(p).distance)
+        .reduce(|| 0.0, f64::max)
+        .sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn directed_hausdorff_is_the_farthest_nearest_distance_one_way() {
+        let points = [[0.0, 0.0, 0.0], [3.0, 4.0, 0.0], [1.0, 0.0, 0.0]];
+        let from = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]];
+        // (3, 4, 0) is √(2² + 4²) from (1, 0, 0), its nearest.
+        assert!((directed_hausdorff(&points, &from) - 20f64.sqrt()).abs() < 1e-12);
+        // The other way every point of `from` is in `points`.
+        assert_eq!(directed_hausdorff(&from, &points), 0.0);
+        assert_eq!(directed_hausdorff(&points, &[]), 0.0);
+    }
+}
