@@ -294,7 +294,8 @@ fn make_disk_of(
         // one does not cut the surface in two, and a crown that keeps one
         // is no disk (so it went on every such export measured, after a
         // whole margin search). The same solid without them is searched
-        // first; the surface as it is only when that fails.
+        // first; the surface as it is only when that fails, or when the
+        // solid's margin may leave a root with the crown.
         if !revoxelized && euler_characteristic(&closed) < 2 {
             let before = report.clone();
             if let Some(disk) = revoxelized_disk(&closed, report, crown) {
@@ -313,27 +314,32 @@ fn make_disk_of(
                         _ => false,
                     })
                     .and_then(|(m8, alternatives)| {
-                        let disk = outward_disk(&m8, &mut as_is).ok()?;
-                        Some((disk, alternatives))
+                        outward_disks(&m8, &alternatives, &mut as_is).ok()
                     });
-                let Some((disk_as_is, alternatives)) = better else {
-                    return Ok(disk);
-                };
-                tracing::debug!("the surface as it is leaves the roots below its margin");
-                *report = as_is;
-                let alternatives = alternatives
-                    .par_iter()
-                    .filter_map(|a| outward_disk(a, &mut CleanReport::default()).ok())
-                    .collect();
-                return Ok((disk_as_is, alternatives));
+                if let Some(disks) = better {
+                    tracing::debug!("the surface as it is leaves the roots below its margin");
+                    *report = as_is;
+                    return Ok(disks);
+                }
+                return Ok(disk);
             }
         }
         cut_whole_tooth(&closed, filled, report)?
     };
+    outward_disks(&m8, &alternatives, report)
+}
+
+/// [`outward_disk`] of `m8`, and of each of the other crowns
+/// `alternatives` that can be made one.
+fn outward_disks(
+    m8: &Mesh,
+    alternatives: &[Mesh],
+    report: &mut CleanReport,
+) -> Result<Disks, CleanError> {
     // The other crowns are made disks beside the chosen one: on a whole
     // tooth this step is single-threaded, and a second core is free.
     let (disk, alternatives) = rayon::join(
-        || outward_disk(&m8, report),
+        || outward_disk(m8, report),
         || {
             alternatives
                 .par_iter()
