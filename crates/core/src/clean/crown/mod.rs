@@ -1191,7 +1191,8 @@ pub(super) fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
     // Only a surface on which no search found a crown is searched again,
     // nearer the axis: one with any keeps the choice among them as it was,
     // and one refused again is told why the first searches refused it.
-    if candidates.is_empty() {
+    let searched_near = candidates.is_empty();
+    if searched_near {
         tracing::debug!("no crown about any axis: searched again nearer the axis");
         let (wide, _) = search_all(Clearance::Quarter);
         if !wide.is_empty() {
@@ -1203,8 +1204,9 @@ pub(super) fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
     // A best margin that may leave a root with the crown was maybe found
     // about an axis the half clearance held too far out (measured: on the
     // two-rooted export of h08, half found only a slant reaching 0.94,
-    // a quarter the margin reaching 1.86).
-    if ranked.first().is_some_and(|b| roots_short(&b.report)) {
+    // a quarter the margin reaching 1.86). Candidates found nearer the
+    // axis already would only be found again.
+    if !searched_near && ranked.first().is_some_and(|b| roots_short(&b.report)) {
         let (near, _) = search_all(Clearance::Quarter);
         let near = roots_hanging_below_first(ranked_candidates(near));
         if near
