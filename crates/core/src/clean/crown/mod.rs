@@ -45,7 +45,7 @@ mod cycle;
 mod geometry;
 mod neck;
 
-use crate::mesh::{bbox_diagonal, boundary_loops, euler_characteristic, norm, sub, Mesh};
+use crate::mesh::{bbox_diagonal, boundary_loops, cross, euler_characteristic, norm, sub, Mesh};
 use geometry::{
     area_weighted_axes, directed_hausdorff, signed_volume6, taubin_smoothed, Cylinder,
     SurfaceGeometry,
@@ -1038,6 +1038,55 @@ pub(super) fn staircase_smoothed(mesh: &Mesh) -> Mesh {
     )
 }
 
+/// How far from the longest principal axis the axes searched when every
+/// margin found may leave a root with the crown are tilted.
+const TILT_DEGREES: f64 = 25.0;
+
+/// `ranked`, led by the candidates `found` by a further search (ranked
+/// alike) when the best of those leaves the roots clearly further below
+/// it ([`roots_clearly_longer`]) than `ranked`'s best; `how` says where
+/// they were searched, for the log.
+fn first_if_roots_clearly_longer(
+    found: Vec<Candidate>,
+    ranked: Vec<Candidate>,
+    how: &str,
+) -> Vec<Candidate> {
+    let found = roots_hanging_below_first(ranked_candidates(found));
+    if found
+        .first()
+        .zip(ranked.first())
+        .is_some_and(|(f, b)| roots_clearly_longer(&f.report, &b.report))
+    {
+        tracing::debug!(
+            searched = how,
+            "a margin found further leaves the roots below it"
+        );
+        found.into_iter().chain(ranked).collect()
+    } else {
+        ranked
+    }
+}
+
+/// Six unit axes, each `degrees` from the unit vector `axis`, evenly round
+/// it.
+fn tilted_axes(axis: [f64; 3], degrees: f64) -> Vec<[f64; 3]> {
+    let helper = if axis[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let u = cross(axis, helper);
+    let u = u.map(|x| x / norm(u));
+    let v = cross(axis, u);
+    let (sin, cos) = degrees.to_radians().sin_cos();
+    (0..6)
+        .map(|k| {
+            let (s, c) = (k as f64 * std::f64::consts::FRAC_PI_3).sin_cos();
+            [0, 1, 2].map(|d| cos * axis[d] + sin * (c * u[d] + s * v[d]))
+        })
+        .collect()
+}
+
 /// The margin searches about each of `axes` through `centre`: one guided
 /// by the neck seen on the outline from each end of the axis that shows
 /// one (the crown may be at either; the loop still follows a crease near
@@ -1169,7 +1218,9 @@ pub(super) fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
     // another would give them.
     let span = tracing::Span::current();
     let searches = margin_searches(&smoothed, centre, axes);
-    let search_all = |clearance: Clearance| -> (Vec<Candidate>, Vec<Rejection>) {
+    let search = |searches: &[([f64; 3], Option<NeckHeights>)],
+                  clearance: Clearance|
+     -> (Vec<Candidate>, Vec<Rejection>) {
         let outcomes: Vec<Result<Candidate, Rejection>> = searches
             .par_iter()
             .map(|(axis, neck)| {
@@ -1187,14 +1238,14 @@ pub(super) fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
         }
         (candidates, reasons)
     };
-    let (mut candidates, mut reasons) = search_all(Clearance::Half);
+    let (mut candidates, mut reasons) = search(&searches, Clearance::Half);
     // Only a surface on which no search found a crown is searched again,
     // nearer the axis: one with any keeps the choice among them as it was,
     // and one refused again is told why the first searches refused it.
     let searched_near = candidates.is_empty();
     if searched_near {
         tracing::debug!("no crown about any axis: searched again nearer the axis");
-        let (wide, _) = search_all(Clearance::Quarter);
+        let (wide, _) = search(&searches, Clearance::Quarter);
         if !wide.is_empty() {
             candidates = wide;
             reasons.clear();
@@ -1207,16 +1258,20 @@ pub(super) fn extract_crown(mesh: &Mesh) -> Result<ExtractedCrown, CrownError> {
     // a quarter the margin reaching 1.86). Candidates found nearer the
     // axis already would only be found again.
     if !searched_near && ranked.first().is_some_and(|b| roots_short(&b.report)) {
-        let (near, _) = search_all(Clearance::Quarter);
-        let near = roots_hanging_below_first(ranked_candidates(near));
-        if near
-            .first()
-            .zip(ranked.first())
-            .is_some_and(|(n, b)| roots_clearly_longer(&n.report, &b.report))
-        {
-            tracing::debug!("a margin nearer the axis leaves the roots below it");
-            ranked = near.into_iter().chain(ranked).collect();
-        }
+        let (near, _) = search(&searches, Clearance::Quarter);
+        ranked = first_if_roots_clearly_longer(near, ranked, "nearer the axis");
+    }
+    // Still short: every axis searched may run through a root. On a
+    // two-rooted tooth about as wide as it is long the principal axes are
+    // nearly equal in spread, and the longest may lie well off the
+    // tooth's (measured: j18, spreads 0.0035, 0.0045 and 0.0056, its axis
+    // 25° from the longest; its margin was found about the axes tilted
+    // that far from it, and about no principal axis).
+    if ranked.first().is_some_and(|b| roots_short(&b.report)) {
+        let tilted = margin_searches(&smoothed, centre, tilted_axes(axes[0], TILT_DEGREES));
+        let (found, _) = search(&tilted, Clearance::Half);
+        ranked =
+            first_if_roots_clearly_longer(found, ranked, "about an axis tilted off the longest");
     }
     let mut ranked = ranked.into_iter();
     let Some(best) = ranked.next() else {
@@ -1279,6 +1334,26 @@ mod tests {
         // Of equal merits the last found comes first, as the single best
         // was chosen before there were alternatives.
         assert_eq!(merits, [(0.8, 2), (0.8, 1), (0.5, 1)]);
+    }
+
+    #[test]
+    fn tilted_axes_are_unit_vectors_at_the_angle_evenly_round_the_axis() {
+        let axis = [0.6, 0.0, 0.8];
+        let tilted = tilted_axes(axis, 25.0);
+        assert_eq!(tilted.len(), 6);
+        for (k, t) in tilted.iter().enumerate() {
+            assert!((norm(*t) - 1.0).abs() < 1e-12);
+            let angle = crate::mesh::dot(*t, axis).acos().to_degrees();
+            assert!((angle - 25.0).abs() < 1e-9, "{angle}");
+            // Neighbours round the axis are as far apart as any two.
+            let next = tilted[(k + 1) % 6];
+            let apart = crate::mesh::dot(*t, next).acos().to_degrees();
+            let first_two = crate::mesh::dot(tilted[0], tilted[1]).acos().to_degrees();
+            assert!((apart - first_two).abs() < 1e-9);
+        }
+        // Opposite tilts lie 50° apart, through the axis.
+        let across = crate::mesh::dot(tilted[0], tilted[3]).acos().to_degrees();
+        assert!((across - 50.0).abs() < 1e-9, "{across}");
     }
 
     #[test]
