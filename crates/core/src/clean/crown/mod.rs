@@ -1345,7 +1345,7 @@ mod tests {
             assert!((norm(*t) - 1.0).abs() < 1e-12);
             let angle = crate::mesh::dot(*t, axis).acos().to_degrees();
             assert!((angle - 25.0).abs() < 1e-9, "{angle}");
-            // Neighbours round the axis are as far apart as any two.
+            // Each two neighbours round the axis lie as far apart.
             let next = tilted[(k + 1) % 6];
             let apart = crate::mesh::dot(*t, next).acos().to_degrees();
             let first_two = crate::mesh::dot(tilted[0], tilted[1]).acos().to_degrees();
