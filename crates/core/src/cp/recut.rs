@@ -10,7 +10,7 @@
 
 use super::comparison::Comparison;
 use super::prepared::Prepared;
-use crate::mesh::{cross, dot, longest_boundary_loop, norm, sub, unit, Mesh};
+use crate::mesh::{cross, dot, longest_boundary_loop, norm, perpendicular_frame, sub, unit, Mesh};
 use std::f64::consts::PI;
 
 /// Polar bins of a crop line: fine enough for the line's rise and fall
@@ -51,14 +51,8 @@ impl RimProfile {
         if dot(sub(mean(&mesh.vertices)?, centre), axis) < 0.0 {
             axis = axis.map(|a| -a);
         }
-        let helper = if axis[0].abs() < 0.9 {
-            [1.0, 0.0, 0.0]
-        } else {
-            [0.0, 1.0, 0.0]
-        };
-        // Never parallel to the helper, so never zero.
-        let x = unit(cross(axis, helper));
-        let rows = [x, cross(axis, x), axis];
+        let [x, y] = perpendicular_frame(axis);
+        let rows = [x, y, axis];
         let mut profile = RimProfile {
             centre,
             rows,

@@ -131,6 +131,20 @@ pub fn unit(a: [f64; 3]) -> [f64; 3] {
     }
 }
 
+/// Two unit vectors that make a right-handed orthonormal frame with the
+/// unit vector `axis` (`[u, v]`, `u × v = axis`); the same frame each
+/// time for the same axis.
+pub fn perpendicular_frame(axis: [f64; 3]) -> [[f64; 3]; 2] {
+    // Far from parallel to the axis, so the cross product is never zero.
+    let helper = if axis[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let u = unit(cross(axis, helper));
+    [u, cross(axis, u)]
+}
+
 /// Unit vertex normals: the sum of the (area-weighted) normals of the
 /// faces around each vertex; zero for a vertex in no face. Faces with an
 /// index out of range are skipped.

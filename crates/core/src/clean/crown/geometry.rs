@@ -2,7 +2,7 @@
 //! centroids, the signed turn across every interior edge, area-weighted
 //! principal axes and cylindrical coordinates about an axis.
 
-use crate::mesh::{cross, dot, norm, sub, triangle_normal2, EdgeMap, Mesh};
+use crate::mesh::{cross, dot, norm, perpendicular_frame, sub, triangle_normal2, EdgeMap, Mesh};
 use rayon::prelude::*;
 
 /// Per-face and per-edge geometry of a closed, consistently oriented mesh.
@@ -109,20 +109,8 @@ pub(super) struct Cylinder {
 
 impl Cylinder {
     pub(super) fn new(centre: [f64; 3], axis: [f64; 3]) -> Self {
-        let helper = if axis[0].abs() < 0.9 {
-            [1.0, 0.0, 0.0]
-        } else {
-            [0.0, 1.0, 0.0]
-        };
-        let u = cross(axis, helper);
-        let un = norm(u);
-        let u = u.map(|x| x / un);
-        Self {
-            centre,
-            axis,
-            u,
-            v: cross(axis, u),
-        }
+        let [u, v] = perpendicular_frame(axis);
+        Self { centre, axis, u, v }
     }
 
     pub(super) fn axis(&self) -> [f64; 3] {

@@ -45,7 +45,9 @@ mod cycle;
 mod geometry;
 mod neck;
 
-use crate::mesh::{bbox_diagonal, boundary_loops, cross, euler_characteristic, norm, sub, Mesh};
+use crate::mesh::{
+    bbox_diagonal, boundary_loops, euler_characteristic, norm, perpendicular_frame, sub, Mesh,
+};
 use geometry::{
     area_weighted_axes, directed_hausdorff, signed_volume6, taubin_smoothed, Cylinder,
     SurfaceGeometry,
@@ -1070,14 +1072,7 @@ fn first_if_roots_clearly_longer(
 /// Six unit axes, each `degrees` from the unit vector `axis`, evenly round
 /// it.
 fn tilted_axes(axis: [f64; 3], degrees: f64) -> Vec<[f64; 3]> {
-    let helper = if axis[0].abs() < 0.9 {
-        [1.0, 0.0, 0.0]
-    } else {
-        [0.0, 1.0, 0.0]
-    };
-    let u = cross(axis, helper);
-    let u = u.map(|x| x / norm(u));
-    let v = cross(axis, u);
+    let [u, v] = perpendicular_frame(axis);
     let (sin, cos) = degrees.to_radians().sin_cos();
     (0..6)
         .map(|k| {
